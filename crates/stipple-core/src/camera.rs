@@ -1,0 +1,356 @@
+//! The camera convention shared by every backend (see `DESIGN.md`, "Conventions").
+//!
+//! * World right-handed; view space looks down −Z; aspect = W/H; `fov` is vertical, in degrees.
+//! * Pixel (i, j): column i from the left, row j from the top; its centre ray passes through
+//!   NDC x = 2(i+0.5)/W − 1, y = 1 − 2(j+0.5)/H.
+//! * Depth = view-axis depth dot(p − eye, forward), positive in front.
+
+use crate::cloud::Bounds;
+use glam::{DMat4, DVec3, DVec4};
+use serde::Serialize;
+
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "lowercase", tag = "kind")]
+pub enum Projection {
+    /// Vertical field of view in degrees.
+    Perspective { fov_deg: f64 },
+    /// Height of the view volume in world units.
+    Orthographic { height: f64 },
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub eye: DVec3,
+    pub target: DVec3,
+    pub up: DVec3,
+    pub projection: Projection,
+    pub width: u32,
+    pub height: u32,
+    pub near: f64,
+    pub far: f64,
+}
+
+/// Orthonormal camera basis: `forward` points from the eye towards the target.
+#[derive(Clone, Copy, Debug)]
+pub struct Basis {
+    pub right: DVec3,
+    pub up: DVec3,
+    pub forward: DVec3,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum CameraError {
+    #[error("image size {0}x{1} is invalid: both sides must be between 1 and 16384")]
+    BadSize(u32, u32),
+    #[error("eye and target coincide")]
+    EyeIsTarget,
+    #[error("the up vector is parallel to the viewing direction")]
+    UpParallel,
+    #[error("field of view {0}° must lie strictly between 0 and 180")]
+    BadFov(f64),
+    #[error("orthographic height {0} must be positive")]
+    BadOrtho(f64),
+    #[error("a camera value is not finite")]
+    NonFinite,
+}
+
+pub const MAX_SIDE: u32 = 16384;
+
+impl Camera {
+    pub fn aspect(&self) -> f64 {
+        self.width as f64 / self.height as f64
+    }
+
+    pub fn validate(&self) -> Result<(), CameraError> {
+        if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
+            return Err(CameraError::BadSize(self.width, self.height));
+        }
+        if !(self.eye.is_finite() && self.target.is_finite() && self.up.is_finite()) {
+            return Err(CameraError::NonFinite);
+        }
+        if (self.target - self.eye).length() <= 1e-12 * (1.0 + self.eye.length()) {
+            return Err(CameraError::EyeIsTarget);
+        }
+        let f = (self.target - self.eye).normalize();
+        if self.up.length() == 0.0 || f.cross(self.up.normalize()).length() < 1e-9 {
+            return Err(CameraError::UpParallel);
+        }
+        match self.projection {
+            Projection::Perspective { fov_deg } if !(fov_deg > 0.0 && fov_deg < 180.0) => {
+                Err(CameraError::BadFov(fov_deg))
+            }
+            Projection::Orthographic { height } if !(height > 0.0 && height.is_finite()) => {
+                Err(CameraError::BadOrtho(height))
+            }
+            _ => Ok(()),
+        }
+    }
+
+    pub fn basis(&self) -> Basis {
+        let forward = (self.target - self.eye).normalize();
+        let right = forward.cross(self.up).normalize();
+        let up = right.cross(forward);
+        Basis { right, up, forward }
+    }
+
+    /// A camera that frames world bounds `[lo, hi]`: it looks at their centre from a fixed
+    /// three-quarter direction, far enough for the bounding sphere to fit the narrower field
+    /// of view. The up axis is +Y, or +Z when the bounds are flat in Z (LiDAR tiles).
+    pub fn framing(lo: DVec3, hi: DVec3, width: u32, height: u32, fov_deg: f64) -> Camera {
+        let c = (lo + hi) * 0.5;
+        let e = hi - lo;
+        let z_up = e.z < 0.35 * e.x.min(e.y);
+        let (up, dir) = if z_up {
+            (DVec3::Z, DVec3::new(0.45, -1.0, 0.8).normalize())
+        } else {
+            (DVec3::Y, DVec3::new(0.45, 0.35, 1.0).normalize())
+        };
+        let r = (e.length() * 0.5).max(1e-6);
+        let aspect = width as f64 / height.max(1) as f64;
+        let half_v = (fov_deg.to_radians() * 0.5).min(1.5);
+        let half_h = (half_v.tan() * aspect).atan();
+        let dist = r / half_v.min(half_h).sin() * 1.02;
+        let mut cam = Camera {
+            eye: c + dir * dist,
+            target: c,
+            up,
+            projection: Projection::Perspective { fov_deg },
+            width,
+            height,
+            near: 0.0,
+            far: 0.0,
+        };
+        cam.fit_clip(lo, hi);
+        cam
+    }
+
+    /// Sets near and far from the world bounds so that every point in them is inside the
+    /// view volume's depth range: far = the farthest corner (+1%); near = the nearest corner
+    /// (−1%), never below far·1e-5 (the camera may sit inside the bounds).
+    pub fn fit_clip(&mut self, lo: DVec3, hi: DVec3) {
+        let f = self.basis().forward;
+        let b = Bounds {
+            min: glam::Vec3::ZERO,
+            max: (hi - lo).as_vec3(),
+        };
+        let (mut dmin, mut dmax) = (f64::INFINITY, f64::NEG_INFINITY);
+        for corner in b.corners() {
+            let d = (lo + corner.as_dvec3() - self.eye).dot(f);
+            dmin = dmin.min(d);
+            dmax = dmax.max(d);
+        }
+        let far = (dmax * 1.01).max(1e-6);
+        let near = match self.projection {
+            // An orthographic camera can see behind the eye plane; keep it simple and start
+            // at the nearest corner.
+            Projection::Orthographic { .. } => dmin - 0.01 * (dmax - dmin).abs() - 1e-6,
+            Projection::Perspective { .. } => (dmin * 0.99).max(far * 1e-5),
+        };
+        self.near = near;
+        self.far = far.max(near + 1e-6);
+    }
+
+    /// World → view matrix (right-handed, looking down −Z).
+    pub fn view_matrix(&self) -> DMat4 {
+        let b = self.basis();
+        let e = self.eye;
+        DMat4::from_cols(
+            DVec4::new(b.right.x, b.up.x, -b.forward.x, 0.0),
+            DVec4::new(b.right.y, b.up.y, -b.forward.y, 0.0),
+            DVec4::new(b.right.z, b.up.z, -b.forward.z, 0.0),
+            DVec4::new(-b.right.dot(e), -b.up.dot(e), b.forward.dot(e), 1.0),
+        )
+    }
+
+    /// View → clip matrix, depth mapped to [0, 1] (the wgpu convention).
+    pub fn projection_matrix(&self) -> DMat4 {
+        let (sx, sy) = self.ndc_scale();
+        let (n, f) = (self.near, self.far);
+        match self.projection {
+            Projection::Perspective { .. } => DMat4::from_cols(
+                DVec4::new(sx, 0.0, 0.0, 0.0),
+                DVec4::new(0.0, sy, 0.0, 0.0),
+                DVec4::new(0.0, 0.0, f / (n - f), -1.0),
+                DVec4::new(0.0, 0.0, n * f / (n - f), 0.0),
+            ),
+            Projection::Orthographic { .. } => DMat4::from_cols(
+                DVec4::new(sx, 0.0, 0.0, 0.0),
+                DVec4::new(0.0, sy, 0.0, 0.0),
+                DVec4::new(0.0, 0.0, 1.0 / (n - f), 0.0),
+                DVec4::new(0.0, 0.0, n / (n - f), 1.0),
+            ),
+        }
+    }
+
+    /// NDC scale factors: ndc = (x·sx, y·sy) / z for perspective (z = view depth),
+    /// (x·sx, y·sy) for orthographic.
+    pub fn ndc_scale(&self) -> (f64, f64) {
+        match self.projection {
+            Projection::Perspective { fov_deg } => {
+                let t = (fov_deg.to_radians() * 0.5).tan();
+                (1.0 / (t * self.aspect()), 1.0 / t)
+            }
+            Projection::Orthographic { height } => {
+                (2.0 / (height * self.aspect()), 2.0 / height)
+            }
+        }
+    }
+
+    /// Projects a world point: `(column, row, depth)` in continuous pixel units, or `None`
+    /// behind the eye plane (perspective).
+    pub fn project(&self, p: DVec3) -> Option<(f64, f64, f64)> {
+        let b = self.basis();
+        let v = p - self.eye;
+        let z = v.dot(b.forward);
+        let (sx, sy) = self.ndc_scale();
+        let (nx, ny) = match self.projection {
+            Projection::Perspective { .. } => {
+                if z <= 0.0 {
+                    return None;
+                }
+                (v.dot(b.right) * sx / z, v.dot(b.up) * sy / z)
+            }
+            Projection::Orthographic { .. } => (v.dot(b.right) * sx, v.dot(b.up) * sy),
+        };
+        Some((
+            (nx + 1.0) * 0.5 * self.width as f64,
+            (1.0 - ny) * 0.5 * self.height as f64,
+            z,
+        ))
+    }
+
+    /// The ray through the centre of pixel (i, j): origin and unit direction (world).
+    pub fn pixel_ray(&self, i: u32, j: u32) -> (DVec3, DVec3) {
+        let b = self.basis();
+        let (sx, sy) = self.ndc_scale();
+        let nx = 2.0 * (i as f64 + 0.5) / self.width as f64 - 1.0;
+        let ny = 1.0 - 2.0 * (j as f64 + 0.5) / self.height as f64;
+        match self.projection {
+            Projection::Perspective { .. } => {
+                let d = b.forward + b.right * (nx / sx) + b.up * (ny / sy);
+                (self.eye, d.normalize())
+            }
+            Projection::Orthographic { .. } => {
+                (self.eye + b.right * (nx / sx) + b.up * (ny / sy), b.forward)
+            }
+        }
+    }
+
+    /// The camera as JSON (DESIGN.md): eye, target, up, fov, size, near, far, and the view
+    /// and projection matrices as row-major 4×4 arrays.
+    pub fn to_json(&self) -> String {
+        fn rows(m: DMat4) -> [[f64; 4]; 4] {
+            let t = m.transpose();
+            let r = |v: DVec4| v.to_array();
+            [r(t.x_axis), r(t.y_axis), r(t.z_axis), r(t.w_axis)]
+        }
+        let (fov, ortho) = match self.projection {
+            Projection::Perspective { fov_deg } => (Some(fov_deg), None),
+            Projection::Orthographic { height } => (None, Some(height)),
+        };
+        let v = serde_json::json!({
+            "eye": self.eye.to_array(),
+            "target": self.target.to_array(),
+            "up": self.up.to_array(),
+            "fov": fov,
+            "ortho_height": ortho,
+            "projection_kind": if ortho.is_some() { "orthographic" } else { "perspective" },
+            "size": [self.width, self.height],
+            "near": self.near,
+            "far": self.far,
+            "view": rows(self.view_matrix()),
+            "projection": rows(self.projection_matrix()),
+            "depth": "view-axis distance dot(p - eye, forward); background +inf",
+        });
+        serde_json::to_string_pretty(&v).expect("camera JSON is always serialisable")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cam() -> Camera {
+        Camera {
+            eye: DVec3::new(0.0, 0.0, 5.0),
+            target: DVec3::ZERO,
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_deg: 60.0 },
+            width: 200,
+            height: 100,
+            near: 0.1,
+            far: 10.0,
+        }
+    }
+
+    #[test]
+    fn pixel_centre_rays_project_back_to_pixel_centres() {
+        for c in [
+            cam(),
+            Camera {
+                projection: Projection::Orthographic { height: 3.0 },
+                ..cam()
+            },
+        ] {
+            for (i, j) in [(0, 0), (17, 93), (199, 99), (100, 50)] {
+                let (o, d) = c.pixel_ray(i, j);
+                let (x, y, z) = c.project(o + d * 4.0).unwrap();
+                assert!((x - (i as f64 + 0.5)).abs() < 1e-9 && (y - (j as f64 + 0.5)).abs() < 1e-9);
+                assert!(z > 0.0);
+            }
+        }
+    }
+
+    #[test]
+    fn matrices_agree_with_project() {
+        let c = cam();
+        let p = DVec3::new(0.7, -0.3, 1.2);
+        let clip = c.projection_matrix() * c.view_matrix() * p.extend(1.0);
+        let ndc = clip.truncate() / clip.w;
+        let (x, y, z) = c.project(p).unwrap();
+        assert!(((ndc.x + 1.0) * 0.5 * 200.0 - x).abs() < 1e-9);
+        assert!(((1.0 - ndc.y) * 0.5 * 100.0 - y).abs() < 1e-9);
+        assert!((z - 3.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn framing_sees_every_corner() {
+        let lo = DVec3::new(637_000.0, 850_000.0, 10.0);
+        let hi = DVec3::new(637_800.0, 850_500.0, 60.0);
+        let c = Camera::framing(lo, hi, 640, 480, 45.0);
+        c.validate().unwrap();
+        assert_eq!(c.up, DVec3::Z);
+        for k in 0..8 {
+            let p = DVec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let (x, y, z) = c.project(p).unwrap();
+            assert!((0.0..640.0).contains(&x) && (0.0..480.0).contains(&y), "{x} {y}");
+            assert!(z >= c.near && z <= c.far);
+        }
+    }
+
+    #[test]
+    fn validation_rejects_bad_cameras() {
+        assert!(matches!(Camera { width: 0, ..cam() }.validate(), Err(CameraError::BadSize(..))));
+        assert_eq!(Camera { target: cam().eye, ..cam() }.validate(), Err(CameraError::EyeIsTarget));
+        assert_eq!(Camera { up: DVec3::Z, ..cam() }.validate(), Err(CameraError::UpParallel));
+        assert!(matches!(
+            Camera { projection: Projection::Perspective { fov_deg: 180.0 }, ..cam() }.validate(),
+            Err(CameraError::BadFov(_))
+        ));
+    }
+
+    #[test]
+    fn json_has_the_fixed_fields() {
+        let v: serde_json::Value = serde_json::from_str(&cam().to_json()).unwrap();
+        for k in ["eye", "target", "up", "fov", "size", "near", "far", "view", "projection"] {
+            assert!(v.get(k).is_some(), "missing {k}");
+        }
+        assert_eq!(v["view"].as_array().unwrap().len(), 4);
+        // Row-major: the translation sits in the last column of the rows.
+        assert!((v["view"][2][3].as_f64().unwrap() + 5.0).abs() < 1e-12);
+    }
+}

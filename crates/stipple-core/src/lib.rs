@@ -1,0 +1,10 @@
+//! Core data model of stipple: columnar point clouds, the camera convention shared by every
+//! backend, and the built-in demo scenes.
+
+pub mod camera;
+pub mod cloud;
+pub mod demo;
+pub mod rng;
+
+pub use camera::{Camera, Projection};
+pub use cloud::{Bounds, PointCloud};
