@@ -190,9 +190,7 @@ impl Camera {
                 let t = (fov_deg.to_radians() * 0.5).tan();
                 (1.0 / (t * self.aspect()), 1.0 / t)
             }
-            Projection::Orthographic { height } => {
-                (2.0 / (height * self.aspect()), 2.0 / height)
-            }
+            Projection::Orthographic { height } => (2.0 / (height * self.aspect()), 2.0 / height),
         }
     }
 
@@ -327,18 +325,42 @@ mod tests {
                 if k & 4 == 0 { lo.z } else { hi.z },
             );
             let (x, y, z) = c.project(p).unwrap();
-            assert!((0.0..640.0).contains(&x) && (0.0..480.0).contains(&y), "{x} {y}");
+            assert!(
+                (0.0..640.0).contains(&x) && (0.0..480.0).contains(&y),
+                "{x} {y}"
+            );
             assert!(z >= c.near && z <= c.far);
         }
     }
 
     #[test]
     fn validation_rejects_bad_cameras() {
-        assert!(matches!(Camera { width: 0, ..cam() }.validate(), Err(CameraError::BadSize(..))));
-        assert_eq!(Camera { target: cam().eye, ..cam() }.validate(), Err(CameraError::EyeIsTarget));
-        assert_eq!(Camera { up: DVec3::Z, ..cam() }.validate(), Err(CameraError::UpParallel));
         assert!(matches!(
-            Camera { projection: Projection::Perspective { fov_deg: 180.0 }, ..cam() }.validate(),
+            Camera { width: 0, ..cam() }.validate(),
+            Err(CameraError::BadSize(..))
+        ));
+        assert_eq!(
+            Camera {
+                target: cam().eye,
+                ..cam()
+            }
+            .validate(),
+            Err(CameraError::EyeIsTarget)
+        );
+        assert_eq!(
+            Camera {
+                up: DVec3::Z,
+                ..cam()
+            }
+            .validate(),
+            Err(CameraError::UpParallel)
+        );
+        assert!(matches!(
+            Camera {
+                projection: Projection::Perspective { fov_deg: 180.0 },
+                ..cam()
+            }
+            .validate(),
             Err(CameraError::BadFov(_))
         ));
     }
@@ -346,7 +368,17 @@ mod tests {
     #[test]
     fn json_has_the_fixed_fields() {
         let v: serde_json::Value = serde_json::from_str(&cam().to_json()).unwrap();
-        for k in ["eye", "target", "up", "fov", "size", "near", "far", "view", "projection"] {
+        for k in [
+            "eye",
+            "target",
+            "up",
+            "fov",
+            "size",
+            "near",
+            "far",
+            "view",
+            "projection",
+        ] {
             assert!(v.get(k).is_some(), "missing {k}");
         }
         assert_eq!(v["view"].as_array().unwrap().len(), 4);

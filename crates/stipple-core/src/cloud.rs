@@ -76,7 +76,12 @@ pub enum CloudError {
     #[error("the cloud has no points")]
     Empty,
     #[error("point {index} has a non-finite coordinate ({x}, {y}, {z})")]
-    NonFinite { index: usize, x: f64, y: f64, z: f64 },
+    NonFinite {
+        index: usize,
+        x: f64,
+        y: f64,
+        z: f64,
+    },
     #[error("attribute `{name}` has {len} values for {points} points")]
     LengthMismatch {
         name: &'static str,
@@ -258,12 +263,8 @@ impl PointCloud {
         merge(&mut self.intensity, &other.intensity, n0, n1, 0);
         merge(&mut self.classification, &other.classification, n0, n1, 0);
         merge(&mut self.opacity, &other.opacity, n0, n1, 1.0);
-        self.faces.extend(
-            other
-                .faces
-                .iter()
-                .map(|f| f.map(|v| v + n0 as u32)),
-        );
+        self.faces
+            .extend(other.faces.iter().map(|f| f.map(|v| v + n0 as u32)));
     }
 
     /// Estimates the typical distance between neighbouring points (the median nearest-neighbour
@@ -325,7 +326,8 @@ fn spacing_of(pts: &[Vec3]) -> f32 {
 fn median_nn(pts: &[Vec3], min: Vec3, cell: f32, qstride: usize) -> Option<f32> {
     use rayon::prelude::*;
     const LIM: i64 = 1 << 20;
-    let key_of = |c: [i64; 3]| -> u64 { ((c[0] as u64) << 42) | ((c[1] as u64) << 21) | (c[2] as u64) };
+    let key_of =
+        |c: [i64; 3]| -> u64 { ((c[0] as u64) << 42) | ((c[1] as u64) << 21) | (c[2] as u64) };
     let cell_of = |p: Vec3| -> [i64; 3] {
         let c = ((p - min) / cell).floor();
         [
@@ -425,13 +427,22 @@ mod tests {
     fn validate_reports_problems() {
         assert_eq!(PointCloud::default().validate(), Err(CloudError::Empty));
         let mut c = PointCloud::from_positions(vec![Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0)]);
-        assert!(matches!(c.validate(), Err(CloudError::NonFinite { index: 1, .. })));
+        assert!(matches!(
+            c.validate(),
+            Err(CloudError::NonFinite { index: 1, .. })
+        ));
         c.positions[1] = Vec3::ONE;
         c.colors = Some(vec![[0; 3]]);
-        assert!(matches!(c.validate(), Err(CloudError::LengthMismatch { name: "colors", .. })));
+        assert!(matches!(
+            c.validate(),
+            Err(CloudError::LengthMismatch { name: "colors", .. })
+        ));
         c.colors = None;
         c.faces.push([0, 1, 2]);
-        assert!(matches!(c.validate(), Err(CloudError::BadFace { vertex: 2, .. })));
+        assert!(matches!(
+            c.validate(),
+            Err(CloudError::BadFace { vertex: 2, .. })
+        ));
     }
 
     #[test]
@@ -442,7 +453,10 @@ mod tests {
         a.append(&b);
         assert_eq!(a.len(), 2);
         assert!((a.world(1).x - 20.0).abs() < 1e-6);
-        assert_eq!(a.colors.as_ref().unwrap(), &vec![[255, 255, 255], [1, 2, 3]]);
+        assert_eq!(
+            a.colors.as_ref().unwrap(),
+            &vec![[255, 255, 255], [1, 2, 3]]
+        );
         a.validate().unwrap();
         b.append(&a.clone());
         assert_eq!(b.len(), 3);

@@ -95,7 +95,11 @@ pub fn torus_point(rng: &mut Rng, major: f32, minor: f32) -> (Vec3, Vec3) {
             continue;
         }
         let phi = TAU * rng.f32();
-        let n = Vec3::new(theta.cos() * phi.cos(), theta.sin(), theta.cos() * phi.sin());
+        let n = Vec3::new(
+            theta.cos() * phi.cos(),
+            theta.sin(),
+            theta.cos() * phi.sin(),
+        );
         let ring = Vec3::new(phi.cos(), 0.0, phi.sin()) * major;
         return (ring + n * minor, n);
     }
@@ -161,22 +165,39 @@ pub fn generate(scene: DemoScene, n: usize, seed: u64) -> PointCloud {
                 6.0 * 0.8 * 0.8,
             ];
             let total: f32 = areas.iter().sum();
-            let counts: Vec<usize> = areas.iter().map(|a| (n as f32 * a / total) as usize).collect();
+            let counts: Vec<usize> = areas
+                .iter()
+                .map(|a| (n as f32 * a / total) as usize)
+                .collect();
             for _ in 0..counts[0] {
                 let p = Vec3::new(4.0 * rng.f32() - 2.0, 0.0, 4.0 * rng.f32() - 2.0);
                 let checker = ((p.x.floor() + p.z.floor()) as i32).rem_euclid(2) == 0;
-                let col = if checker { [200, 200, 190] } else { [150, 150, 140] };
+                let col = if checker {
+                    [200, 200, 190]
+                } else {
+                    [150, 150, 140]
+                };
                 b.push(p, Vec3::Y, col, 1.0);
             }
             for _ in 0..counts[1] {
                 let d = sphere_point(&mut rng);
-                b.push(Vec3::new(-0.9, sphere_r, -0.5) + d * sphere_r, d, [200, 60, 50], 1.0);
+                b.push(
+                    Vec3::new(-0.9, sphere_r, -0.5) + d * sphere_r,
+                    d,
+                    [200, 60, 50],
+                    1.0,
+                );
             }
             for _ in 0..counts[2] {
                 // A torus standing on its rim: rotate the Y-axis torus about X by 90°.
                 let (p, nn) = torus_point(&mut rng, tor_r, tor_t);
                 let rot = |v: Vec3| Vec3::new(v.x, -v.z, v.y);
-                b.push(rot(p) + Vec3::new(0.8, tor_r + tor_t, 0.6), rot(nn), [214, 170, 60], 1.0);
+                b.push(
+                    rot(p) + Vec3::new(0.8, tor_r + tor_t, 0.6),
+                    rot(nn),
+                    [214, 170, 60],
+                    1.0,
+                );
             }
             let rest = n.saturating_sub(b.p.len());
             for _ in 0..rest {

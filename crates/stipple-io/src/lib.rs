@@ -1,0 +1,196 @@
+//! Readers and writers for point clouds (PLY, LAS/LAZ/COPC, XYZ text) and for the renderer's
+//! outputs (PNG, NumPy `.npy` depth).
+//!
+//! Every reader checks what it reads: a truncated file, a header count larger than the file
+//! can hold, a wrong magic, a non-finite coordinate or an empty cloud is an [`IoError`] that
+//! names the file and the problem. No allocation is sized from a header count before the
+//! count was checked against the bytes that are actually there.
+
+pub mod image;
+pub mod las_io;
+pub mod ply;
+pub mod xyz;
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use stipple_core::PointCloud;
+
+#[derive(Debug, thiserror::Error)]
+pub enum IoError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: {message}", path.display())]
+    Invalid { path: PathBuf, message: String },
+    #[error("{}: {message}", path.display())]
+    Unsupported { path: PathBuf, message: String },
+}
+
+impl IoError {
+    pub fn io(path: &Path, source: std::io::Error) -> IoError {
+        IoError::Io {
+            path: path.to_owned(),
+            source,
+        }
+    }
+
+    pub fn invalid(path: &Path, message: impl Into<String>) -> IoError {
+        IoError::Invalid {
+            path: path.to_owned(),
+            message: message.into(),
+        }
+    }
+}
+
+/// A file format that stipple reads or writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Ply,
+    Las,
+    Xyz,
+}
+
+/// Reads a point cloud, choosing the reader from the file's first bytes (PLY magic, `LASF`,
+/// gzip) and, for headerless text, from its extension. The cloud is validated before it is
+/// returned.
+pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
+    let mut head = [0u8; 4];
+    let n = {
+        let mut f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+        read_up_to(&mut f, &mut head).map_err(|e| IoError::io(path, e))?
+    };
+    let head = &head[..n];
+    let cloud = if head.starts_with(b"ply") || head.starts_with(&[0x1f, 0x8b]) {
+        ply::read_ply(path)?
+    } else if head.starts_with(b"LASF") {
+        las_io::read_las(path)?
+    } else {
+        let ext = extension(path);
+        match ext.as_str() {
+            "xyz" | "txt" | "csv" | "pts" | "asc" => xyz::read_xyz(path)?,
+            "ply" => return Err(IoError::invalid(path, "not a PLY file: the magic `ply` is missing")),
+            "las" | "laz" => {
+                return Err(IoError::invalid(path, "not a LAS/LAZ file: the signature `LASF` is missing"))
+            }
+            "e57" | "pcd" | "obj" | "nrrd" | "nii" | "raw" => {
+                return Err(IoError::Unsupported {
+                    path: path.to_owned(),
+                    message: format!(
+                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv)"
+                    ),
+                })
+            }
+            _ => {
+                return Err(IoError::Unsupported {
+                    path: path.to_owned(),
+                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv)"
+                        .into(),
+                })
+            }
+        }
+    };
+    cloud
+        .validate()
+        .map_err(|e| IoError::invalid(path, e.to_string()))?;
+    Ok(cloud)
+}
+
+/// Writes a cloud in the format named by the path's extension (`.ply` binary little endian,
+/// `.las`/`.laz`, `.xyz`/`.txt`/`.csv`). The file is written under a temporary name beside
+/// the target and renamed into place when complete.
+pub fn write_cloud(path: &Path, cloud: &PointCloud) -> Result<(), IoError> {
+    let fmt = match extension(path).as_str() {
+        "ply" => Format::Ply,
+        "las" | "laz" => Format::Las,
+        "xyz" | "txt" | "csv" => Format::Xyz,
+        other => {
+            return Err(IoError::Unsupported {
+                path: path.to_owned(),
+                message: format!("cannot write `.{other}` files (use .ply, .las, .laz or .xyz)"),
+            })
+        }
+    };
+    write_atomically(path, |tmp| match fmt {
+        Format::Ply => ply::write_ply(tmp, cloud, ply::Encoding::BinaryLittleEndian),
+        Format::Las => las_io::write_las(tmp, cloud, extension(path) == "laz"),
+        Format::Xyz => xyz::write_xyz(tmp, cloud),
+    })
+}
+
+/// Runs `write` on a temporary path beside `path`, then renames it into place; on failure the
+/// temporary file is removed and `path` is untouched.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&Path) -> Result<(), IoError>,
+) -> Result<(), IoError> {
+    let name = path
+        .file_name()
+        .ok_or_else(|| IoError::invalid(path, "the output path has no file name"))?;
+    let mut tmp_name = std::ffi::OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(".{}.tmp", std::process::id()));
+    let tmp = path.with_file_name(tmp_name);
+    match write(&tmp) {
+        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            IoError::io(path, e)
+        }),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            // Report the user's path, not the temporary one.
+            Err(match e {
+                IoError::Io { source, .. } => IoError::io(path, source),
+                IoError::Invalid { message, .. } => IoError::invalid(path, message),
+                IoError::Unsupported { message, .. } => IoError::Unsupported {
+                    path: path.to_owned(),
+                    message,
+                },
+            })
+        }
+    }
+}
+
+/// Lower-case extension, looking through a trailing `.gz`.
+pub fn extension(path: &Path) -> String {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    let name = name.strip_suffix(".gz").unwrap_or(&name);
+    match name.rsplit_once('.') {
+        Some((_, e)) => e.to_owned(),
+        None => String::new(),
+    }
+}
+
+fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(n)
+}
+
+/// Reads a whole file, transparently decompressing gzip.
+pub(crate) fn read_maybe_gz(path: &Path) -> Result<Vec<u8>, IoError> {
+    let raw = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    if raw.starts_with(&[0x1f, 0x8b]) {
+        let mut out = Vec::with_capacity(raw.len().saturating_mul(4));
+        flate2::read::MultiGzDecoder::new(&raw[..])
+            .read_to_end(&mut out)
+            .map_err(|e| {
+                IoError::invalid(path, format!("gzip data is corrupt or truncated: {e}"))
+            })?;
+        Ok(out)
+    } else {
+        Ok(raw)
+    }
+}

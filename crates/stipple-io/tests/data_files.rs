@@ -1,0 +1,105 @@
+//! Every file in `../shared/data/` that the readers cover reads without error, with the
+//! counts its README states. Skipped with a printed reason when the folder is absent.
+
+use std::path::PathBuf;
+
+fn data_dir() -> Option<PathBuf> {
+    let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if d.is_dir() {
+        Some(d)
+    } else {
+        eprintln!("skipped: {} is absent", d.display());
+        None
+    }
+}
+
+/// (file, points, has normals, has colours)
+const FILES: &[(&str, usize, bool, bool)] = &[
+    ("stanford/bunny/bun_zipper.ply", 35_947, false, false),
+    ("stanford/bunny/bun_zipper_res4.ply", 453, false, false),
+    (
+        "stanford/dragon/dragon_vrip_res3.ply.gz",
+        22_998,
+        false,
+        false,
+    ),
+    ("stanford/dragon/dragon_vrip.ply.gz", 437_645, false, false),
+    (
+        "stanford/armadillo/Armadillo_38k_normals.ply",
+        38_294,
+        true,
+        false,
+    ),
+    (
+        "stanford/buddha/happy_rawscan_78k.xyz",
+        78_056,
+        false,
+        false,
+    ),
+    ("stanford/lucy/Lucy100k.ply", 50_002, false, false),
+    ("lidar/autzen_trim.las", 110_000, false, true),
+    ("lidar/autzen_trim.laz", 110_000, false, true),
+    (
+        "lidar/ign_lidarhd_extrabytes_698k.laz",
+        697_721,
+        false,
+        true,
+    ),
+    ("lidar/lone-star.laz", 518_862, false, false),
+    ("colored/lion_takanawa.copc.laz", 341_989, false, true),
+];
+
+#[test]
+fn every_covered_data_file_reads() {
+    let Some(dir) = data_dir() else { return };
+    for &(name, count, normals, colors) in FILES {
+        let path = dir.join(name);
+        let c = stipple_io::read_cloud(&path).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(c.len(), count, "{name}");
+        assert_eq!(c.normals.is_some(), normals, "{name} normals");
+        assert_eq!(c.colors.is_some(), colors, "{name} colours");
+        let s = c.estimate_spacing();
+        assert!(s > 0.0, "{name} spacing");
+        eprintln!("{name}: {} points, spacing {s:.5}", c.len());
+    }
+}
+
+#[test]
+fn bunny_faces_are_kept() {
+    let Some(dir) = data_dir() else { return };
+    let c = stipple_io::read_cloud(&dir.join("stanford/bunny/bun_zipper.ply")).unwrap();
+    assert_eq!(c.faces.len(), 69_451);
+    let l = stipple_io::read_cloud(&dir.join("stanford/lucy/Lucy100k.ply")).unwrap();
+    assert_eq!(l.faces.len(), 100_000);
+}
+
+#[test]
+fn lidar_keeps_millimetre_precision() {
+    let Some(dir) = data_dir() else { return };
+    let path = dir.join("lidar/autzen_trim.las");
+    let c = stipple_io::read_cloud(&path).unwrap();
+    let mut r = las::Reader::from_path(&path).unwrap();
+    let pts = r.read_points(1000).unwrap();
+    for (i, ((x, y), z)) in pts.x().zip(pts.y()).zip(pts.z()).enumerate() {
+        let w = c.world(i);
+        assert!((w.x - x).abs() < 1e-3 && (w.y - y).abs() < 1e-3 && (w.z - z).abs() < 1e-3);
+    }
+    assert!(c.origin.x.abs() > 1e5, "LiDAR origin kept in f64");
+}
+
+#[test]
+fn unsupported_data_files_say_so() {
+    let Some(dir) = data_dir() else { return };
+    for name in [
+        "colored/milk_color.pcd",
+        "stanford/bunny_e57/bunnyDouble.e57",
+    ] {
+        let e = stipple_io::read_cloud(&dir.join(name))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(name.rsplit('/').next().unwrap()) && e.contains("not supported"),
+            "{e}"
+        );
+    }
+}
