@@ -1,0 +1,174 @@
+//! # Filling background pixels (Dobrev §3.2)
+//!
+//! How it works: a background pixel with at least one covered neighbour is tested against the
+//! eight silhouette masks (`masks.rs`): if some mask sees only background, the pixel lies
+//! beyond the silhouette and stays background; otherwise it is a hole and takes the point of
+//! the covered neighbour with the smallest depth (ties: smaller point id). Pixels outside the
+//! image count as background. One iteration reads the previous image only (Jacobi order), so
+//! the result does not depend on the traversal and matches the GPU twin; a hole of diameter n
+//! closes within n iterations.
+
+use crate::gbuffer::{GBuffer, BACKGROUND};
+use crate::masks::{BORDER, OFFSETS};
+use rayon::prelude::*;
+
+/// One iteration from `src` into `dst`; returns the number of pixels filled.
+pub fn fill_background(src: &GBuffer, dst: &mut GBuffer) -> u64 {
+    let (w, h) = (src.width as i32, src.height as i32);
+    dst.depth
+        .par_chunks_mut(w as usize)
+        .zip(dst.id.par_chunks_mut(w as usize))
+        .enumerate()
+        .map(|(y, (drow, irow))| {
+            let y = y as i32;
+            let mut changed = 0u64;
+            for x in 0..w {
+                let k = (y * w + x) as usize;
+                let id = src.id[k];
+                drow[x as usize] = src.depth[k];
+                irow[x as usize] = id;
+                if id != BACKGROUND {
+                    continue;
+                }
+                let mut white = 0u8;
+                let mut best = (f32::INFINITY, BACKGROUND);
+                for (b, &(dx, dy)) in OFFSETS.iter().enumerate() {
+                    let (nx, ny) = (x + dx, y + dy);
+                    if nx < 0 || ny < 0 || nx >= w || ny >= h {
+                        white |= 1 << b;
+                        continue;
+                    }
+                    let n = (ny * w + nx) as usize;
+                    let nid = src.id[n];
+                    if nid == BACKGROUND {
+                        white |= 1 << b;
+                    } else {
+                        let nd = src.depth[n];
+                        if nd < best.0 || (nd == best.0 && nid < best.1) {
+                            best = (nd, nid);
+                        }
+                    }
+                }
+                if BORDER[white as usize] {
+                    continue;
+                }
+                drow[x as usize] = best.0;
+                irow[x as usize] = best.1;
+                changed += 1;
+            }
+            changed
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::masks::MASKS;
+
+    fn step(g: &GBuffer) -> (GBuffer, u64) {
+        let mut out = GBuffer::new(g.width, g.height);
+        let n = fill_background(g, &mut out);
+        (out, n)
+    }
+
+    #[test]
+    fn a_pixel_beyond_the_silhouette_stays_background_under_each_mask() {
+        for m in MASKS {
+            // Centre background; cells of mask m background; all other cells covered.
+            let mut g = GBuffer::new(3, 3);
+            for (b, &(dx, dy)) in OFFSETS.iter().enumerate() {
+                if m & (1 << b) == 0 {
+                    let k = ((1 + dy) * 3 + 1 + dx) as usize;
+                    g.id[k] = b as u32;
+                    g.depth[k] = 1.0;
+                }
+            }
+            // Embed in a larger background image so the outside is background too.
+            let (out, n) = step(&g);
+            assert_eq!(out.id[4], BACKGROUND, "mask {m:08b} must keep the centre");
+            assert_eq!(n, 0);
+        }
+    }
+
+    #[test]
+    fn a_one_pixel_hole_is_filled_from_the_nearest_neighbour() {
+        let g = GBuffer::from_ascii(&["55555", "55555", "55.35", "55555", "55555"]);
+        let (out, n) = step(&g);
+        assert_eq!(n, 1);
+        assert_eq!(out.depth[12], 3.0, "nearest neighbour's depth");
+        assert_eq!(out.id[12], g.id[13]);
+    }
+
+    #[test]
+    fn silhouettes_do_not_grow() {
+        let g = GBuffer::from_ascii(&[
+            "..........",
+            "..####....",
+            "..#####...",
+            "..######..",
+            "..#####...",
+            "..........",
+        ]);
+        let mut cur = g.clone();
+        for _ in 0..5 {
+            cur = step(&cur).0;
+        }
+        assert_eq!(cur, g, "\n{}", cur.to_ascii());
+    }
+
+    /// A disc of diameter n cut out of a covered square closes within n iterations.
+    #[test]
+    fn a_hole_of_diameter_n_closes_within_n_iterations() {
+        for n in 1..=14 {
+            let size = n + 8;
+            let c = size as f32 / 2.0;
+            let mut g = GBuffer::new(size as u32, size as u32);
+            let mut holes = 0;
+            for j in 0..size {
+                for i in 0..size {
+                    let (dx, dy) = (i as f32 + 0.5 - c, j as f32 + 0.5 - c);
+                    let k = j * size + i;
+                    if (dx * dx + dy * dy).sqrt() < n as f32 / 2.0 {
+                        holes += 1;
+                        continue;
+                    }
+                    g.id[k] = k as u32;
+                    g.depth[k] = 1.0;
+                }
+            }
+            assert!(holes > 0);
+            let mut it = 0;
+            while g.covered() < size * size {
+                g = step(&g).0;
+                it += 1;
+                assert!(
+                    it <= n,
+                    "diameter {n}: not closed after {n} iterations\n{}",
+                    g.to_ascii()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_square_hole_closes() {
+        let mut g = GBuffer::from_ascii(&[
+            "#########",
+            "#########",
+            "##.....##",
+            "##.....##",
+            "##.....##",
+            "##.....##",
+            "##.....##",
+            "#########",
+            "#########",
+        ]);
+        let mut it = 0;
+        while g.covered() < 81 {
+            g = step(&g).0;
+            it += 1;
+            assert!(it <= 8, "\n{}", g.to_ascii());
+        }
+    }
+}
