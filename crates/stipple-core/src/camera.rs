@@ -120,6 +120,48 @@ impl Camera {
             near: 0.0,
             far: 0.0,
         };
+        // The bounding sphere always fits; move closer while the eight box corners still
+        // project inside 95% of the frame (bisection on the distance).
+        let fits = |d: f64| {
+            let cam = Camera {
+                eye: c + dir * d,
+                ..cam.clone()
+            };
+            (0..8).all(|k| {
+                let p = DVec3::new(
+                    if k & 1 == 0 { lo.x } else { hi.x },
+                    if k & 2 == 0 { lo.y } else { hi.y },
+                    if k & 4 == 0 { lo.z } else { hi.z },
+                );
+                match cam.project(p) {
+                    Some((x, y, z)) => {
+                        let (w, h) = (width as f64, height as f64);
+                        z > 0.0
+                            && (x - w / 2.0).abs() <= 0.475 * w
+                            && (y - h / 2.0).abs() <= 0.475 * h
+                    }
+                    None => false,
+                }
+            })
+        };
+        let (mut near_d, mut far_d) = (r * 1e-3, dist);
+        for _ in 0..8 {
+            if fits(far_d) {
+                break;
+            }
+            far_d *= 1.5;
+        }
+        if fits(far_d) {
+            for _ in 0..40 {
+                let mid = 0.5 * (near_d + far_d);
+                if fits(mid) {
+                    far_d = mid;
+                } else {
+                    near_d = mid;
+                }
+            }
+            cam.eye = c + dir * far_d;
+        }
         cam.fit_clip(lo, hi);
         cam
     }

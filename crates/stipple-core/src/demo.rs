@@ -43,8 +43,8 @@ impl DemoScene {
     /// Default point count when none is given.
     pub fn default_points(self) -> usize {
         match self {
-            DemoScene::NestedTori => 600_000,
-            _ => 300_000,
+            DemoScene::NestedTori => 1_500_000,
+            _ => 1_000_000,
         }
     }
 }

@@ -15,6 +15,13 @@
 //! ```
 //! The "product of the eight sums is zero" test of the paper becomes one table lookup: an
 //! 8-bit set of "white" neighbours indexes [`BORDER`], true when a mask is entirely white.
+//!
+//! Generalisation (`radius`): the eight masks are the closed half-planes {o ≠ 0 : ⟨o, n⟩ ≥ 0}
+//! for the eight directions n, so the same rule applies to a (2r+1)² window. Each cell of the
+//! window belongs to some of the eight masks ([`window`]); every non-white cell blocks the
+//! masks it belongs to, and the pixel is a border pixel unless all eight are blocked. With
+//! r = 1 this is exactly the paper's test; r = 2 recognises holes between points up to about
+//! four pixels apart, where the 3×3 masks see a clear half-plane.
 
 /// Neighbour offsets in bit order.
 pub const OFFSETS: [(i32, i32); 8] = [
@@ -69,6 +76,44 @@ const fn build_table() -> [bool; 256] {
 /// `BORDER[white]`: does some mask see only white cells?
 pub static BORDER: [bool; 256] = build_table();
 
+/// Mask directions n, in the order of [`MASKS`].
+pub const DIRECTIONS: [(i32, i32); 8] = [
+    (0, -1),
+    (0, 1),
+    (-1, 0),
+    (1, 0),
+    (-1, -1),
+    (1, -1),
+    (-1, 1),
+    (1, 1),
+];
+
+/// The largest supported window radius.
+pub const MAX_RADIUS: u32 = 3;
+
+/// The cells of the (2r+1)² window except the centre, each with the set of masks (bit k =
+/// direction k) it belongs to, nearest cells first.
+pub fn window(radius: u32) -> Vec<(i32, i32, u8)> {
+    let r = radius as i32;
+    let mut cells = Vec::new();
+    for dy in -r..=r {
+        for dx in -r..=r {
+            if dx == 0 && dy == 0 {
+                continue;
+            }
+            let mut m = 0u8;
+            for (k, &(nx, ny)) in DIRECTIONS.iter().enumerate() {
+                if dx * nx + dy * ny >= 0 {
+                    m |= 1 << k;
+                }
+            }
+            cells.push((dx, dy, m));
+        }
+    }
+    cells.sort_by_key(|&(dx, dy, _)| dx.abs().max(dy.abs()));
+    cells
+}
+
 /// The table packed into eight u32 words (bit `w` of word `w / 32`), the form a shader
 /// takes as a uniform.
 pub fn border_bits() -> [u32; 8] {
@@ -104,6 +149,32 @@ mod tests {
                 let _ = both;
             }
         }
+    }
+
+    #[test]
+    fn the_radius_one_window_is_the_papers_test() {
+        let win = window(1);
+        assert_eq!(win.len(), 8);
+        for white in 0u32..256 {
+            let mut blocked = 0u8;
+            for (b, &(dx, dy)) in OFFSETS.iter().enumerate() {
+                if white & (1 << b) == 0 {
+                    blocked |= win.iter().find(|c| (c.0, c.1) == (dx, dy)).unwrap().2;
+                }
+            }
+            assert_eq!(BORDER[white as usize], blocked != 0xFF, "{white:08b}");
+        }
+        // And each direction's cells are the mask of the same index.
+        for (k, &m) in MASKS.iter().enumerate() {
+            let cells: u8 = OFFSETS
+                .iter()
+                .enumerate()
+                .filter(|(_, o)| win.iter().any(|c| (c.0, c.1) == **o && c.2 & (1 << k) != 0))
+                .map(|(b, _)| 1u8 << b)
+                .sum();
+            assert_eq!(cells, m, "mask {k}");
+        }
+        assert_eq!(window(2).len(), 24);
     }
 
     #[test]

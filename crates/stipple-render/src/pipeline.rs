@@ -66,13 +66,15 @@ impl Kernel {
 /// Passes that work on the visibility G-buffer (depth + point id), before shading.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GeometryPass {
-    /// Dobrev §3.2: fill background pixels inside the silhouette.
-    FillBackground(Iterations),
+    /// Dobrev §3.2: fill background pixels inside the silhouette. `radius` 1 = the paper's
+    /// 3×3 masks; 2 = the same half-plane rule on 5×5 (see `masks.rs`).
+    FillBackground { iterations: Iterations, radius: u32 },
     /// Dobrev §3.3: replace pixels showing an occluded surface; `layer_gap` = d̃ in world
     /// units (None: derived from the point spacing, see [`default_layer_gap`]).
     FillOccluded {
         iterations: Iterations,
         layer_gap: Option<f32>,
+        radius: u32,
     },
 }
 
@@ -140,10 +142,14 @@ impl Default for Pipeline {
         Pipeline {
             backface_culling: true,
             geometry: vec![
-                GeometryPass::FillBackground(Iterations::Fixed(1)),
+                GeometryPass::FillBackground {
+                    iterations: Iterations::Fixed(1),
+                    radius: 1,
+                },
                 GeometryPass::FillOccluded {
                     iterations: Iterations::Fixed(1),
                     layer_gap: None,
+                    radius: 1,
                 },
             ],
             colour: vec![
@@ -159,7 +165,7 @@ impl Default for Pipeline {
             light: Light::Headlight,
             material: Material::default(),
             lighting: true,
-            background: [255, 255, 255],
+            background: [24, 26, 31],
         }
     }
 }
@@ -188,7 +194,7 @@ pub fn default_layer_gap(spacing: f32) -> f32 {
 impl GeometryPass {
     pub fn name(&self) -> &'static str {
         match self {
-            GeometryPass::FillBackground(_) => "fill_background",
+            GeometryPass::FillBackground { .. } => "fill_background",
             GeometryPass::FillOccluded { .. } => "fill_occluded",
         }
     }

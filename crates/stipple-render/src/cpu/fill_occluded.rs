@@ -8,13 +8,16 @@
 //! minimum depth (ties: smaller id). d̃ is the minimum gap between two surface layers, in
 //! world units along the view axis.
 
+use super::fill_background::hole_fill;
 use crate::gbuffer::{GBuffer, BACKGROUND};
-use crate::masks::{BORDER, OFFSETS};
+use crate::masks::window;
 use rayon::prelude::*;
 
-/// One iteration from `src` into `dst`; returns the number of pixels replaced.
-pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32) -> u64 {
+/// One iteration from `src` into `dst` (masks over the (2·radius+1)² window); returns the
+/// number of pixels replaced.
+pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32, radius: u32) -> u64 {
     let (w, h) = (src.width as i32, src.height as i32);
+    let win = window(radius);
     dst.depth
         .par_chunks_mut(w as usize)
         .zip(dst.id.par_chunks_mut(w as usize))
@@ -30,32 +33,13 @@ pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32) -> u64 {
                 if id == BACKGROUND {
                     continue;
                 }
+                // "Dark" cells: at least d̃ nearer than this pixel.
                 let limit = d - layer_gap;
-                let mut white = 0u8;
-                let mut best = (f32::INFINITY, BACKGROUND);
-                for (b, &(dx, dy)) in OFFSETS.iter().enumerate() {
-                    let (nx, ny) = (x + dx, y + dy);
-                    if nx < 0 || ny < 0 || nx >= w || ny >= h {
-                        white |= 1 << b;
-                        continue;
-                    }
-                    let n = (ny * w + nx) as usize;
-                    let nd = src.depth[n];
-                    if nd > limit {
-                        white |= 1 << b;
-                    } else {
-                        let nid = src.id[n];
-                        if nd < best.0 || (nd == best.0 && nid < best.1) {
-                            best = (nd, nid);
-                        }
-                    }
+                if let Some((nd, nid)) = hole_fill(src, &win, x, y, w, h, |cd, _| cd <= limit) {
+                    drow[x as usize] = nd;
+                    irow[x as usize] = nid;
+                    changed += 1;
                 }
-                if BORDER[white as usize] {
-                    continue;
-                }
-                drow[x as usize] = best.0;
-                irow[x as usize] = best.1;
-                changed += 1;
             }
             changed
         })
@@ -68,7 +52,7 @@ mod tests {
 
     fn step(g: &GBuffer, gap: f32) -> (GBuffer, u64) {
         let mut out = GBuffer::new(g.width, g.height);
-        let n = fill_occluded(g, &mut out, gap);
+        let n = fill_occluded(g, &mut out, gap, 1);
         (out, n)
     }
 

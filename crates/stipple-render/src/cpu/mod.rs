@@ -25,6 +25,7 @@ pub struct CpuRenderer {
     g: Option<(GBuffer, GBuffer)>,
     colour: (Vec<[f32; 3]>, Vec<[f32; 3]>),
     surface_depth: Vec<f32>,
+    srgb: shade::SrgbEncoder,
 }
 
 fn timed<T>(stats: &mut Vec<PassStat>, name: &'static str, f: impl FnOnce() -> (T, u32, u64)) -> T {
@@ -106,16 +107,19 @@ impl CpuRenderer {
         for pass in &pipe.geometry {
             timed(&mut stats, pass.name(), || {
                 let (its, changed) = match *pass {
-                    GeometryPass::FillBackground(its) => {
-                        iterate(ga, gb, its, fill_background::fill_background)
+                    GeometryPass::FillBackground { iterations, radius } => {
+                        iterate(ga, gb, iterations, |s, d| {
+                            fill_background::fill_background(s, d, radius)
+                        })
                     }
                     GeometryPass::FillOccluded {
                         iterations,
                         layer_gap,
+                        radius,
                     } => {
                         let gap = layer_gap.unwrap_or(gap);
                         iterate(ga, gb, iterations, |s, d| {
-                            fill_occluded::fill_occluded(s, d, gap)
+                            fill_occluded::fill_occluded(s, d, gap, radius)
                         })
                     }
                 };
@@ -159,15 +163,22 @@ impl CpuRenderer {
             });
         }
 
+        let srgb = &self.srgb;
         let rgba = timed(&mut stats, "output", || {
             use rayon::prelude::*;
-            let out: Vec<u8> = ca
-                .par_iter()
-                .flat_map_iter(|c| {
-                    let [r, g, b] = c.map(shade::linear_to_srgb8);
-                    [r, g, b, 255]
-                })
-                .collect();
+            let mut out = vec![0u8; n * 4];
+            out.par_chunks_mut(4 * w)
+                .zip(ca.par_chunks(w))
+                .for_each(|(o, c)| {
+                    for (px, c) in o.chunks_exact_mut(4).zip(c) {
+                        px.copy_from_slice(&[
+                            srgb.encode(c[0]),
+                            srgb.encode(c[1]),
+                            srgb.encode(c[2]),
+                            255,
+                        ]);
+                    }
+                });
             (out, 1, 0)
         });
         Frame {

@@ -72,7 +72,35 @@ pub fn srgb_to_linear_table() -> [f32; 256] {
     t
 }
 
-/// Linear → sRGB 8-bit.
+/// Linear → sRGB 8-bit through a 16384-entry table (error under 0.5 of an 8-bit level
+/// beyond rounding).
+pub struct SrgbEncoder(Vec<u8>);
+
+impl SrgbEncoder {
+    const N: usize = 16384;
+
+    pub fn new() -> SrgbEncoder {
+        SrgbEncoder(
+            (0..Self::N)
+                .map(|i| linear_to_srgb8(i as f32 / (Self::N - 1) as f32))
+                .collect(),
+        )
+    }
+
+    #[inline]
+    pub fn encode(&self, c: f32) -> u8 {
+        let i = (c.clamp(0.0, 1.0) * (Self::N - 1) as f32 + 0.5) as usize;
+        self.0[i]
+    }
+}
+
+impl Default for SrgbEncoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// Linear → sRGB 8-bit (exact).
 pub fn linear_to_srgb8(c: f32) -> u8 {
     let c = c.clamp(0.0, 1.0);
     let s = if c <= 0.003_130_8 {
@@ -170,4 +198,45 @@ pub fn shade(
                 drow[i] = depth;
             }
         });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_table_agrees_with_the_formula() {
+        let e = SrgbEncoder::new();
+        for i in 0..=10_000 {
+            let c = i as f32 / 10_000.0;
+            assert!(
+                (e.encode(c) as i32 - linear_to_srgb8(c) as i32).abs() <= 1,
+                "{c}"
+            );
+        }
+        let lut = srgb_to_linear_table();
+        for v in 0..=255u8 {
+            assert_eq!(e.encode(lut[v as usize]), v);
+        }
+    }
+
+    #[test]
+    fn phong_headlight_facing_is_brightest() {
+        let p = ShadeParams {
+            light: LocalLight::Headlight,
+            ambient: 0.2,
+            diffuse: 0.7,
+            specular: 0.1,
+            shininess: 8.0,
+            max_correction: 1.0,
+            background: [0.0; 3],
+        };
+        let v = Vec3::Z;
+        let facing = phong([0.5; 3], Vec3::Z, v, v, &p)[0];
+        let tilted = phong([0.5; 3], Vec3::new(0.0, 0.6, 0.8), v, v, &p)[0];
+        assert!((facing - (0.5 * 0.9 + 0.1)).abs() < 1e-6);
+        assert!(tilted < facing);
+        // Back-facing normals are lit as if turned towards the viewer (two-sided).
+        assert_eq!(phong([0.5; 3], -Vec3::Z, v, v, &p)[0], facing);
+    }
 }
