@@ -66,15 +66,44 @@ impl Builder {
         self.a.push(a);
     }
 
+    /// The cloud with its points in Morton (Z-curve) order of position, as a scanner or a
+    /// tiling tool writes them: neighbours in the file are neighbours in space.
     fn finish(self, with_opacity: bool) -> PointCloud {
+        let order = morton_order(&self.p);
+        let pick = |v: &[f32]| order.iter().map(|&i| v[i]).collect::<Vec<_>>();
         PointCloud {
-            positions: self.p,
-            normals: Some(self.n),
-            colors: Some(self.c),
-            opacity: with_opacity.then_some(self.a),
+            positions: order.iter().map(|&i| self.p[i]).collect(),
+            normals: Some(order.iter().map(|&i| self.n[i]).collect()),
+            colors: Some(order.iter().map(|&i| self.c[i]).collect()),
+            opacity: with_opacity.then(|| pick(&self.a)),
             ..Default::default()
         }
     }
+}
+
+/// Indices of `p` sorted by the Morton code of their position in a 2^10 grid over the bounds.
+pub fn morton_order(p: &[Vec3]) -> Vec<usize> {
+    fn spread(v: u32) -> u64 {
+        let mut x = v as u64 & 0x3ff;
+        x = (x | (x << 16)) & 0x0300_00ff;
+        x = (x | (x << 8)) & 0x0300_f00f;
+        x = (x | (x << 4)) & 0x030c_30c3;
+        (x | (x << 2)) & 0x0924_9249
+    }
+    let b = crate::Bounds::from_points(p);
+    let scale = 1023.0 / b.extent().max_element().max(f32::MIN_POSITIVE);
+    let mut keyed: Vec<(u64, usize)> = p
+        .iter()
+        .enumerate()
+        .map(|(i, &q)| {
+            let c = ((q - b.min) * scale)
+                .to_array()
+                .map(|v| v.clamp(0.0, 1023.0) as u32);
+            (spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2, i)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
 }
 
 /// A point uniformly distributed on the unit sphere.

@@ -62,6 +62,24 @@ pub(crate) fn hole_fill(
     h: i32,
     solid: impl Fn(f32, u32) -> bool,
 ) -> Option<(f32, u32)> {
+    let r = win.last().map_or(0, |c| c.1.abs().max(c.0.abs()));
+    if x >= r && y >= r && x < w - r && y < h - r {
+        hole_fill_in::<false>(src, win, x, y, w, h, solid)
+    } else {
+        hole_fill_in::<true>(src, win, x, y, w, h, solid)
+    }
+}
+
+#[inline(always)]
+fn hole_fill_in<const CHECK: bool>(
+    src: &GBuffer,
+    win: &[(i32, i32, u8)],
+    x: i32,
+    y: i32,
+    w: i32,
+    h: i32,
+    solid: impl Fn(f32, u32) -> bool,
+) -> Option<(f32, u32)> {
     let mut blocked = 0u8;
     let mut best = (f32::INFINITY, BACKGROUND);
     let mut best_ring = i32::MAX;
@@ -70,7 +88,7 @@ pub(crate) fn hole_fill(
             break;
         }
         let (nx, ny) = (x + dx, y + dy);
-        if nx < 0 || ny < 0 || nx >= w || ny >= h {
+        if CHECK && (nx < 0 || ny < 0 || nx >= w || ny >= h) {
             continue;
         }
         let n = (ny * w + nx) as usize;

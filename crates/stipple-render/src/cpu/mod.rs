@@ -22,6 +22,7 @@ use std::time::Instant;
 #[derive(Default)]
 pub struct CpuRenderer {
     vis: Vec<AtomicU64>,
+    private: Vec<Vec<u64>>,
     g: Option<(GBuffer, GBuffer)>,
     colour: (Vec<[f32; 3]>, Vec<[f32; 3]>),
     surface_depth: Vec<f32>,
@@ -73,7 +74,12 @@ impl CpuRenderer {
         let c = &cloud.cloud;
 
         // Buffers (reused across frames of the same size).
-        if self.vis.len() != n {
+        // Up to 8 threads: private visibility buffers; beyond, one shared atomic buffer.
+        let threads = rayon::current_num_threads();
+        let private = threads <= 8;
+        if private {
+            self.private.resize_with(threads, Vec::new);
+        } else if self.vis.len() != n {
             self.vis = (0..n).map(|_| AtomicU64::new(project::EMPTY_KEY)).collect();
         }
         let (ga, gb) = self.g.get_or_insert_with(|| {
@@ -88,18 +94,19 @@ impl CpuRenderer {
         }
         let vis = &self.vis;
 
+        let bufs = &mut self.private;
         timed(&mut stats, "project", || {
             use rayon::prelude::*;
-            vis.par_iter()
-                .for_each(|s| s.store(project::EMPTY_KEY, Ordering::Relaxed));
-            let kept = project::project(
-                v,
-                &c.positions,
-                c.normals.as_deref(),
-                pipe.backface_culling,
-                vis,
-            );
-            project::resolve(vis, ga);
+            let normals = c.normals.as_deref();
+            let kept = if private {
+                project::project_private(v, &c.positions, normals, pipe.backface_culling, bufs, ga)
+            } else {
+                vis.par_iter()
+                    .for_each(|s| s.store(project::EMPTY_KEY, Ordering::Relaxed));
+                let kept = project::project(v, &c.positions, normals, pipe.backface_culling, vis);
+                project::resolve(vis, ga);
+                kept
+            };
             ((), 1, kept)
         });
 

@@ -8,6 +8,12 @@
 //! on the GPU twin, which uses the same key. A plain load before the atomic skips most
 //! writes once the buffer fills (the early-out of compute rasterizers).
 //!
+//! On the CPU, with few threads, each thread owns a private (non-atomic) visibility buffer for
+//! a contiguous share of the points, and one merge pass takes the per-pixel minimum and
+//! unpacks it ([`project_private`]): no locked instructions in the hot loop. The minimum of
+//! keys does not depend on the split, so the result is identical to the atomic version
+//! ([`project`], the shape of the GPU kernel, used with many threads).
+//!
 //! Deviation from the paper: points are lit after visibility is resolved (in `shade`), not
 //! before projection. The lit colour of the winning point is the same, and only visible
 //! points pay for lighting.
@@ -80,28 +86,95 @@ pub fn project(
         .par_chunks(BATCH)
         .enumerate()
         .map(|(b, chunk)| {
-            let base = b * BATCH;
-            let mut kept = 0u64;
-            for (k, &p) in chunk.iter().enumerate() {
-                let Some((pix, z)) = project_point(v, p) else {
-                    continue;
-                };
-                let index = base + k;
-                if let Some(n) = normals {
-                    if back_facing(v, p, n[index]) {
-                        continue;
-                    }
-                }
-                kept += 1;
-                let key = key(z, index as u32);
+            project_range(v, chunk, normals, b * BATCH, |pix, key| {
                 let slot = &vis[pix];
                 if key < slot.load(Ordering::Relaxed) {
                     slot.fetch_min(key, Ordering::Relaxed);
                 }
-            }
-            kept
+            })
         })
         .sum()
+}
+
+/// The per-point loop shared by both strategies: calls `write(pixel, key)` for every point of
+/// `positions` (indices from `base`) that survives culling; returns how many did.
+#[inline(always)]
+fn project_range(
+    v: &ViewParams,
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    base: usize,
+    mut write: impl FnMut(usize, u64),
+) -> u64 {
+    let mut kept = 0;
+    for (k, &p) in positions.iter().enumerate() {
+        let Some((pix, z)) = project_point(v, p) else {
+            continue;
+        };
+        let index = base + k;
+        if let Some(n) = normals {
+            if back_facing(v, p, n[index]) {
+                continue;
+            }
+        }
+        kept += 1;
+        write(pix, key(z, index as u32));
+    }
+    kept
+}
+
+/// Projects with one private visibility buffer per share of the points (`bufs.len()`
+/// shares), then merges the buffers into the G-buffer. Returns the points kept.
+pub fn project_private(
+    v: &ViewParams,
+    positions: &[Vec3],
+    normals: Option<&[Vec3]>,
+    cull_backfaces: bool,
+    bufs: &mut [Vec<u64>],
+    g: &mut GBuffer,
+) -> u64 {
+    let normals = normals.filter(|_| cull_backfaces);
+    let shares = bufs.len().max(1);
+    let per = positions.len().div_ceil(shares).max(1);
+    let kept: u64 = bufs
+        .par_iter_mut()
+        .enumerate()
+        .map(|(s, buf)| {
+            buf.clear();
+            buf.resize(v.pixels(), EMPTY_KEY);
+            let lo = (s * per).min(positions.len());
+            let hi = ((s + 1) * per).min(positions.len());
+            project_range(v, &positions[lo..hi], normals, lo, |pix, key| {
+                let slot = &mut buf[pix];
+                if key < *slot {
+                    *slot = key;
+                }
+            })
+        })
+        .sum();
+    let bufs = &*bufs;
+    let w = v.width as usize;
+    g.depth
+        .par_chunks_mut(w)
+        .zip(g.id.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(j, (drow, irow))| {
+            for i in 0..w {
+                let k = j * w + i;
+                let key = bufs.iter().map(|b| b[k]).min().unwrap_or(EMPTY_KEY);
+                (drow[i], irow[i]) = unpack(key);
+            }
+        });
+    kept
+}
+
+#[inline]
+fn unpack(k: u64) -> (f32, u32) {
+    if k == EMPTY_KEY {
+        (f32::INFINITY, BACKGROUND)
+    } else {
+        (f32::from_bits((k >> 32) as u32), k as u32)
+    }
 }
 
 /// Unpacks the visibility buffer into the G-buffer.
@@ -110,16 +183,7 @@ pub fn resolve(vis: &[AtomicU64], g: &mut GBuffer) {
         .par_iter_mut()
         .zip(g.id.par_iter_mut())
         .zip(vis.par_iter())
-        .for_each(|((d, id), k)| {
-            let k = k.load(Ordering::Relaxed);
-            if k == EMPTY_KEY {
-                *d = f32::INFINITY;
-                *id = BACKGROUND;
-            } else {
-                *d = f32::from_bits((k >> 32) as u32);
-                *id = k as u32;
-            }
-        });
+        .for_each(|((d, id), k)| (*d, *id) = unpack(k.load(Ordering::Relaxed)));
 }
 
 #[cfg(test)]
@@ -142,12 +206,47 @@ mod tests {
         ViewParams::new(&cam, DVec3::ZERO)
     }
 
+    /// Runs both strategies and checks they agree.
     fn run(v: &ViewParams, pts: &[Vec3], normals: Option<&[Vec3]>) -> GBuffer {
         let vis: Vec<AtomicU64> = (0..v.pixels()).map(|_| AtomicU64::new(EMPTY_KEY)).collect();
-        project(v, pts, normals, true, &vis);
+        let kept = project(v, pts, normals, true, &vis);
         let mut g = GBuffer::new(v.width, v.height);
         resolve(&vis, &mut g);
+        for shares in [1, 2, 3] {
+            let mut bufs = vec![Vec::new(); shares];
+            let mut g2 = GBuffer::new(v.width, v.height);
+            assert_eq!(
+                project_private(v, pts, normals, true, &mut bufs, &mut g2),
+                kept
+            );
+            assert_eq!(g2, g, "{shares} private buffers");
+        }
         g
+    }
+
+    #[test]
+    fn strategies_agree_on_random_clouds() {
+        let v = ViewParams {
+            width: 64,
+            height: 48,
+            ..view()
+        };
+        let mut rng = stipple_core::rng::Rng::new(3);
+        // Coarse depths so that many ties occur.
+        let pts: Vec<Vec3> = (0..20_000)
+            .map(|_| {
+                Vec3::new(
+                    rng.f32() * 8.0 - 4.0,
+                    rng.f32() * 8.0 - 4.0,
+                    (rng.f32() * 4.0).floor(),
+                )
+            })
+            .collect();
+        let normals: Vec<Vec3> = (0..20_000)
+            .map(|i| if i % 3 == 0 { -Vec3::Z } else { Vec3::Z })
+            .collect();
+        let g = run(&v, &pts, Some(&normals));
+        assert!(g.covered() > 0);
     }
 
     #[test]

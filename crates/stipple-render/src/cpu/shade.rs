@@ -44,6 +44,7 @@ pub struct ShadeParams {
     pub ambient: f32,
     pub diffuse: f32,
     pub specular: f32,
+    /// Phong exponent (used as an integer: the specular term is a repeated product).
     pub shininess: f32,
     /// Largest depth correction accepted (d̃).
     pub max_correction: f32,
@@ -118,7 +119,7 @@ pub fn phong(albedo: [f32; 3], n: Vec3, v: Vec3, l: Vec3, p: &ShadeParams) -> [f
     let nl = n.dot(l);
     let (diff, spec) = if nl > 0.0 {
         let r = 2.0 * nl * n - l;
-        (nl, r.dot(v).max(0.0).powf(p.shininess))
+        (nl, r.dot(v).max(0.0).powi(p.shininess as i32))
     } else {
         (0.0, 0.0)
     };
