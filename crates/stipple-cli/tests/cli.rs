@@ -1,0 +1,179 @@
+//! End to end through the `stipple` binary (DESIGN.md testing ladder, step 6).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn stipple(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run stipple")
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn tempdir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("stipple-cli-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn data(name: &str) -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(name);
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipped: {} is absent", p.display());
+        None
+    }
+}
+
+#[test]
+fn no_arguments_renders_the_demo_and_says_where() {
+    let dir = tempdir("demo");
+    let o = stipple(&dir, &["render", "--points", "200000", "--size", "320x240"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("wrote stipple-demo.png"), "{}", text(&o));
+    let (w, h, rgba) = stipple_io::image::read_png(&dir.join("stipple-demo.png")).unwrap();
+    assert_eq!((w, h), (320, 240));
+    // Not a blank image: both background and object colours are present.
+    let bg = [24u8, 26, 31, 255];
+    let object = rgba.chunks_exact(4).filter(|p| *p != bg).count();
+    assert!(object > 320 * 240 / 20 && object < 320 * 240, "{object} object pixels");
+
+    // And truly with no arguments at all.
+    let o = stipple(&dir, &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("stipple-demo.png"));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn depth_and_camera_outputs_follow_the_conventions() {
+    let dir = tempdir("outputs");
+    let o = stipple(
+        &dir,
+        &[
+            "render", "--demo", "sphere", "--points", "200000", "--size", "200x100", "--eye", "0,0,5",
+            "--target", "0,0,0", "--fov", "30", "-o", "s.png", "--depth-out", "s.npy", "--camera-out", "s.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (w, h, depth) = stipple_io::image::read_npy(&dir.join("s.npy")).unwrap();
+    assert_eq!((w, h), (200, 100));
+    // Background is +inf; the sphere's nearest point is at view depth 4 in the middle.
+    assert_eq!(depth[0], f32::INFINITY);
+    let centre = depth[50 * 200 + 100];
+    assert!((centre - 4.0).abs() < 0.01, "centre depth {centre}");
+    let cam: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("s.json")).unwrap()).unwrap();
+    assert_eq!(cam["size"], serde_json::json!([200, 100]));
+    assert_eq!(cam["fov"], serde_json::json!(30.0));
+    assert_eq!(cam["eye"], serde_json::json!([0.0, 0.0, 5.0]));
+    let far = cam["far"].as_f64().unwrap();
+    let near = cam["near"].as_f64().unwrap();
+    assert!(near > 0.0 && near < 4.0 && far > 6.0, "near {near} far {far}");
+    assert_eq!(cam["view"].as_array().unwrap().len(), 4);
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn gen_then_info_then_render() {
+    let dir = tempdir("gen");
+    let o = stipple(&dir, &["gen", "torus", "-o", "t.ply", "--points", "50000", "--seed", "4"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let o = stipple(&dir, &["info", "t.ply"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(t.contains("points      50000") && t.contains("normal") && t.contains("spacing"), "{t}");
+    // gen never overwrites without --force.
+    let before = std::fs::read(dir.join("t.ply")).unwrap();
+    let o = stipple(&dir, &["gen", "sphere", "-o", "t.ply"]);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("already exists"), "{}", text(&o));
+    assert_eq!(std::fs::read(dir.join("t.ply")).unwrap(), before);
+    let o = stipple(&dir, &["render", "t.ply", "--size", "128x128"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.join("t.png").exists());
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn inputs_are_never_overwritten_and_errors_are_clear() {
+    let dir = tempdir("errors");
+    std::fs::write(dir.join("cloud.xyz"), "0 0 0\n1 0 0\n0 1 0\n1 1 1\n").unwrap();
+    let before = std::fs::read(dir.join("cloud.xyz")).unwrap();
+    // Writing the image over the input is refused (whatever the extension check says first).
+    std::fs::copy(dir.join("cloud.xyz"), dir.join("cloud.png")).unwrap();
+    let o = stipple(&dir, &["render", "cloud.png"]);
+    assert!(!o.status.success());
+    let o = stipple(&dir, &["render", "cloud.xyz", "--depth-out", "cloud.xyz"]);
+    assert!(!o.status.success());
+    let o = stipple(&dir, &["render", "cloud.xyz", "--camera-out", "./cloud.xyz"]);
+    assert!(text(&o).contains("refusing to overwrite an input file"), "{}", text(&o));
+    assert_eq!(std::fs::read(dir.join("cloud.xyz")).unwrap(), before);
+
+    // A malformed file: exit code 1, the file named, no panic.
+    std::fs::write(dir.join("bad.ply"), "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\nend_header\n1 2 3\n").unwrap();
+    let o = stipple(&dir, &["render", "bad.ply"]);
+    assert_eq!(o.status.code(), Some(1));
+    let t = text(&o);
+    assert!(t.contains("bad.ply") && t.contains("error") && !t.contains("panicked"), "{t}");
+
+    for (args, phrase) in [
+        (vec!["render", "--size", "0x10"], "not a size"),
+        (vec!["render", "--eye", "1,2"], "three comma-separated numbers"),
+        (vec!["render", "--demo", "teapot"], "unknown scene"),
+        (vec!["render", "--fill-background-iterations", "many"], "not an iteration count"),
+        (vec!["render", "--backend", "gpu"], "GPU backend is not implemented"),
+        (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "eye and target coincide"),
+        (vec!["info", "missing.laz"], "missing.laz"),
+    ] {
+        let o = stipple(&dir, &args);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(text(&o).contains(phrase), "{args:?}: {}", text(&o));
+        assert!(!text(&o).contains("panicked"), "{args:?}: {}", text(&o));
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn pipeline_switches_change_the_image() {
+    let dir = tempdir("switches");
+    let base = ["render", "--demo", "torus", "--points", "40000", "--size", "256x256"];
+    let run = |extra: &[&str], out: &str| {
+        let npy = format!("{out}.npy");
+        let mut a: Vec<&str> = base.to_vec();
+        a.extend_from_slice(extra);
+        a.extend_from_slice(&["-o", out, "--depth-out", &npy]);
+        let o = stipple(&dir, &a);
+        assert!(o.status.success(), "{}", text(&o));
+        stipple_io::image::read_npy(&dir.join(format!("{out}.npy"))).unwrap().2
+    };
+    let covered = |d: &[f32]| d.iter().filter(|v| v.is_finite()).count();
+    let full = run(&[], "full.png");
+    let raw = run(&["--points-only"], "raw.png");
+    let auto = run(&["--fill-background-iterations", "3"], "more.png");
+    assert!(covered(&raw) < covered(&full), "filling adds pixels");
+    assert!(covered(&full) <= covered(&auto), "more iterations fill at least as much");
+    let no_bg = run(&["--no-fill-background"], "nobg.png");
+    assert!(covered(&no_bg) < covered(&full));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn real_files_render() {
+    let dir = tempdir("real");
+    for name in ["stanford/bunny/bun_zipper_res2.ply", "lidar/autzen_trim.laz"] {
+        let Some(p) = data(name) else { return };
+        let o = stipple(&dir, &["render", p.to_str().unwrap(), "--size", "256x192", "-o", "r.png"]);
+        assert!(o.status.success(), "{name}: {}", text(&o));
+        let (_, _, rgba) = stipple_io::image::read_png(&dir.join("r.png")).unwrap();
+        let bg = [24u8, 26, 31, 255];
+        assert!(rgba.chunks_exact(4).filter(|p| *p != bg).count() > 256 * 192 / 20, "{name}: nearly empty");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
