@@ -12,7 +12,11 @@ fn stipple(dir: &Path, args: &[&str]) -> Output {
 }
 
 fn text(o: &Output) -> String {
-    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
 }
 
 fn tempdir(tag: &str) -> PathBuf {
@@ -23,7 +27,9 @@ fn tempdir(tag: &str) -> PathBuf {
 }
 
 fn data(name: &str) -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data").join(name);
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data")
+        .join(name);
     if p.exists() {
         Some(p)
     } else {
@@ -43,7 +49,10 @@ fn no_arguments_renders_the_demo_and_says_where() {
     // Not a blank image: both background and object colours are present.
     let bg = [24u8, 26, 31, 255];
     let object = rgba.chunks_exact(4).filter(|p| *p != bg).count();
-    assert!(object > 320 * 240 / 20 && object < 320 * 240, "{object} object pixels");
+    assert!(
+        object > 320 * 240 / 20 && object < 320 * 240,
+        "{object} object pixels"
+    );
 
     // And truly with no arguments at all.
     let o = stipple(&dir, &[]);
@@ -58,8 +67,25 @@ fn depth_and_camera_outputs_follow_the_conventions() {
     let o = stipple(
         &dir,
         &[
-            "render", "--demo", "sphere", "--points", "200000", "--size", "200x100", "--eye", "0,0,5",
-            "--target", "0,0,0", "--fov", "30", "-o", "s.png", "--depth-out", "s.npy", "--camera-out", "s.json",
+            "render",
+            "--demo",
+            "sphere",
+            "--points",
+            "200000",
+            "--size",
+            "200x100",
+            "--eye",
+            "0,0,5",
+            "--target",
+            "0,0,0",
+            "--fov",
+            "30",
+            "-o",
+            "s.png",
+            "--depth-out",
+            "s.npy",
+            "--camera-out",
+            "s.json",
         ],
     );
     assert!(o.status.success(), "{}", text(&o));
@@ -69,13 +95,17 @@ fn depth_and_camera_outputs_follow_the_conventions() {
     assert_eq!(depth[0], f32::INFINITY);
     let centre = depth[50 * 200 + 100];
     assert!((centre - 4.0).abs() < 0.01, "centre depth {centre}");
-    let cam: serde_json::Value = serde_json::from_slice(&std::fs::read(dir.join("s.json")).unwrap()).unwrap();
+    let cam: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("s.json")).unwrap()).unwrap();
     assert_eq!(cam["size"], serde_json::json!([200, 100]));
     assert_eq!(cam["fov"], serde_json::json!(30.0));
     assert_eq!(cam["eye"], serde_json::json!([0.0, 0.0, 5.0]));
     let far = cam["far"].as_f64().unwrap();
     let near = cam["near"].as_f64().unwrap();
-    assert!(near > 0.0 && near < 4.0 && far > 6.0, "near {near} far {far}");
+    assert!(
+        near > 0.0 && near < 4.0 && far > 6.0,
+        "near {near} far {far}"
+    );
     assert_eq!(cam["view"].as_array().unwrap().len(), 4);
     std::fs::remove_dir_all(dir).ok();
 }
@@ -83,12 +113,20 @@ fn depth_and_camera_outputs_follow_the_conventions() {
 #[test]
 fn gen_then_info_then_render() {
     let dir = tempdir("gen");
-    let o = stipple(&dir, &["gen", "torus", "-o", "t.ply", "--points", "50000", "--seed", "4"]);
+    let o = stipple(
+        &dir,
+        &[
+            "gen", "torus", "-o", "t.ply", "--points", "50000", "--seed", "4",
+        ],
+    );
     assert!(o.status.success(), "{}", text(&o));
     let o = stipple(&dir, &["info", "t.ply"]);
     assert!(o.status.success(), "{}", text(&o));
     let t = text(&o);
-    assert!(t.contains("points      50000") && t.contains("normal") && t.contains("spacing"), "{t}");
+    assert!(
+        t.contains("points      50000") && t.contains("normal") && t.contains("spacing"),
+        "{t}"
+    );
     // gen never overwrites without --force.
     let before = std::fs::read(dir.join("t.ply")).unwrap();
     let o = stipple(&dir, &["gen", "sphere", "-o", "t.ply"]);
@@ -112,8 +150,15 @@ fn inputs_are_never_overwritten_and_errors_are_clear() {
     assert!(!o.status.success());
     let o = stipple(&dir, &["render", "cloud.xyz", "--depth-out", "cloud.xyz"]);
     assert!(!o.status.success());
-    let o = stipple(&dir, &["render", "cloud.xyz", "--camera-out", "./cloud.xyz"]);
-    assert!(text(&o).contains("refusing to overwrite an input file"), "{}", text(&o));
+    let o = stipple(
+        &dir,
+        &["render", "cloud.xyz", "--camera-out", "./cloud.xyz"],
+    );
+    assert!(
+        text(&o).contains("refusing to overwrite an input file"),
+        "{}",
+        text(&o)
+    );
     assert_eq!(std::fs::read(dir.join("cloud.xyz")).unwrap(), before);
 
     // A malformed file: exit code 1, the file named, no panic.
@@ -121,15 +166,30 @@ fn inputs_are_never_overwritten_and_errors_are_clear() {
     let o = stipple(&dir, &["render", "bad.ply"]);
     assert_eq!(o.status.code(), Some(1));
     let t = text(&o);
-    assert!(t.contains("bad.ply") && t.contains("error") && !t.contains("panicked"), "{t}");
+    assert!(
+        t.contains("bad.ply") && t.contains("error") && !t.contains("panicked"),
+        "{t}"
+    );
 
     for (args, phrase) in [
         (vec!["render", "--size", "0x10"], "not a size"),
-        (vec!["render", "--eye", "1,2"], "three comma-separated numbers"),
+        (
+            vec!["render", "--eye", "1,2"],
+            "three comma-separated numbers",
+        ),
         (vec!["render", "--demo", "teapot"], "unknown scene"),
-        (vec!["render", "--fill-background-iterations", "many"], "not an iteration count"),
-        (vec!["render", "--backend", "gpu"], "GPU backend is not implemented"),
-        (vec!["render", "--eye", "0,0,0", "--target", "0,0,0"], "eye and target coincide"),
+        (
+            vec!["render", "--fill-background-iterations", "many"],
+            "not an iteration count",
+        ),
+        (
+            vec!["render", "--backend", "gpu"],
+            "GPU backend is not implemented",
+        ),
+        (
+            vec!["render", "--eye", "0,0,0", "--target", "0,0,0"],
+            "eye and target coincide",
+        ),
         (vec!["info", "missing.laz"], "missing.laz"),
     ] {
         let o = stipple(&dir, &args);
@@ -143,7 +203,9 @@ fn inputs_are_never_overwritten_and_errors_are_clear() {
 #[test]
 fn pipeline_switches_change_the_image() {
     let dir = tempdir("switches");
-    let base = ["render", "--demo", "torus", "--points", "40000", "--size", "256x256"];
+    let base = [
+        "render", "--demo", "torus", "--points", "40000", "--size", "256x256",
+    ];
     let run = |extra: &[&str], out: &str| {
         let npy = format!("{out}.npy");
         let mut a: Vec<&str> = base.to_vec();
@@ -151,14 +213,19 @@ fn pipeline_switches_change_the_image() {
         a.extend_from_slice(&["-o", out, "--depth-out", &npy]);
         let o = stipple(&dir, &a);
         assert!(o.status.success(), "{}", text(&o));
-        stipple_io::image::read_npy(&dir.join(format!("{out}.npy"))).unwrap().2
+        stipple_io::image::read_npy(&dir.join(format!("{out}.npy")))
+            .unwrap()
+            .2
     };
     let covered = |d: &[f32]| d.iter().filter(|v| v.is_finite()).count();
     let full = run(&[], "full.png");
     let raw = run(&["--points-only"], "raw.png");
     let auto = run(&["--fill-background-iterations", "3"], "more.png");
     assert!(covered(&raw) < covered(&full), "filling adds pixels");
-    assert!(covered(&full) <= covered(&auto), "more iterations fill at least as much");
+    assert!(
+        covered(&full) <= covered(&auto),
+        "more iterations fill at least as much"
+    );
     let no_bg = run(&["--no-fill-background"], "nobg.png");
     assert!(covered(&no_bg) < covered(&full));
     std::fs::remove_dir_all(dir).ok();
@@ -167,13 +234,29 @@ fn pipeline_switches_change_the_image() {
 #[test]
 fn real_files_render() {
     let dir = tempdir("real");
-    for name in ["stanford/bunny/bun_zipper_res2.ply", "lidar/autzen_trim.laz"] {
+    for name in [
+        "stanford/bunny/bun_zipper_res2.ply",
+        "lidar/autzen_trim.laz",
+    ] {
         let Some(p) = data(name) else { return };
-        let o = stipple(&dir, &["render", p.to_str().unwrap(), "--size", "256x192", "-o", "r.png"]);
+        let o = stipple(
+            &dir,
+            &[
+                "render",
+                p.to_str().unwrap(),
+                "--size",
+                "256x192",
+                "-o",
+                "r.png",
+            ],
+        );
         assert!(o.status.success(), "{name}: {}", text(&o));
         let (_, _, rgba) = stipple_io::image::read_png(&dir.join("r.png")).unwrap();
         let bg = [24u8, 26, 31, 255];
-        assert!(rgba.chunks_exact(4).filter(|p| *p != bg).count() > 256 * 192 / 20, "{name}: nearly empty");
+        assert!(
+            rgba.chunks_exact(4).filter(|p| *p != bg).count() > 256 * 192 / 20,
+            "{name}: nearly empty"
+        );
     }
     std::fs::remove_dir_all(dir).ok();
 }

@@ -43,17 +43,27 @@ fn every_covered_data_file_renders() {
             let p = e.unwrap().path();
             if p.is_dir() {
                 stack.push(p);
-            } else if matches!(stipple_io::extension(&p).as_str(), "ply" | "las" | "laz" | "xyz") {
+            } else if matches!(
+                stipple_io::extension(&p).as_str(),
+                "ply" | "las" | "laz" | "xyz"
+            ) {
                 found.push(p.strip_prefix(&dir).unwrap().to_string_lossy().into_owned());
             }
         }
     }
     for f in &found {
         let listed = FILES.contains(&f.as_str()) || f.starts_with("stanford/bunny/data/");
-        assert!(listed, "{f} is readable by stipple but not rendered by this test");
+        assert!(
+            listed,
+            "{f} is readable by stipple but not rendered by this test"
+        );
     }
     let mut names: Vec<String> = FILES.iter().map(|s| s.to_string()).collect();
-    names.extend(found.into_iter().filter(|f| f.starts_with("stanford/bunny/data/")));
+    names.extend(
+        found
+            .into_iter()
+            .filter(|f| f.starts_with("stanford/bunny/data/")),
+    );
     names.sort();
     names.dedup();
     for name in names {
@@ -64,7 +74,14 @@ fn every_covered_data_file_renders() {
         let prepared = PreparedCloud::new(cloud);
         let f = render(&prepared, &cam, &Pipeline::default(), Backend::Cpu).unwrap();
         let covered = f.id.iter().filter(|&&i| i != BACKGROUND).count();
-        assert!(covered > 160 * 120 / 50, "{name}: only {covered} pixels covered");
-        eprintln!("{name}: {} points, {covered} px, {:.2} s", prepared.cloud.len(), t0.elapsed().as_secs_f64());
+        assert!(
+            covered > 160 * 120 / 50,
+            "{name}: only {covered} pixels covered"
+        );
+        eprintln!(
+            "{name}: {} points, {covered} px, {:.2} s",
+            prepared.cloud.len(),
+            t0.elapsed().as_secs_f64()
+        );
     }
 }

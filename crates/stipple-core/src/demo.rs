@@ -234,7 +234,7 @@ pub fn generate(scene: DemoScene, n: usize, seed: u64) -> PointCloud {
                 let face = rng.below(6) as usize;
                 let (u, v) = (rng.f32() - 0.5, rng.f32() - 0.5);
                 let axis = face / 2;
-                let sign = if face % 2 == 0 { 0.5 } else { -0.5 };
+                let sign = if face.is_multiple_of(2) { 0.5 } else { -0.5 };
                 let mut q = [0.0f32; 3];
                 q[axis] = sign;
                 q[(axis + 1) % 3] = u;

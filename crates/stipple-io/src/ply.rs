@@ -409,7 +409,7 @@ pub fn parse_ply(data: &[u8]) -> Result<PointCloud, String> {
             // Each ascii value takes at least two bytes (a digit and a separator).
             for el in &h.elements {
                 let need = el.count.saturating_mul(el.props.len() as u64);
-                if need > (body.len() as u64 + 1) / 2 {
+                if need > (body.len() as u64).div_ceil(2) {
                     return Err(format!(
                         "the header declares {} `{}` records but only {} bytes follow it: the file is truncated or the count is wrong",
                         el.count,

@@ -18,17 +18,31 @@ fn nd(depth: f32, inv_far: f32) -> f32 {
     }
 }
 
+/// Edge detection and blending parameters.
+#[derive(Clone, Copy, Debug)]
+pub struct AaParams {
+    /// The far plane: depth is normalised by it.
+    pub far: f32,
+    /// |Laplace(depth / far)| above this marks an edge.
+    pub threshold: f32,
+    /// Blend factor s towards the blurred neighbourhood.
+    pub strength: f32,
+}
+
 /// Returns the number of pixels blended.
 pub fn antialias(
     w: usize,
     h: usize,
     depth: &[f32],
-    far: f32,
-    threshold: f32,
-    strength: f32,
+    p: AaParams,
     src: &[[f32; 3]],
     dst: &mut [[f32; 3]],
 ) -> u64 {
+    let AaParams {
+        far,
+        threshold,
+        strength,
+    } = p;
     let inv_far = 1.0 / far;
     const G: [f32; 9] = [1.0, 2.0, 1.0, 2.0, 4.0, 2.0, 1.0, 2.0, 1.0];
     dst.par_chunks_mut(w)
@@ -94,13 +108,18 @@ mod tests {
             }
         }
         let mut dst = vec![[0.0; 3]; 36];
-        let n = antialias(w, h, &depth, 10.0, 0.1, 1.0, &src, &mut dst);
+        let p = |threshold| AaParams {
+            far: 10.0,
+            threshold,
+            strength: 1.0,
+        };
+        let n = antialias(w, h, &depth, p(0.1), &src, &mut dst);
         assert!(n > 0);
         assert_eq!(dst[0], [1.0; 3], "far from the edge: unchanged");
         assert!(dst[2 * w + 2][0] > 0.0, "object edge pixel lightened");
         assert!(dst[2 * w + 1][0] < 1.0, "background edge pixel darkened");
         // A high threshold leaves the image alone.
-        assert_eq!(antialias(w, h, &depth, 10.0, 10.0, 1.0, &src, &mut dst), 0);
+        assert_eq!(antialias(w, h, &depth, p(10.0), &src, &mut dst), 0);
         assert_eq!(dst, src);
     }
 }

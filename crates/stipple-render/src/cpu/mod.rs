@@ -163,7 +163,18 @@ impl CpuRenderer {
                     threshold,
                     strength,
                 } => {
-                    let k = antialias::antialias(w, h, sd, v.far, threshold, strength, ca, cb);
+                    let k = antialias::antialias(
+                        w,
+                        h,
+                        sd,
+                        antialias::AaParams {
+                            far: v.far,
+                            threshold,
+                            strength,
+                        },
+                        ca,
+                        cb,
+                    );
                     std::mem::swap(ca, cb);
                     ((), 1, k)
                 }
