@@ -6,6 +6,7 @@
 //! on both sides of the edge, are blended with the Gaussian-weighted mean of their 3×3
 //! neighbourhood, background colour included: c ← (1 − s)·c + s·G(c).
 
+use super::smooth::weighted_3x3;
 use rayon::prelude::*;
 
 /// Normalised depth used by the edge detector.
@@ -62,28 +63,9 @@ pub fn antialias(
                     row[x] = src[k];
                     continue;
                 }
-                let mut acc = [0.0f32; 3];
-                let mut sum = 0.0;
-                for dy in -1i32..=1 {
-                    let ny = y as i32 + dy;
-                    if ny < 0 || ny >= h as i32 {
-                        continue;
-                    }
-                    for dx in -1i32..=1 {
-                        let nx = x as i32 + dx;
-                        if nx < 0 || nx >= w as i32 {
-                            continue;
-                        }
-                        let f = G[((dy + 1) * 3 + dx + 1) as usize];
-                        let s = src[ny as usize * w + nx as usize];
-                        acc[0] += f * s[0];
-                        acc[1] += f * s[1];
-                        acc[2] += f * s[2];
-                        sum += f;
-                    }
-                }
+                let blur = weighted_3x3(w, h, x, y, &G, src, |_| true);
                 let s = src[k];
-                row[x] = [0, 1, 2].map(|i| (1.0 - strength) * s[i] + strength * acc[i] / sum);
+                row[x] = [0, 1, 2].map(|i| (1.0 - strength) * s[i] + strength * blur[i]);
                 blended += 1;
             }
             blended

@@ -21,6 +21,25 @@ use rayon::prelude::*;
 /// One iteration from `src` into `dst` with masks over the (2·radius+1)² window (radius 1 is
 /// the paper's 3×3); returns the number of pixels filled.
 pub fn fill_background(src: &GBuffer, dst: &mut GBuffer, radius: u32) -> u64 {
+    fill_pass(
+        src,
+        dst,
+        radius,
+        |_, id| id == BACKGROUND,
+        |_, _, _, nid| nid != BACKGROUND,
+    )
+}
+
+/// The row loop both fill passes share: every pixel for which `candidate(depth, id)` holds
+/// runs the mask test, where a cell is solid when `solid(depth, cell depth, id, cell id)`;
+/// other pixels are copied. Returns the number of pixels replaced.
+pub(crate) fn fill_pass(
+    src: &GBuffer,
+    dst: &mut GBuffer,
+    radius: u32,
+    candidate: impl Fn(f32, u32) -> bool + Sync,
+    solid: impl Fn(f32, f32, u32, u32) -> bool + Sync,
+) -> u64 {
     let (w, h) = (src.width as i32, src.height as i32);
     let win = window(radius);
     dst.depth
@@ -32,15 +51,17 @@ pub fn fill_background(src: &GBuffer, dst: &mut GBuffer, radius: u32) -> u64 {
             let mut changed = 0u64;
             for x in 0..w {
                 let k = (y * w + x) as usize;
-                let id = src.id[k];
-                drow[x as usize] = src.depth[k];
+                let (d, id) = (src.depth[k], src.id[k]);
+                drow[x as usize] = d;
                 irow[x as usize] = id;
-                if id != BACKGROUND {
+                if !candidate(d, id) {
                     continue;
                 }
-                if let Some((d, i)) = hole_fill(src, &win, x, y, w, h, |_, nid| nid != BACKGROUND) {
-                    drow[x as usize] = d;
-                    irow[x as usize] = i;
+                if let Some((nd, nid)) =
+                    hole_fill(src, &win, x, y, w, h, |cd, cid| solid(d, cd, id, cid))
+                {
+                    drow[x as usize] = nd;
+                    irow[x as usize] = nid;
                     changed += 1;
                 }
             }

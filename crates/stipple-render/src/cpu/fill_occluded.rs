@@ -8,42 +8,20 @@
 //! minimum depth (ties: smaller id). d̃ is the minimum gap between two surface layers, in
 //! world units along the view axis.
 
-use super::fill_background::hole_fill;
+use super::fill_background::fill_pass;
 use crate::gbuffer::{GBuffer, BACKGROUND};
-use crate::masks::window;
-use rayon::prelude::*;
 
 /// One iteration from `src` into `dst` (masks over the (2·radius+1)² window); returns the
 /// number of pixels replaced.
 pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32, radius: u32) -> u64 {
-    let (w, h) = (src.width as i32, src.height as i32);
-    let win = window(radius);
-    dst.depth
-        .par_chunks_mut(w as usize)
-        .zip(dst.id.par_chunks_mut(w as usize))
-        .enumerate()
-        .map(|(y, (drow, irow))| {
-            let y = y as i32;
-            let mut changed = 0u64;
-            for x in 0..w {
-                let k = (y * w + x) as usize;
-                let (d, id) = (src.depth[k], src.id[k]);
-                drow[x as usize] = d;
-                irow[x as usize] = id;
-                if id == BACKGROUND {
-                    continue;
-                }
-                // "Dark" cells: at least d̃ nearer than this pixel.
-                let limit = d - layer_gap;
-                if let Some((nd, nid)) = hole_fill(src, &win, x, y, w, h, |cd, _| cd <= limit) {
-                    drow[x as usize] = nd;
-                    irow[x as usize] = nid;
-                    changed += 1;
-                }
-            }
-            changed
-        })
-        .sum()
+    // "Dark" (solid) cells: at least d̃ nearer than the candidate pixel.
+    fill_pass(
+        src,
+        dst,
+        radius,
+        |_, id| id != BACKGROUND,
+        |d, cd, _, _| cd <= d - layer_gap,
+    )
 }
 
 #[cfg(test)]

@@ -26,33 +26,48 @@ pub fn smooth(
                 row[x] = src[k];
                 continue;
             }
-            let mut acc = [0.0f32; 3];
-            let mut sum = 0.0f32;
-            for dy in -1i32..=1 {
-                let ny = y as i32 + dy;
-                if ny < 0 || ny >= h as i32 {
-                    continue;
-                }
-                for dx in -1i32..=1 {
-                    let nx = x as i32 + dx;
-                    if nx < 0 || nx >= w as i32 {
-                        continue;
-                    }
-                    let n = ny as usize * w + nx as usize;
-                    if id[n] == BACKGROUND {
-                        continue;
-                    }
-                    let f = wt[((dy + 1) * 3 + dx + 1) as usize];
-                    let c = src[n];
-                    acc[0] += f * c[0];
-                    acc[1] += f * c[1];
-                    acc[2] += f * c[2];
-                    sum += f;
-                }
-            }
-            row[x] = acc.map(|a| a / sum);
+            row[x] = weighted_3x3(w, h, x, y, &wt, src, |n| id[n] != BACKGROUND);
         }
     });
+}
+
+/// The `weights`-weighted mean (row order, 9 values) of the colours around (x, y) over the
+/// in-image pixels `n` for which `include(n)` holds, renormalised over those present.
+#[inline]
+pub(crate) fn weighted_3x3(
+    w: usize,
+    h: usize,
+    x: usize,
+    y: usize,
+    weights: &[f32; 9],
+    src: &[[f32; 3]],
+    include: impl Fn(usize) -> bool,
+) -> [f32; 3] {
+    let mut acc = [0.0f32; 3];
+    let mut sum = 0.0f32;
+    for dy in -1i32..=1 {
+        let ny = y as i32 + dy;
+        if ny < 0 || ny >= h as i32 {
+            continue;
+        }
+        for dx in -1i32..=1 {
+            let nx = x as i32 + dx;
+            if nx < 0 || nx >= w as i32 {
+                continue;
+            }
+            let n = ny as usize * w + nx as usize;
+            if !include(n) {
+                continue;
+            }
+            let f = weights[((dy + 1) * 3 + dx + 1) as usize];
+            let c = src[n];
+            acc[0] += f * c[0];
+            acc[1] += f * c[1];
+            acc[2] += f * c[2];
+            sum += f;
+        }
+    }
+    acc.map(|a| a / sum)
 }
 
 #[cfg(test)]
