@@ -26,11 +26,6 @@ impl GBuffer {
         }
     }
 
-    pub fn clear(&mut self) {
-        self.depth.fill(f32::INFINITY);
-        self.id.fill(BACKGROUND);
-    }
-
     pub fn covered(&self) -> usize {
         self.id.iter().filter(|&&i| i != BACKGROUND).count()
     }

@@ -109,12 +109,6 @@ pub struct Frame {
     pub stats: Vec<PassStat>,
 }
 
-impl Frame {
-    pub fn total_ms(&self) -> f64 {
-        self.stats.iter().map(|s| s.ms).sum()
-    }
-}
-
 /// Renders one frame with a fresh renderer (for repeated frames keep a [`cpu::CpuRenderer`]).
 pub fn render(
     cloud: &PreparedCloud,
