@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 use stipple_core::demo::{self, DemoScene};
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline};
-use stipple_render::{Backend, PreparedCloud};
+use stipple_render::gpu::{GpuOptions, ProjectionPath};
+use stipple_render::{Backend, PreparedCloud, Renderer};
 
 #[derive(clap::Args, Clone)]
 pub struct SourceArgs {
@@ -290,17 +291,46 @@ impl PipelineArgs {
     }
 }
 
-/// Chooses the backend: `auto` falls back to the CPU (saying so once) when no GPU backend is
-/// available; `gpu` without one is an error.
-pub fn resolve_backend(b: Backend) -> Result<Backend> {
-    match b {
-        Backend::Cpu => Ok(Backend::Cpu),
-        Backend::Auto => {
-            eprintln!("stipple: no GPU backend in this build; rendering on the CPU");
-            Ok(Backend::Cpu)
+/// Where the passes run, shared by `render` and `bench`.
+#[derive(clap::Args, Clone)]
+pub struct BackendArgs {
+    /// Where the passes run: cpu, gpu, or auto (a suitable GPU adapter if there is one, else
+    /// the CPU, saying why once). `stipple devices` lists the adapters; WGPU_BACKEND=vulkan|gl|…
+    /// restricts the search.
+    #[arg(long, default_value = "auto", value_parser = Backend::parse)]
+    pub backend: Backend,
+    /// GPU projection: compute (the compute rasterizer, 64-bit atomics or the 32-bit two-pass
+    /// fallback) or hardware (a PointList render pipeline with a depth test, the baseline).
+    #[arg(long, default_value = "compute", value_parser = parse_projection)]
+    pub projection: ProjectionPath,
+    /// GPU: use the 32-bit two-pass projection even where 64-bit atomics exist.
+    #[arg(long)]
+    pub gpu_32bit: bool,
+}
+
+fn parse_projection(s: &str) -> std::result::Result<ProjectionPath, String> {
+    match s {
+        "compute" => Ok(ProjectionPath::Compute),
+        "hardware" | "hw" => Ok(ProjectionPath::Hardware),
+        _ => Err(format!("unknown projection `{s}` (compute, hardware)")),
+    }
+}
+
+impl BackendArgs {
+    /// Opens the renderer; `--projection hardware` with the CPU backend is an error.
+    pub fn open(&self) -> Result<Renderer> {
+        let options = GpuOptions {
+            force_32bit: self.gpu_32bit,
+            ..Default::default()
+        };
+        let mut r = Renderer::new(self.backend, options).map_err(|e| format!("--backend gpu: {e}"))?;
+        match r.gpu_mut() {
+            Some(g) => g.projection = self.projection,
+            None if self.projection == ProjectionPath::Hardware => {
+                return Err("--projection hardware needs the GPU backend".into())
+            }
+            None => {}
         }
-        Backend::Gpu => Err(
-            "--backend gpu: the GPU backend is not implemented yet in this build; use --backend cpu".into(),
-        ),
+        Ok(r)
     }
 }

@@ -1,11 +1,11 @@
 //! `stipple bench`: whole-frame timings, ms per pass (median over frames) and projection
 //! throughput. Timing thresholds live here and in BENCHMARKS.md, never in tests.
 
-use crate::args::{CameraArgs, PipelineArgs, SourceArgs};
+use crate::args::{BackendArgs, CameraArgs, PipelineArgs, SourceArgs};
 use crate::Result;
 use std::time::Instant;
-use stipple_render::cpu::CpuRenderer;
-use stipple_render::{Backend, ViewParams};
+use stipple_render::gpu::ProjectionPath;
+use stipple_render::{PreparedCloud, Renderer};
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
@@ -21,9 +21,8 @@ pub struct BenchArgs {
     /// Untimed frames first.
     #[arg(long, default_value_t = 2)]
     warmup: usize,
-    /// Backend to time: cpu, gpu or auto.
-    #[arg(long, default_value = "cpu", value_parser = Backend::parse)]
-    backend: Backend,
+    #[command(flatten)]
+    backend: BackendArgs,
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -39,26 +38,25 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-pub fn run(a: BenchArgs) -> Result<()> {
-    if a.frames == 0 {
-        return Err("--frames must be at least 1".into());
+type PassTimes = Vec<(&'static str, Vec<f64>, u32, u64)>;
+
+/// Times `frames` frames after `warmup`: per-pass times and whole-frame wall times.
+fn time_frames(
+    r: &mut Renderer,
+    cloud: &PreparedCloud,
+    camera: &stipple_core::Camera,
+    pipe: &stipple_render::Pipeline,
+    warmup: usize,
+    frames: usize,
+) -> Result<(PassTimes, Vec<f64>)> {
+    for _ in 0..warmup {
+        r.render(cloud, camera, pipe).map_err(|e| e.to_string())?;
     }
-    let backend = crate::args::resolve_backend(a.backend)?;
-    let t0 = Instant::now();
-    let (cloud, label) = a.source.load()?;
-    let load_s = t0.elapsed().as_secs_f64();
-    let camera = a.camera.build(&cloud.cloud)?;
-    let pipe = a.pipeline.build()?;
-    let v = ViewParams::new(&camera, cloud.cloud.origin);
-    let mut r = CpuRenderer::new();
-    for _ in 0..a.warmup {
-        r.render(&cloud, &v, &pipe);
-    }
-    let mut per_pass: Vec<(&'static str, Vec<f64>, u32, u64)> = Vec::new();
+    let mut per_pass: PassTimes = Vec::new();
     let mut totals = Vec::new();
-    for _ in 0..a.frames {
+    for _ in 0..frames {
         let t = Instant::now();
-        let f = r.render(&cloud, &v, &pipe);
+        let f = r.render(cloud, camera, pipe).map_err(|e| e.to_string())?;
         totals.push(t.elapsed().as_secs_f64() * 1e3);
         for (k, s) in f.stats.iter().enumerate() {
             if per_pass.len() <= k {
@@ -67,31 +65,71 @@ pub fn run(a: BenchArgs) -> Result<()> {
             per_pass[k].1.push(s.ms);
         }
     }
+    Ok((per_pass, totals))
+}
+
+pub fn run(a: BenchArgs) -> Result<()> {
+    if a.frames == 0 {
+        return Err("--frames must be at least 1".into());
+    }
+    let mut r = a.backend.open()?;
+    if let Some(g) = r.gpu_mut() {
+        // Without timestamp queries, time each pass by submitting and waiting.
+        g.sync_timing = true;
+    }
+    let t0 = Instant::now();
+    let (cloud, label) = a.source.load()?;
+    let load_s = t0.elapsed().as_secs_f64();
+    let camera = a.camera.build(&cloud.cloud)?;
+    let pipe = a.pipeline.build()?;
+    let (mut per_pass, mut totals) =
+        time_frames(&mut r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
     let n = cloud.cloud.len();
     println!(
-        "stipple bench: {label}, {n} points, {}x{}, backend {}, {} threads, {} frames (median)",
+        "stipple bench: {label}, {n} points, {}x{}, {}, {} frames (median)",
         camera.width,
         camera.height,
-        if backend == Backend::Gpu {
-            "gpu"
-        } else {
-            "cpu"
-        },
-        rayon::current_num_threads(),
+        r.describe(),
         a.frames
     );
     println!("  load + prepare     {:>9.1} ms", load_s * 1e3);
     println!("  {:<16} {:>9} {:>6} {:>12}", "pass", "ms", "iter", "count");
+    let mut project_ms = f64::NAN;
+    let mut sum = 0.0;
     for (name, ms, it, count) in &mut per_pass {
         let m = median(ms);
+        sum += m;
         let extra = if *name == "project" {
+            project_ms = m;
             format!("   {:.1} M points/s", n as f64 / m / 1e3)
         } else {
             String::new()
         };
-        println!("  {name:<16} {m:>9.2} {it:>6} {count:>12}{extra}");
+        println!("  {name:<16} {m:>9.3} {it:>6} {count:>12}{extra}");
     }
+    println!("  {:<16} {:>9.3} ms", "passes (sum)", sum);
     let t = median(&mut totals);
-    println!("  {:<16} {:>9.2} ms   ({:.1} fps)", "frame", t, 1e3 / t);
+    println!(
+        "  {:<16} {:>9.2} ms   ({:.1} fps, wall time with upload of uniforms and readback)",
+        "frame",
+        t,
+        1e3 / t
+    );
+    if let Some(g) = r.gpu_mut() {
+        // The other projection path, for comparison.
+        let other = match g.projection {
+            ProjectionPath::Compute => ProjectionPath::Hardware,
+            ProjectionPath::Hardware => ProjectionPath::Compute,
+        };
+        let this = g.projection;
+        g.projection = other;
+        let (mut pp, _) = time_frames(&mut r, &cloud, &camera, &pipe, 1, a.frames)?;
+        let m = median(&mut pp[0].1);
+        println!(
+            "  project ({other:?}) {m:>9.3} ms   {:.1} M points/s   ({this:?} is {:.1}× faster)",
+            n as f64 / m / 1e3,
+            m / project_ms
+        );
+    }
     Ok(())
 }

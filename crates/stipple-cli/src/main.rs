@@ -3,13 +3,13 @@
 mod args;
 mod bench;
 
-use args::{CameraArgs, PipelineArgs, SourceArgs};
+use args::{BackendArgs, CameraArgs, PipelineArgs, SourceArgs};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 use stipple_core::demo::{self, DemoScene};
-use stipple_render::{Backend, PreparedCloud};
+use stipple_render::PreparedCloud;
 
 const ABOUT: &str =
     "Render point clouds (scans, LiDAR, simulations) fast and faithfully, with no preprocessing.";
@@ -54,6 +54,8 @@ enum Cmd {
     Gen(GenArgs),
     /// Time whole frames: ms per pass and projection throughput.
     Bench(bench::BenchArgs),
+    /// List the GPU adapters wgpu finds, their backends and the features stipple uses.
+    Devices,
 }
 
 #[derive(clap::Args)]
@@ -74,9 +76,8 @@ struct RenderArgs {
     camera: CameraArgs,
     #[command(flatten)]
     pipeline: PipelineArgs,
-    /// Where the passes run: cpu, gpu, or auto (a suitable GPU if present, else the CPU).
-    #[arg(long, default_value = "auto", value_parser = Backend::parse)]
-    backend: Backend,
+    #[command(flatten)]
+    backend: BackendArgs,
     /// Print the time each pass took.
     #[arg(long)]
     stats: bool,
@@ -116,6 +117,7 @@ fn main() -> ExitCode {
         Some(Cmd::Info { files }) => info(&files),
         Some(Cmd::Gen(a)) => gen(a),
         Some(Cmd::Bench(a)) => bench::run(a),
+        Some(Cmd::Devices) => devices(),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -196,10 +198,11 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     let camera = a.camera.build(&cloud.cloud)?;
     let pipe = a.pipeline.build()?;
-    let backend = args::resolve_backend(a.backend)?;
+    let mut renderer = a.backend.open()?;
     let t0 = Instant::now();
-    let frame =
-        stipple_render::render(&cloud, &camera, &pipe, backend).map_err(|e| e.to_string())?;
+    let frame = renderer
+        .render(&cloud, &camera, &pipe)
+        .map_err(|e| e.to_string())?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     stipple_io::image::write_png(&output, frame.width, frame.height, &frame.rgba)
         .map_err(|e| e.to_string())?;
@@ -220,24 +223,53 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     hint_if_sparse(&frame);
     println!(
-        "wrote {} ({}x{}, {} from {} points, {:.0} ms on the {})",
+        "wrote {} ({}x{}, {} from {} points, {:.0} ms on {})",
         output.display(),
         frame.width,
         frame.height,
         label,
         cloud.cloud.len(),
         ms,
-        if backend == Backend::Gpu {
-            "GPU"
-        } else {
-            "CPU"
-        }
+        renderer.describe()
     );
     if let Some(d) = &a.depth_out {
         println!("wrote {}", d.display());
     }
     if let Some(c) = &a.camera_out {
         println!("wrote {}", c.display());
+    }
+    Ok(())
+}
+
+fn devices() -> Result<()> {
+    let list = stipple_render::gpu::list_adapters();
+    if list.is_empty() {
+        println!(
+            "no GPU adapters found (on Linux without a GPU, install mesa-vulkan-drivers for the \
+             lavapipe software adapter); rendering uses the CPU"
+        );
+        return Ok(());
+    }
+    for (i, a) in list.iter().enumerate() {
+        println!("{i}: {} ({:?}, {:?})", a.name, a.backend, a.device_type);
+        if !a.driver.is_empty() {
+            println!("   driver: {}", a.driver);
+        }
+        println!(
+            "   64-bit atomics: {}   timestamps: {}   max storage binding: {} MiB   max buffer: {} MiB",
+            if a.int64_atomics { "yes (one-pass projection)" } else { "no (32-bit two-pass projection)" },
+            if a.timestamps { "yes" } else { "no" },
+            a.max_storage_binding >> 20,
+            a.max_buffer >> 20
+        );
+        match &a.suitable {
+            Ok(()) => println!("   usable by stipple: yes"),
+            Err(why) => println!("   usable by stipple: no ({why})"),
+        }
+    }
+    match stipple_render::gpu::GpuContext::new(Default::default()) {
+        Ok(c) => println!("--backend auto/gpu uses: {}", c.describe()),
+        Err(e) => println!("--backend auto uses the CPU: {e}"),
     }
     Ok(())
 }

@@ -9,6 +9,7 @@
 
 pub mod cpu;
 pub mod gbuffer;
+pub mod gpu;
 pub mod masks;
 pub mod params;
 pub mod pipeline;
@@ -26,8 +27,8 @@ pub enum RenderError {
     Camera(#[from] CameraError),
     #[error("the cloud has no points")]
     EmptyCloud,
-    #[error("{0}")]
-    NoGpu(String),
+    #[error(transparent)]
+    Gpu(#[from] gpu::GpuError),
 }
 
 /// Which implementation runs the passes.
@@ -58,7 +59,11 @@ pub struct PreparedCloud {
     pub spacing: f32,
     /// Maps intensity to [0, 1] (1 / the 99th percentile), when the cloud has intensity.
     pub intensity_scale: Option<f32>,
+    /// Unique per preparation: the GPU backend re-uploads when it changes.
+    pub key: u64,
 }
+
+static NEXT_CLOUD_KEY: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
 
 impl PreparedCloud {
     pub fn new(cloud: PointCloud) -> PreparedCloud {
@@ -80,18 +85,13 @@ impl PreparedCloud {
             cloud,
             spacing,
             intensity_scale,
+            key: NEXT_CLOUD_KEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
     }
 
     /// The layer gap d̃ a pipeline uses for this cloud: its own, else derived from spacing.
     pub fn layer_gap(&self, pipe: &Pipeline) -> f32 {
-        pipe.geometry
-            .iter()
-            .find_map(|p| match p {
-                GeometryPass::FillOccluded { layer_gap, .. } => *layer_gap,
-                _ => None,
-            })
-            .unwrap_or_else(|| pipeline::default_layer_gap(self.spacing))
+        pipeline::layer_gap(pipe, self.spacing)
     }
 }
 
@@ -109,24 +109,101 @@ pub struct Frame {
     pub stats: Vec<PassStat>,
 }
 
-/// Renders one frame with a fresh renderer (for repeated frames keep a [`cpu::CpuRenderer`]).
+/// A long-lived renderer on one backend. The GPU one keeps the last cloud uploaded, so
+/// repeated frames of the same cloud upload nothing.
+pub struct Renderer {
+    inner: Inner,
+}
+
+enum Inner {
+    Cpu(cpu::CpuRenderer),
+    Gpu {
+        renderer: Box<gpu::GpuRenderer>,
+        uploaded: Option<(u64, gpu::GpuCloud)>,
+    },
+}
+
+impl Renderer {
+    /// Opens a renderer. `Auto` takes a suitable GPU adapter when there is one and otherwise
+    /// falls back to the CPU, saying why once on stderr; `Gpu` without one is an error.
+    pub fn new(backend: Backend, options: gpu::GpuOptions) -> Result<Renderer, RenderError> {
+        let open = || -> Result<Renderer, gpu::GpuError> {
+            let ctx = gpu::GpuContext::new(options)?;
+            Ok(Renderer {
+                inner: Inner::Gpu {
+                    renderer: Box::new(gpu::GpuRenderer::new(ctx)?),
+                    uploaded: None,
+                },
+            })
+        };
+        let cpu = || Renderer {
+            inner: Inner::Cpu(cpu::CpuRenderer::new()),
+        };
+        match backend {
+            Backend::Cpu => Ok(cpu()),
+            Backend::Gpu => Ok(open()?),
+            Backend::Auto => match open() {
+                Ok(r) => Ok(r),
+                Err(e) => {
+                    eprintln!("note: rendering on the CPU ({e})");
+                    Ok(cpu())
+                }
+            },
+        }
+    }
+
+    /// "cpu (N threads)" or the GPU adapter and projection path.
+    pub fn describe(&self) -> String {
+        match &self.inner {
+            Inner::Cpu(_) => format!("cpu ({} threads)", rayon::current_num_threads()),
+            Inner::Gpu { renderer, .. } => format!("gpu: {}", renderer.context().describe()),
+        }
+    }
+
+    pub fn is_gpu(&self) -> bool {
+        matches!(self.inner, Inner::Gpu { .. })
+    }
+
+    /// The GPU renderer, for options such as the projection path and timing mode.
+    pub fn gpu_mut(&mut self) -> Option<&mut gpu::GpuRenderer> {
+        match &mut self.inner {
+            Inner::Gpu { renderer, .. } => Some(renderer),
+            Inner::Cpu(_) => None,
+        }
+    }
+
+    pub fn render(
+        &mut self,
+        cloud: &PreparedCloud,
+        camera: &Camera,
+        pipe: &Pipeline,
+    ) -> Result<Frame, RenderError> {
+        camera.validate()?;
+        if cloud.cloud.is_empty() {
+            return Err(RenderError::EmptyCloud);
+        }
+        let v = ViewParams::new(camera, cloud.cloud.origin);
+        match &mut self.inner {
+            Inner::Cpu(r) => Ok(r.render(cloud, &v, pipe)),
+            Inner::Gpu { renderer, uploaded } => {
+                if uploaded.as_ref().map(|u| u.0) != Some(cloud.key) {
+                    *uploaded = None;
+                    let up = gpu::GpuCloud::upload(renderer.context(), cloud)?;
+                    *uploaded = Some((cloud.key, up));
+                }
+                let up = &uploaded.as_ref().expect("uploaded").1;
+                Ok(renderer.render(up, &v, pipe)?)
+            }
+        }
+    }
+}
+
+/// Renders one frame with a fresh renderer (for repeated frames keep a [`Renderer`]).
 pub fn render(
     cloud: &PreparedCloud,
     camera: &Camera,
     pipe: &Pipeline,
     backend: Backend,
 ) -> Result<Frame, RenderError> {
-    camera.validate()?;
-    if cloud.cloud.is_empty() {
-        return Err(RenderError::EmptyCloud);
-    }
-    match backend {
-        Backend::Cpu | Backend::Auto => {
-            let v = ViewParams::new(camera, cloud.cloud.origin);
-            Ok(cpu::CpuRenderer::new().render(cloud, &v, pipe))
-        }
-        Backend::Gpu => Err(RenderError::NoGpu(
-            "the GPU backend is not implemented yet in this build (planned: wgpu compute passes); use --backend cpu".into(),
-        )),
-    }
+    Renderer::new(backend, gpu::GpuOptions::default())?.render(cloud, camera, pipe)
 }

@@ -5,7 +5,7 @@ use glam::{DVec3, Vec3};
 use stipple_core::{Camera, Projection};
 
 /// The camera in the cloud's local frame (eye relative to the cloud origin), in f32.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C)]
 pub struct ViewParams {
     pub eye: [f32; 3],

@@ -191,6 +191,17 @@ pub fn default_layer_gap(spacing: f32) -> f32 {
     2.5 * spacing
 }
 
+/// The layer gap d̃ a pipeline uses: its own, else derived from the cloud's point spacing.
+pub fn layer_gap(pipe: &Pipeline, spacing: f32) -> f32 {
+    pipe.geometry
+        .iter()
+        .find_map(|p| match p {
+            GeometryPass::FillOccluded { layer_gap, .. } => *layer_gap,
+            _ => None,
+        })
+        .unwrap_or_else(|| default_layer_gap(spacing))
+}
+
 impl GeometryPass {
     pub fn name(&self) -> &'static str {
         match self {

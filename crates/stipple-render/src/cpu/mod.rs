@@ -137,7 +137,7 @@ impl CpuRenderer {
         self.colour.0.resize(n, [0.0; 3]);
         self.colour.1.resize(n, [0.0; 3]);
         self.surface_depth.resize(n, 0.0);
-        let params = shade_params(cloud, pipe, gap);
+        let params = shade_params(cloud.cloud.origin, pipe, gap);
         let input = ShadeInput {
             positions: &c.positions,
             normals: c.normals.as_deref().filter(|_| pipe.lighting),
@@ -210,8 +210,7 @@ impl CpuRenderer {
     }
 }
 
-pub(crate) fn shade_params(cloud: &PreparedCloud, pipe: &Pipeline, gap: f32) -> ShadeParams {
-    let origin = cloud.cloud.origin;
+pub fn shade_params(origin: DVec3, pipe: &Pipeline, gap: f32) -> ShadeParams {
     let light = match pipe.light {
         Light::Headlight => LocalLight::Headlight,
         Light::Directional(d) => {
@@ -233,7 +232,7 @@ pub(crate) fn shade_params(cloud: &PreparedCloud, pipe: &Pipeline, gap: f32) -> 
 }
 
 impl PreparedCloud {
-    pub(crate) fn albedo(&self, pipe: &Pipeline) -> Albedo<'_> {
+    pub fn albedo(&self, pipe: &Pipeline) -> Albedo<'_> {
         let c = &self.cloud;
         if let Some(col) = &c.colors {
             Albedo::Colours(col)

@@ -1,0 +1,101 @@
+//! End-to-end parity: `stipple render` on `--backend gpu` and `--backend cpu` writes the same
+//! image and depth (colour within 1/255, depth within 1e-5 relative) for the demo scenes and
+//! files from `../shared/data/`.
+//!
+//! Tolerance: per-pass parity (stipple-render/tests/parity.rs) is exact for ids; a whole
+//! frame of a real cloud also holds points that fall within rounding distance of a pixel edge,
+//! and a GPU may round 1/z or fuse a multiply-add differently (Vulkan allows both), moving
+//! such a point to the neighbouring pixel. So at most 0.1% of pixels may differ. Skipped
+//! without a GPU adapter unless STIPPLE_REQUIRE_GPU=1.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn tempdir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("stipple-gpu-parity-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn gpu_available() -> bool {
+    match stipple_render::gpu::GpuContext::new(Default::default()) {
+        Ok(_) => true,
+        Err(e) => {
+            if std::env::var("STIPPLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("STIPPLE_REQUIRE_GPU=1 but there is no usable GPU adapter: {e}");
+            }
+            eprintln!("skipped: no GPU adapter ({e})");
+            false
+        }
+    }
+}
+
+fn render(dir: &Path, tag: &str, backend: &str, args: &[&str]) -> (Vec<u8>, Vec<f32>) {
+    let name = tag.replace(['/', '.'], "_");
+    let png = dir.join(format!("{name}-{backend}.png"));
+    let npy = dir.join(format!("{name}-{backend}.npy"));
+    let out = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .arg("render")
+        .args(args)
+        .args(["--backend", backend, "-o"])
+        .arg(&png)
+        .arg("--depth-out")
+        .arg(&npy)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{tag} on {backend}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let (_, _, rgba) = stipple_io::image::read_png(&png).unwrap();
+    let (_, _, depth) = stipple_io::image::read_npy(&npy).unwrap();
+    (rgba, depth)
+}
+
+fn compare(dir: &Path, tag: &str, args: &[&str]) {
+    let (gc, gd) = render(dir, tag, "gpu", args);
+    let (cc, cd) = render(dir, tag, "cpu", args);
+    assert_eq!(gd.len(), cd.len());
+    let n = cd.len();
+    let mut bad = 0;
+    let mut covered = 0;
+    for k in 0..n {
+        let colour_ok = (0..4).all(|i| gc[4 * k + i].abs_diff(cc[4 * k + i]) <= 1);
+        let (a, b) = (gd[k], cd[k]);
+        let depth_ok = a == b || (a - b).abs() <= 1e-5 * b.abs();
+        covered += b.is_finite() as usize;
+        bad += !(colour_ok && depth_ok) as usize;
+    }
+    eprintln!("{tag}: {bad} of {n} pixels differ ({covered} covered)");
+    assert!(covered * 20 > n, "{tag}: the frame shows the cloud");
+    assert!(bad * 1000 <= n, "{tag}: {bad} of {n} pixels differ");
+}
+
+#[test]
+fn gpu_and_cpu_render_the_same_frames() {
+    if !gpu_available() {
+        return;
+    }
+    let dir = tempdir();
+    let size = ["--size", "384x288"];
+    for scene in ["plane-objects", "sphere", "torus", "nested-tori"] {
+        let mut a = vec!["--demo", scene, "--points", "150000"];
+        a.extend(size);
+        compare(&dir, scene, &a);
+    }
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    for file in ["stanford/bunny/bun_zipper.ply", "lidar/autzen_trim.laz"] {
+        let p = data.join(file);
+        if !p.exists() {
+            eprintln!("skipped {file}: {} is absent", p.display());
+            continue;
+        }
+        let p = p.to_string_lossy().into_owned();
+        let mut a = vec![p.as_str()];
+        a.extend(size);
+        compare(&dir, file, &a);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,8 @@
+//! # fill_occluded (GPU twin of cpu/fill_occluded.rs)
+//!
+//! shaders/fill_occluded.wgsl: candidates are covered pixels, solid neighbours are at least d̃
+//! nearer; the step itself is shaders/fill.wgsl (see [`super::fill`]).
+
+pub(crate) fn new(ctx: &super::GpuContext) -> super::fill::Fill {
+    super::fill::Fill::new(ctx, &super::shaders::FILL_OCCLUDED_MODULE)
+}

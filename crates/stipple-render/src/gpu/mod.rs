@@ -1,0 +1,28 @@
+//! The GPU backend (wgpu): every pass of the CPU pipeline as a WGSL compute pass, one module
+//! per pass with its shader of the same name in `src/shaders/`, checked against the CPU
+//! reference by the parity tests.
+//!
+//! ```text
+//! project (compute rasterizer | project_hw) → resolve → fill_background / fill_occluded
+//!   → shade (gather per chunk, then shade) → smooth / antialias → output
+//! ```
+
+pub mod antialias;
+pub mod cloud;
+pub mod context;
+pub mod fill;
+pub mod fill_background;
+pub mod fill_occluded;
+pub mod iterate;
+pub mod output;
+pub mod project;
+pub mod project_hw;
+pub mod renderer;
+pub mod shade;
+pub mod shaders;
+pub mod smooth;
+mod util;
+
+pub use cloud::GpuCloud;
+pub use context::{list_adapters, AdapterReport, GpuContext, GpuError, GpuOptions};
+pub use renderer::{GpuRenderer, ProjectionPath};

@@ -1,0 +1,1112 @@
+//! The GPU frame: the pipeline description recorded as compute passes into one command
+//! buffer (no CPU round trip between passes), with every pipeline, layout and buffer created
+//! once and reused while the frame size stays the same.
+
+use super::antialias::AntialiasBlock;
+use super::cloud::GpuCloud;
+use super::context::{GpuContext, GpuError};
+use super::fill::{window_cells, Fill, FillBlock};
+use super::iterate::IterateBlock;
+use super::project::{ChunkBlock, Project, ResolveBlock, POINTS_PER_GROUP};
+use super::project_hw::{ProjectHw, Targets};
+use super::shade::{GatherBlock, Shade, ShadeBlock};
+use super::smooth::SmoothBlock;
+use super::util::{self, Arena, Pass, Res, BLOCK};
+use crate::cpu::shade::{srgb_to_linear_table, SrgbEncoder};
+use crate::gbuffer::{GBuffer, PassStat};
+use crate::params::ViewParams;
+use crate::pipeline::{ColourPass, GeometryPass, Iterations, Pipeline};
+use crate::Frame;
+use std::sync::Arc;
+use std::time::Instant;
+use wgpu::{Buffer, BufferUsages, CommandEncoder};
+
+/// How `project` runs on the GPU.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ProjectionPath {
+    /// The compute rasterizer (64-bit atomics, or the 32-bit two-pass fallback).
+    #[default]
+    Compute,
+    /// The hardware PointList baseline.
+    Hardware,
+}
+
+/// Counter slots per frame (points kept, changed pixels per iteration, blended pixels).
+const SLOTS: u64 = 4096;
+/// Timestamp queries per frame (two per section).
+const QUERIES: u32 = 256;
+
+struct Timer {
+    set: wgpu::QuerySet,
+    resolve: Buffer,
+    read: Buffer,
+    period_ns: f64,
+}
+
+struct Kit {
+    view: Buffer,
+    cells: Buffer,
+    cell_ranges: Vec<(u32, u32)>,
+    to_linear: Buffer,
+    encode_table: Buffer,
+    counters: Buffer,
+    counters_read: Buffer,
+    indirect: Buffer,
+    timer: Option<Timer>,
+    project: Project,
+    project_hw: ProjectHw,
+    fill_background: Fill,
+    fill_occluded: Fill,
+    iterate: Pass,
+    shade: Shade,
+    smooth: Pass,
+    antialias: Pass,
+    output: Pass,
+}
+
+struct FrameBuffers {
+    width: u32,
+    height: u32,
+    vis: Buffer,
+    vis_id: Buffer,
+    depth: [Buffer; 2],
+    id: [Buffer; 2],
+    attr_pos: Buffer,
+    attr_normal: Buffer,
+    colour: [Buffer; 2],
+    surface: Buffer,
+    rgba: Buffer,
+    read: Buffer,
+    targets: Option<Targets>,
+}
+
+impl FrameBuffers {
+    fn new(ctx: &GpuContext, w: u32, h: u32) -> FrameBuffers {
+        let d = &ctx.device;
+        let n = w as u64 * h as u64;
+        let s = |label, bytes| util::storage(d, label, bytes);
+        FrameBuffers {
+            width: w,
+            height: h,
+            vis: s("visibility", 8 * n),
+            vis_id: s("visibility ids", 4 * n),
+            depth: [s("depth a", 4 * n), s("depth b", 4 * n)],
+            id: [s("id a", 4 * n), s("id b", 4 * n)],
+            attr_pos: s("pixel positions", 16 * n),
+            attr_normal: s("pixel normals", 16 * n),
+            colour: [s("colour a", 16 * n), s("colour b", 16 * n)],
+            surface: s("surface depth", 4 * n),
+            rgba: s("rgba", 4 * n),
+            read: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size: 12 * n,
+                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            targets: None,
+        }
+    }
+}
+
+/// A section of the frame: one named pass as the statistics report it.
+struct Section {
+    name: &'static str,
+    iterations: u32,
+    until_stable: bool,
+    slots: Vec<u32>,
+    queries: Option<(u32, u32)>,
+    wall_ms: f64,
+}
+
+/// Records the frame's passes; in synchronised timing mode submits and waits after each.
+struct Rec<'a> {
+    ctx: &'a GpuContext,
+    enc: CommandEncoder,
+    timer: Option<&'a Timer>,
+    sync: bool,
+    arena: &'a mut Arena,
+    sections: Vec<Section>,
+    next_query: u32,
+    next_slot: u32,
+    started: Instant,
+}
+
+impl<'a> Rec<'a> {
+    fn slot(&mut self) -> Result<u32, GpuError> {
+        let s = self.next_slot;
+        if s as u64 >= SLOTS {
+            return Err(GpuError::TooLarge(
+                "too many pass iterations in one frame".into(),
+            ));
+        }
+        self.next_slot += 1;
+        Ok(s)
+    }
+
+    /// Timestamp query indices for the next section, when timestamps are available.
+    fn queries(&mut self) -> Option<(u32, u32)> {
+        let _ = self.timer?;
+        if self.next_query + 2 > QUERIES {
+            return None;
+        }
+        let q = (self.next_query, self.next_query + 1);
+        self.next_query += 2;
+        Some(q)
+    }
+
+    fn cpass(&mut self, begin: Option<u32>, end: Option<u32>) -> wgpu::ComputePass<'static> {
+        let timestamp_writes = match (self.timer, begin.or(end)) {
+            (Some(t), Some(_)) => Some(wgpu::ComputePassTimestampWrites {
+                query_set: &t.set,
+                beginning_of_pass_write_index: begin,
+                end_of_pass_write_index: end,
+            }),
+            _ => None,
+        };
+        self.enc
+            .begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: None,
+                timestamp_writes,
+            })
+            .forget_lifetime()
+    }
+
+    fn start(&mut self) {
+        self.started = Instant::now();
+    }
+
+    fn end(
+        &mut self,
+        name: &'static str,
+        iterations: u32,
+        slots: Vec<u32>,
+        queries: Option<(u32, u32)>,
+    ) -> Result<(), GpuError> {
+        self.end_iterated(name, iterations, false, slots, queries)
+    }
+
+    fn end_iterated(
+        &mut self,
+        name: &'static str,
+        iterations: u32,
+        until_stable: bool,
+        slots: Vec<u32>,
+        queries: Option<(u32, u32)>,
+    ) -> Result<(), GpuError> {
+        let mut wall_ms = f64::NAN;
+        if self.sync {
+            self.submit_and_wait()?;
+            wall_ms = self.started.elapsed().as_secs_f64() * 1e3;
+        }
+        self.sections.push(Section {
+            name,
+            iterations,
+            until_stable,
+            slots,
+            queries,
+            wall_ms,
+        });
+        Ok(())
+    }
+
+    fn submit_and_wait(&mut self) -> Result<(), GpuError> {
+        let enc = std::mem::replace(
+            &mut self.enc,
+            self.ctx.device.create_command_encoder(&Default::default()),
+        );
+        self.arena.upload(&self.ctx.queue);
+        self.ctx.queue.submit([enc.finish()]);
+        wait(self.ctx)
+    }
+}
+
+fn wait(ctx: &GpuContext) -> Result<(), GpuError> {
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Wgpu(e.to_string()))?;
+    ctx.take_errors()
+}
+
+/// Reads a mappable buffer's first `bytes` bytes.
+fn read_back(ctx: &GpuContext, buf: &Buffer, bytes: u64) -> Result<Vec<u8>, GpuError> {
+    let slice = buf.slice(..bytes);
+    let status = Arc::new(std::sync::Mutex::new(None));
+    let s = status.clone();
+    slice.map_async(wgpu::MapMode::Read, move |r| *s.lock().unwrap() = Some(r));
+    wait(ctx)?;
+    match status.lock().unwrap().take() {
+        Some(Ok(())) => {}
+        other => {
+            return Err(GpuError::Wgpu(format!(
+                "mapping the readback buffer failed: {other:?}"
+            )))
+        }
+    }
+    let out = slice
+        .get_mapped_range()
+        .map_err(|e| GpuError::Wgpu(e.to_string()))?
+        .to_vec();
+    buf.unmap();
+    Ok(out)
+}
+
+fn grid_2d(ctx: &GpuContext, w: u32, h: u32) -> Result<(u32, u32), GpuError> {
+    let (gx, gy) = (w.div_ceil(8), h.div_ceil(8));
+    let m = ctx.limits.max_compute_workgroups_per_dimension;
+    if gx > m || gy > m {
+        return Err(GpuError::TooLarge(format!(
+            "{w}×{h} pixels needs {gx}×{gy} workgroups (the device allows {m} per dimension)"
+        )));
+    }
+    Ok((gx, gy))
+}
+
+/// The long-lived GPU renderer.
+pub struct GpuRenderer {
+    ctx: Arc<GpuContext>,
+    kit: Kit,
+    arena: Arena,
+    frame: Option<FrameBuffers>,
+    pub projection: ProjectionPath,
+    /// Without timestamp queries, submit and wait after each pass to time it (benchmarks).
+    pub sync_timing: bool,
+}
+
+/// Where the geometry and colour images are after the passes recorded so far.
+#[derive(Clone, Copy, Default)]
+struct Cursor {
+    g: usize,
+    colour: usize,
+}
+
+impl GpuRenderer {
+    pub fn new(ctx: Arc<GpuContext>) -> Result<GpuRenderer, GpuError> {
+        let d = &ctx.device;
+        let (cells, cell_ranges) = window_cells();
+        let table: Vec<u32> = (0..16384)
+            .map(|i| SrgbEncoder::new().encode(i as f32 / 16383.0) as u32)
+            .collect();
+        let timer = ctx.timestamps.then(|| Timer {
+            set: d.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: QUERIES,
+            }),
+            resolve: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: QUERIES as u64 * 8,
+                usage: BufferUsages::QUERY_RESOLVE | BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            read: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps read"),
+                size: QUERIES as u64 * 8,
+                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            period_ns: ctx.queue.get_timestamp_period() as f64,
+        });
+        let kit = Kit {
+            view: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("view"),
+                size: std::mem::size_of::<ViewParams>() as u64,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
+            cell_ranges,
+            to_linear: util::storage_init(
+                d,
+                "srgb to linear",
+                bytemuck::cast_slice(&srgb_to_linear_table()),
+            ),
+            encode_table: util::storage_init(d, "srgb encode", bytemuck::cast_slice(&table)),
+            counters: util::storage(d, "counters", SLOTS * 4),
+            counters_read: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("counters read"),
+                size: SLOTS * 4,
+                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            indirect: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("indirect"),
+                size: SLOTS * 12,
+                usage: BufferUsages::STORAGE | BufferUsages::INDIRECT,
+                mapped_at_creation: false,
+            }),
+            timer,
+            project: Project::new(&ctx),
+            project_hw: ProjectHw::new(&ctx),
+            fill_background: super::fill_background::new(&ctx),
+            fill_occluded: super::fill_occluded::new(&ctx),
+            iterate: super::iterate::new(&ctx),
+            shade: Shade::new(&ctx),
+            smooth: super::smooth::new(&ctx),
+            antialias: super::antialias::new(&ctx),
+            output: super::output::new(&ctx),
+        };
+        let arena = Arena::new(d, ctx.limits.min_uniform_buffer_offset_alignment);
+        ctx.take_errors()?;
+        Ok(GpuRenderer {
+            ctx,
+            kit,
+            arena,
+            frame: None,
+            projection: ProjectionPath::Compute,
+            sync_timing: false,
+        })
+    }
+
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    fn prepare(&mut self, v: &ViewParams) -> Result<(), GpuError> {
+        let n = v.width as u64 * v.height as u64;
+        let max = self.ctx.limits.max_storage_buffer_binding_size as u64;
+        if 16 * n > max || 16 * n > self.ctx.limits.max_buffer_size {
+            return Err(GpuError::TooLarge(format!(
+                "{}×{} pixels: per-pixel buffers of {} MiB exceed the device's binding limit of \
+                 {} MiB",
+                v.width,
+                v.height,
+                16 * n >> 20,
+                max >> 20
+            )));
+        }
+        grid_2d(&self.ctx, v.width, v.height)?;
+        if !matches!(&self.frame, Some(f) if f.width == v.width && f.height == v.height) {
+            self.frame = Some(FrameBuffers::new(&self.ctx, v.width, v.height));
+        }
+        if let Some(f) = &mut self.frame {
+            if self.projection == ProjectionPath::Hardware && f.targets.is_none() {
+                f.targets = Some(Targets::new(&self.ctx, v.width, v.height));
+            }
+        }
+        self.ctx
+            .queue
+            .write_buffer(&self.kit.view, 0, bytemuck::bytes_of(v));
+        self.arena.clear();
+        Ok(())
+    }
+}
+
+fn recorder<'a>(ctx: &'a GpuContext, kit: &'a Kit, arena: &'a mut Arena, sync: bool) -> Rec<'a> {
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    enc.clear_buffer(&kit.counters, 0, None);
+    Rec {
+        ctx,
+        enc,
+        timer: kit.timer.as_ref(),
+        sync: sync && kit.timer.is_none(),
+        arena,
+        sections: Vec::new(),
+        next_query: 0,
+        next_slot: 0,
+        started: Instant::now(),
+    }
+}
+
+impl GpuRenderer {
+    /// Renders one frame of an uploaded cloud.
+    pub fn render(
+        &mut self,
+        cloud: &GpuCloud,
+        v: &ViewParams,
+        pipe: &Pipeline,
+    ) -> Result<Frame, GpuError> {
+        self.prepare(v)?;
+        let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
+        let params = crate::cpu::shade_params(cloud.origin, pipe, gap);
+        let constant = (!cloud.has_albedo).then_some(pipe.material.base_colour);
+        let shade_block = ShadeBlock::new(&params, cloud.has_normals && pipe.lighting, constant);
+        let projection = self.projection;
+        let f = self.frame.take().expect("prepared");
+        let result = (|| {
+            let kit = &self.kit;
+            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            let mut cur = Cursor::default();
+            match (projection, &f.targets) {
+                (ProjectionPath::Hardware, Some(t)) => {
+                    record_project_hw(&mut rec, kit, &f, t, cloud, pipe.backface_culling)?
+                }
+                _ => record_project(&mut rec, kit, &f, cloud, pipe.backface_culling)?,
+            }
+            for pass in &pipe.geometry {
+                record_geometry(&mut rec, kit, &f, &mut cur, pass, gap)?;
+            }
+            record_shade(&mut rec, kit, &f, &cur, cloud, shade_block)?;
+            for pass in &pipe.colour {
+                record_colour(&mut rec, kit, &f, &mut cur, pass, v)?;
+            }
+            record_output(&mut rec, kit, &f, &cur)?;
+            let n = v.width as u64 * v.height as u64;
+            rec.enc.copy_buffer_to_buffer(&f.rgba, 0, &f.read, 0, 4 * n);
+            rec.enc
+                .copy_buffer_to_buffer(&f.surface, 0, &f.read, 4 * n, 4 * n);
+            rec.enc
+                .copy_buffer_to_buffer(&f.id[cur.g], 0, &f.read, 8 * n, 4 * n);
+            let sections = finish(rec, kit)?;
+            let bytes = read_back(&self.ctx, &f.read, 12 * n)?;
+            let stats = stats(&self.ctx, kit, &sections)?;
+            let n = n as usize;
+            Ok(Frame {
+                width: v.width,
+                height: v.height,
+                rgba: bytes[..4 * n].to_vec(),
+                depth: bytemuck::cast_slice(&bytes[4 * n..8 * n]).to_vec(),
+                id: bytemuck::cast_slice(&bytes[8 * n..12 * n]).to_vec(),
+                stats,
+            })
+        })();
+        self.frame = Some(f);
+        result
+    }
+
+    /// Runs project (and resolve) only: the G-buffer of the nearest points, and points kept.
+    pub fn project(
+        &mut self,
+        cloud: &GpuCloud,
+        v: &ViewParams,
+        cull: bool,
+    ) -> Result<(GBuffer, u64), GpuError> {
+        self.prepare(v)?;
+        let f = self.frame.take().expect("prepared");
+        let r = (|| {
+            let kit = &self.kit;
+            let projection = self.projection;
+            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            match (projection, &f.targets) {
+                (ProjectionPath::Hardware, Some(t)) => {
+                    record_project_hw(&mut rec, kit, &f, t, cloud, cull)?
+                }
+                _ => record_project(&mut rec, kit, &f, cloud, cull)?,
+            }
+            let sections = finish(rec, kit)?;
+            let stats = stats(&self.ctx, kit, &sections)?;
+            let g = read_g(&self.ctx, &f, 0)?;
+            Ok((g, stats[0].count))
+        })();
+        self.frame = Some(f);
+        r
+    }
+
+    /// Runs one geometry pass on a G-buffer: the result and the changed-pixel statistics.
+    pub fn geometry_pass(
+        &mut self,
+        v: &ViewParams,
+        g: &GBuffer,
+        pass: &GeometryPass,
+        default_gap: f32,
+    ) -> Result<(GBuffer, PassStat), GpuError> {
+        self.prepare(v)?;
+        let f = self.frame.take().expect("prepared");
+        let r = (|| {
+            let kit = &self.kit;
+            self.ctx
+                .queue
+                .write_buffer(&f.depth[0], 0, bytemuck::cast_slice(&g.depth));
+            self.ctx
+                .queue
+                .write_buffer(&f.id[0], 0, bytemuck::cast_slice(&g.id));
+            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            let mut cur = Cursor::default();
+            record_geometry(&mut rec, kit, &f, &mut cur, pass, default_gap)?;
+            let sections = finish(rec, kit)?;
+            let stats = stats(&self.ctx, kit, &sections)?;
+            Ok((read_g(&self.ctx, &f, cur.g)?, stats[0].clone()))
+        })();
+        self.frame = Some(f);
+        r
+    }
+
+    /// Runs shade (gather + shade) on a G-buffer: linear colour and surface depth per pixel.
+    pub fn shade(
+        &mut self,
+        cloud: &GpuCloud,
+        v: &ViewParams,
+        g: &GBuffer,
+        pipe: &Pipeline,
+    ) -> Result<(Vec<[f32; 3]>, Vec<f32>), GpuError> {
+        self.prepare(v)?;
+        let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
+        let params = crate::cpu::shade_params(cloud.origin, pipe, gap);
+        let constant = (!cloud.has_albedo).then_some(pipe.material.base_colour);
+        let block = ShadeBlock::new(&params, cloud.has_normals && pipe.lighting, constant);
+        let f = self.frame.take().expect("prepared");
+        let r = (|| {
+            let kit = &self.kit;
+            let q = &self.ctx.queue;
+            q.write_buffer(&f.depth[0], 0, bytemuck::cast_slice(&g.depth));
+            q.write_buffer(&f.id[0], 0, bytemuck::cast_slice(&g.id));
+            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            record_shade(&mut rec, kit, &f, &Cursor::default(), cloud, block)?;
+            finish(rec, kit)?;
+            let colour = read_colour(&self.ctx, &f.colour[0], v.pixels())?;
+            let depth = read_f32(&self.ctx, &f.surface, v.pixels())?;
+            Ok((colour, depth))
+        })();
+        self.frame = Some(f);
+        r
+    }
+
+    /// Runs one colour pass: `id` (for smooth) and `depth` (surface depth, for antialias)
+    /// with a linear colour image; returns the new colour and the pass statistics.
+    pub fn colour_pass(
+        &mut self,
+        v: &ViewParams,
+        id: &[u32],
+        depth: &[f32],
+        colour: &[[f32; 3]],
+        pass: &ColourPass,
+    ) -> Result<(Vec<[f32; 3]>, PassStat), GpuError> {
+        self.prepare(v)?;
+        let f = self.frame.take().expect("prepared");
+        let r = (|| {
+            let kit = &self.kit;
+            let q = &self.ctx.queue;
+            q.write_buffer(&f.id[0], 0, bytemuck::cast_slice(id));
+            q.write_buffer(&f.surface, 0, bytemuck::cast_slice(depth));
+            let c4: Vec<[f32; 4]> = colour.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+            q.write_buffer(&f.colour[0], 0, bytemuck::cast_slice(&c4));
+            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            let mut cur = Cursor::default();
+            record_colour(&mut rec, kit, &f, &mut cur, pass, v)?;
+            let sections = finish(rec, kit)?;
+            let stats = stats(&self.ctx, kit, &sections)?;
+            Ok((
+                read_colour(&self.ctx, &f.colour[cur.colour], v.pixels())?,
+                stats[0].clone(),
+            ))
+        })();
+        self.frame = Some(f);
+        r
+    }
+}
+
+fn read_f32(ctx: &GpuContext, buf: &Buffer, n: usize) -> Result<Vec<f32>, GpuError> {
+    Ok(bytemuck::cast_slice(&copy_out(ctx, buf, 4 * n as u64)?).to_vec())
+}
+
+fn read_colour(ctx: &GpuContext, buf: &Buffer, n: usize) -> Result<Vec<[f32; 3]>, GpuError> {
+    let raw = copy_out(ctx, buf, 16 * n as u64)?;
+    let c4: &[[f32; 4]] = bytemuck::cast_slice(&raw);
+    Ok(c4.iter().map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+fn read_g(ctx: &GpuContext, f: &FrameBuffers, which: usize) -> Result<GBuffer, GpuError> {
+    let n = f.width as usize * f.height as usize;
+    let mut g = GBuffer::new(f.width, f.height);
+    g.depth = read_f32(ctx, &f.depth[which], n)?;
+    g.id = bytemuck::cast_slice(&copy_out(ctx, &f.id[which], 4 * n as u64)?).to_vec();
+    Ok(g)
+}
+
+/// Copies a storage buffer out through a temporary mappable buffer (tests and tools).
+fn copy_out(ctx: &GpuContext, buf: &Buffer, bytes: u64) -> Result<Vec<u8>, GpuError> {
+    let tmp = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("copy out"),
+        size: bytes.max(4),
+        usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(buf, 0, &tmp, 0, bytes);
+    ctx.queue.submit([enc.finish()]);
+    read_back(ctx, &tmp, bytes)
+}
+
+/// Submits the recorded frame (with the counter and timestamp readbacks).
+fn finish(mut rec: Rec<'_>, kit: &Kit) -> Result<Vec<Section>, GpuError> {
+    rec.enc
+        .copy_buffer_to_buffer(&kit.counters, 0, &kit.counters_read, 0, SLOTS * 4);
+    if let (Some(t), true) = (rec.timer, rec.next_query > 0) {
+        rec.enc
+            .resolve_query_set(&t.set, 0..rec.next_query, &t.resolve, 0);
+        rec.enc
+            .copy_buffer_to_buffer(&t.resolve, 0, &t.read, 0, rec.next_query as u64 * 8);
+    }
+    rec.submit_and_wait()?;
+    Ok(rec.sections)
+}
+
+fn stats(ctx: &GpuContext, kit: &Kit, sections: &[Section]) -> Result<Vec<PassStat>, GpuError> {
+    let counters: Vec<u32> =
+        bytemuck::cast_slice(&read_back(ctx, &kit.counters_read, SLOTS * 4)?).to_vec();
+    let stamps: Option<(Vec<u64>, f64)> = match &kit.timer {
+        Some(t) if sections.iter().any(|s| s.queries.is_some()) => Some((
+            bytemuck::cast_slice(&read_back(ctx, &t.read, QUERIES as u64 * 8)?).to_vec(),
+            t.period_ns,
+        )),
+        _ => None,
+    };
+    Ok(sections
+        .iter()
+        .map(|s| {
+            let ms = match (&stamps, s.queries) {
+                (Some((ts, period)), Some((b, e))) => {
+                    ts[e as usize].saturating_sub(ts[b as usize]) as f64 * period / 1e6
+                }
+                _ => s.wall_ms,
+            };
+            // Iterations "until stable" stop after the first that changed nothing.
+            let mut iterations = s.iterations;
+            if s.until_stable {
+                if let Some(k) = s.slots.iter().position(|&k| counters[k as usize] == 0) {
+                    iterations = iterations.min(k as u32 + 1);
+                }
+            }
+            PassStat {
+                name: s.name,
+                ms,
+                iterations,
+                count: s.slots.iter().map(|&k| counters[k as usize] as u64).sum(),
+            }
+        })
+        .collect())
+}
+
+fn flat_groups(ctx: &GpuContext, n: u64) -> (u32, u32) {
+    ctx.grid(n.div_ceil(256) as u32)
+}
+
+fn record_project(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cloud: &GpuCloud,
+    cull: bool,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    rec.enc.clear_buffer(&f.vis, 0, None);
+    rec.enc.clear_buffer(&f.vis_id, 0, None);
+    let slot = rec.slot()?;
+    let q = rec.queries();
+    let cull = cull && cloud.has_normals;
+    let mut groups = Vec::new();
+    for c in &cloud.chunks {
+        let off = rec.arena.push(&ChunkBlock {
+            base: c.base,
+            count: c.count,
+            cull: cull as u32,
+            slot,
+        })?;
+        let bg = kit.project.bind(
+            ctx,
+            &kit.view,
+            &rec.arena.buffer,
+            &c.positions,
+            c.normals.as_ref().unwrap_or(&cloud.dummy),
+            &kit.counters,
+            &f.vis,
+            &f.vis_id,
+        );
+        groups.push((bg, off, ctx.grid(c.count.div_ceil(POINTS_PER_GROUP))));
+    }
+    let wide = ResolveBlock {
+        wide: kit.project.wide.is_some() as u32,
+        pad: [0; 3],
+    };
+    let roff = rec.arena.push(&wide)?;
+    let rbg = util::bind(
+        &ctx.device,
+        "resolve",
+        &kit.project.resolve_bgl,
+        &[
+            Res::Buf(&kit.view),
+            Res::Arena(&rec.arena.buffer, BLOCK.min(16)),
+            Res::Buf(&f.vis),
+            Res::Buf(&f.vis_id),
+            Res::Buf(&f.depth[0]),
+            Res::Buf(&f.id[0]),
+        ],
+    );
+    let mut pass = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    let stages: Vec<&wgpu::ComputePipeline> = match &kit.project.wide {
+        Some((_, p)) => vec![p],
+        None => vec![&kit.project.narrow_depth, &kit.project.narrow_index],
+    };
+    for p in stages {
+        pass.set_pipeline(p);
+        for (bg, off, (gx, gy)) in &groups {
+            pass.set_bind_group(0, bg, &[*off]);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+        }
+    }
+    pass.set_pipeline(&kit.project.resolve);
+    pass.set_bind_group(0, &rbg, &[roff]);
+    let (gx, gy) = flat_groups(ctx, f.width as u64 * f.height as u64);
+    pass.dispatch_workgroups(gx, gy, 1);
+    drop(pass);
+    rec.end("project", 1, vec![slot], q)
+}
+
+fn record_project_hw(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    t: &Targets,
+    cloud: &GpuCloud,
+    cull: bool,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let q = rec.queries();
+    let cull = cull && cloud.has_normals;
+    let hw = &kit.project_hw;
+    let mut draws = Vec::new();
+    for c in &cloud.chunks {
+        let off = rec.arena.push(&ChunkBlock {
+            base: c.base,
+            count: c.count,
+            cull: cull as u32,
+            slot: 0,
+        })?;
+        let bg = util::bind(
+            &ctx.device,
+            "project_hw",
+            &hw.bgl,
+            &[
+                Res::Buf(&kit.view),
+                Res::Arena(&rec.arena.buffer, std::mem::size_of::<ChunkBlock>() as u64),
+            ],
+        );
+        draws.push((bg, off, c));
+    }
+    {
+        let clear = |c: wgpu::Color| wgpu::Operations {
+            load: wgpu::LoadOp::Clear(c),
+            store: wgpu::StoreOp::Store,
+        };
+        let timestamp_writes = match (rec.timer, q) {
+            (Some(tm), Some((b, _))) => Some(wgpu::RenderPassTimestampWrites {
+                query_set: &tm.set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: None,
+            }),
+            _ => None,
+        };
+        let mut pass = rec.enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("project_hw"),
+            color_attachments: &[
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &t.id,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: clear(wgpu::Color {
+                        r: u32::MAX as f64,
+                        g: 0.0,
+                        b: 0.0,
+                        a: 0.0,
+                    }),
+                }),
+                Some(wgpu::RenderPassColorAttachment {
+                    view: &t.depth,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: clear(wgpu::Color::TRANSPARENT),
+                }),
+            ],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &t.z,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&hw.pipeline);
+        for (bg, off, c) in &draws {
+            pass.set_bind_group(0, bg, &[*off]);
+            pass.set_vertex_buffer(0, c.positions.slice(..));
+            let n = c.normals.as_ref().unwrap_or(&c.positions);
+            pass.set_vertex_buffer(1, n.slice(..));
+            pass.draw(0..c.count, 0..1);
+        }
+    }
+    let bg = util::bind(
+        &ctx.device,
+        "project_hw copy",
+        &hw.copy_bgl,
+        &[
+            Res::Buf(&kit.view),
+            Res::Skip,
+            Res::View(&t.id),
+            Res::View(&t.depth),
+            Res::Buf(&f.depth[0]),
+            Res::Buf(&f.id[0]),
+        ],
+    );
+    let mut pass = rec.cpass(None, q.map(|q| q.1));
+    pass.set_pipeline(&hw.copy);
+    pass.set_bind_group(0, &bg, &[]);
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    pass.dispatch_workgroups(gx, gy, 1);
+    drop(pass);
+    rec.end("project", 1, vec![], q)
+}
+
+fn record_geometry(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cur: &mut Cursor,
+    pass: &GeometryPass,
+    default_gap: f32,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let (fill, its, radius, gap) = match *pass {
+        GeometryPass::FillBackground { iterations, radius } => {
+            (&kit.fill_background, iterations, radius, 0.0)
+        }
+        GeometryPass::FillOccluded {
+            iterations,
+            layer_gap,
+            radius,
+        } => (
+            &kit.fill_occluded,
+            iterations,
+            radius,
+            layer_gap.unwrap_or(default_gap),
+        ),
+    };
+    let (first, count) = *kit
+        .cell_ranges
+        .get(radius as usize)
+        .filter(|_| radius >= 1)
+        .ok_or_else(|| GpuError::TooLarge(format!("fill radius {radius} (1 to 3)")))?;
+    let q = rec.queries();
+    let bind = |src: usize, arena: &Buffer| {
+        fill.bind(
+            ctx,
+            &kit.view,
+            arena,
+            &kit.cells,
+            (&f.depth[src], &f.id[src]),
+            (&f.depth[1 - src], &f.id[1 - src]),
+            &kit.counters,
+        )
+    };
+    let groups = [bind(0, &rec.arena.buffer), bind(1, &rec.arena.buffer)];
+    let iterate_bg = kit.iterate.bind(
+        &ctx.device,
+        &[
+            Res::Arena(&rec.arena.buffer, 16),
+            Res::Buf(&kit.counters),
+            Res::Buf(&kit.indirect),
+        ],
+    );
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let stable = matches!(its, Iterations::UntilStable { .. });
+    let mut steps = Vec::new();
+    let mut slots = Vec::new();
+    for k in 0..its.max() {
+        let slot = rec.slot()?;
+        let off = rec.arena.push(&FillBlock {
+            first,
+            count,
+            gap,
+            slot,
+        })?;
+        let it = if stable && k > 0 {
+            Some(rec.arena.push(&IterateBlock {
+                prev_slot: slot - 1,
+                args_slot: slot,
+                groups_x: gx,
+                groups_y: gy,
+            })?)
+        } else {
+            None
+        };
+        steps.push((cur.g, off, it, slot));
+        slots.push(slot);
+        cur.g = 1 - cur.g;
+    }
+    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    for (src, off, it, slot) in steps {
+        if let Some(ioff) = it {
+            p.set_pipeline(&kit.iterate.pipeline);
+            p.set_bind_group(0, &iterate_bg, &[ioff]);
+            p.dispatch_workgroups(1, 1, 1);
+            p.set_pipeline(&fill.pipeline);
+            p.set_bind_group(0, &groups[src], &[off]);
+            p.dispatch_workgroups_indirect(&kit.indirect, slot as u64 * 12);
+        } else {
+            p.set_pipeline(&fill.pipeline);
+            p.set_bind_group(0, &groups[src], &[off]);
+            p.dispatch_workgroups(gx, gy, 1);
+        }
+    }
+    drop(p);
+    rec.end_iterated(pass.name(), its.max(), stable, slots, q)
+}
+
+fn record_shade(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cur: &Cursor,
+    cloud: &GpuCloud,
+    block: ShadeBlock,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let q = rec.queries();
+    let d = &ctx.device;
+    let mut gathers = Vec::new();
+    for c in &cloud.chunks {
+        let off = rec.arena.push(&GatherBlock {
+            base: c.base,
+            count: c.count,
+            has_normals: c.normals.is_some() as u32,
+            has_albedo: c.albedo.is_some() as u32,
+        })?;
+        let bg = kit.shade.gather.bind(
+            d,
+            &[
+                Res::Buf(&kit.view),
+                Res::Arena(&rec.arena.buffer, 16),
+                Res::Buf(&f.id[cur.g]),
+                Res::Buf(&c.positions),
+                Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
+                Res::Buf(&f.attr_pos),
+                Res::Buf(&f.attr_normal),
+            ],
+        );
+        gathers.push((bg, off));
+    }
+    let soff = rec.arena.push(&block)?;
+    let sbg = kit.shade.shade.bind(
+        d,
+        &[
+            Res::Buf(&kit.view),
+            Res::Arena(&rec.arena.buffer, std::mem::size_of::<ShadeBlock>() as u64),
+            Res::Buf(&f.depth[cur.g]),
+            Res::Buf(&f.id[cur.g]),
+            Res::Buf(&f.attr_pos),
+            Res::Buf(&f.attr_normal),
+            Res::Buf(&kit.to_linear),
+            Res::Buf(&f.colour[0]),
+            Res::Buf(&f.surface),
+        ],
+    );
+    let (fx, fy) = flat_groups(ctx, f.width as u64 * f.height as u64);
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    p.set_pipeline(&kit.shade.gather.pipeline);
+    for (bg, off) in &gathers {
+        p.set_bind_group(0, bg, &[*off]);
+        p.dispatch_workgroups(fx, fy, 1);
+    }
+    p.set_pipeline(&kit.shade.shade.pipeline);
+    p.set_bind_group(0, &sbg, &[soff]);
+    p.dispatch_workgroups(gx, gy, 1);
+    drop(p);
+    rec.end("shade", 1, vec![], q)
+}
+
+fn record_colour(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cur: &mut Cursor,
+    pass: &ColourPass,
+    v: &ViewParams,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    let d = &ctx.device;
+    rec.start();
+    let q = rec.queries();
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    match *pass {
+        ColourPass::Smooth { kernel, iterations } => {
+            let off = rec.arena.push(&SmoothBlock::new(kernel))?;
+            let bind = |src: usize| {
+                kit.smooth.bind(
+                    d,
+                    &[
+                        Res::Buf(&kit.view),
+                        Res::Arena(&rec.arena.buffer, 48),
+                        Res::Buf(&f.id[cur.g]),
+                        Res::Buf(&f.colour[src]),
+                        Res::Buf(&f.colour[1 - src]),
+                    ],
+                )
+            };
+            let groups = [bind(0), bind(1)];
+            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+            p.set_pipeline(&kit.smooth.pipeline);
+            for _ in 0..iterations {
+                p.set_bind_group(0, &groups[cur.colour], &[off]);
+                p.dispatch_workgroups(gx, gy, 1);
+                cur.colour = 1 - cur.colour;
+            }
+            drop(p);
+            rec.end("smooth", iterations, vec![], q)
+        }
+        ColourPass::Antialias {
+            threshold,
+            strength,
+        } => {
+            let slot = rec.slot()?;
+            let off = rec.arena.push(&AntialiasBlock {
+                inv_far: 1.0 / v.far,
+                threshold,
+                strength,
+                slot,
+            })?;
+            let bg = kit.antialias.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(&rec.arena.buffer, 16),
+                    Res::Buf(&f.surface),
+                    Res::Buf(&f.colour[cur.colour]),
+                    Res::Buf(&f.colour[1 - cur.colour]),
+                    Res::Buf(&kit.counters),
+                ],
+            );
+            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+            p.set_pipeline(&kit.antialias.pipeline);
+            p.set_bind_group(0, &bg, &[off]);
+            p.dispatch_workgroups(gx, gy, 1);
+            drop(p);
+            cur.colour = 1 - cur.colour;
+            rec.end("antialias", 1, vec![slot], q)
+        }
+    }
+}
+
+fn record_output(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cur: &Cursor,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let q = rec.queries();
+    let bg = kit.output.bind(
+        &ctx.device,
+        &[
+            Res::Buf(&kit.view),
+            Res::Buf(&f.colour[cur.colour]),
+            Res::Buf(&kit.encode_table),
+            Res::Buf(&f.rgba),
+        ],
+    );
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    p.set_pipeline(&kit.output.pipeline);
+    p.set_bind_group(0, &bg, &[]);
+    p.dispatch_workgroups(gx, gy, 1);
+    drop(p);
+    rec.end("output", 1, vec![], q)
+}

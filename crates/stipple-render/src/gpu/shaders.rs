@@ -1,0 +1,160 @@
+//! WGSL sources. Each pass has its shader of the same name in `src/shaders/`; a module is the
+//! shared `common.wgsl` followed by the files the pass needs (WGSL has no includes).
+
+const COMMON: &str = include_str!("../shaders/common.wgsl");
+const PROJECT: &str = include_str!("../shaders/project.wgsl");
+const PROJECT_ATOMIC64: &str = include_str!("../shaders/project_atomic64.wgsl");
+const PROJECT_ATOMIC32: &str = include_str!("../shaders/project_atomic32.wgsl");
+const PROJECT_HW: &str = include_str!("../shaders/project_hw.wgsl");
+const RESOLVE: &str = include_str!("../shaders/resolve.wgsl");
+const FILL: &str = include_str!("../shaders/fill.wgsl");
+const FILL_BACKGROUND: &str = include_str!("../shaders/fill_background.wgsl");
+const FILL_OCCLUDED: &str = include_str!("../shaders/fill_occluded.wgsl");
+const ITERATE: &str = include_str!("../shaders/iterate.wgsl");
+const GATHER: &str = include_str!("../shaders/gather.wgsl");
+const SHADE: &str = include_str!("../shaders/shade.wgsl");
+const WEIGHTED: &str = include_str!("../shaders/weighted.wgsl");
+const SMOOTH: &str = include_str!("../shaders/smooth.wgsl");
+const ANTIALIAS: &str = include_str!("../shaders/antialias.wgsl");
+const OUTPUT: &str = include_str!("../shaders/output.wgsl");
+
+/// A shader module: its name and the files it is made of (after `common.wgsl`).
+#[derive(Clone, Copy, Debug)]
+pub struct ShaderModule {
+    pub name: &'static str,
+    parts: &'static [&'static str],
+    /// Needs 64-bit integer atomics (SHADER_INT64 + SHADER_INT64_ATOMIC_MIN_MAX).
+    pub int64: bool,
+}
+
+impl ShaderModule {
+    pub fn source(&self) -> String {
+        let mut s = String::from(COMMON);
+        for p in self.parts {
+            s.push('\n');
+            s.push_str(p);
+        }
+        s
+    }
+}
+
+pub const PROJECT64: ShaderModule = ShaderModule {
+    name: "project (64-bit atomics)",
+    parts: &[PROJECT, PROJECT_ATOMIC64],
+    int64: true,
+};
+pub const PROJECT32: ShaderModule = ShaderModule {
+    name: "project (32-bit fallback)",
+    parts: &[PROJECT, PROJECT_ATOMIC32],
+    int64: false,
+};
+pub const PROJECT_HW_MODULE: ShaderModule = ShaderModule {
+    name: "project_hw",
+    parts: &[PROJECT_HW],
+    int64: false,
+};
+pub const RESOLVE_MODULE: ShaderModule = ShaderModule {
+    name: "resolve",
+    parts: &[RESOLVE],
+    int64: false,
+};
+pub const FILL_BACKGROUND_MODULE: ShaderModule = ShaderModule {
+    name: "fill_background",
+    parts: &[FILL, FILL_BACKGROUND],
+    int64: false,
+};
+pub const FILL_OCCLUDED_MODULE: ShaderModule = ShaderModule {
+    name: "fill_occluded",
+    parts: &[FILL, FILL_OCCLUDED],
+    int64: false,
+};
+pub const ITERATE_MODULE: ShaderModule = ShaderModule {
+    name: "iterate",
+    parts: &[ITERATE],
+    int64: false,
+};
+pub const GATHER_MODULE: ShaderModule = ShaderModule {
+    name: "gather",
+    parts: &[GATHER],
+    int64: false,
+};
+pub const SHADE_MODULE: ShaderModule = ShaderModule {
+    name: "shade",
+    parts: &[SHADE],
+    int64: false,
+};
+pub const SMOOTH_MODULE: ShaderModule = ShaderModule {
+    name: "smooth",
+    parts: &[SMOOTH, WEIGHTED],
+    int64: false,
+};
+pub const ANTIALIAS_MODULE: ShaderModule = ShaderModule {
+    name: "antialias",
+    parts: &[ANTIALIAS, WEIGHTED],
+    int64: false,
+};
+pub const OUTPUT_MODULE: ShaderModule = ShaderModule {
+    name: "output",
+    parts: &[OUTPUT],
+    int64: false,
+};
+
+/// Every module the GPU backend compiles (the naga validation test walks this list).
+pub const ALL: &[ShaderModule] = &[
+    PROJECT64,
+    PROJECT32,
+    PROJECT_HW_MODULE,
+    RESOLVE_MODULE,
+    FILL_BACKGROUND_MODULE,
+    FILL_OCCLUDED_MODULE,
+    ITERATE_MODULE,
+    GATHER_MODULE,
+    SHADE_MODULE,
+    SMOOTH_MODULE,
+    ANTIALIAS_MODULE,
+    OUTPUT_MODULE,
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every WGSL module parses and validates with naga (no GPU needed): a broken shader fails
+    /// plain `cargo test`.
+    #[test]
+    fn every_shader_validates_with_naga() {
+        use naga::valid::{Capabilities, ValidationFlags, Validator};
+        let mut failures = Vec::new();
+        for m in ALL {
+            let src = m.source();
+            let module = match naga::front::wgsl::parse_str(&src) {
+                Ok(m) => m,
+                Err(e) => {
+                    failures.push(format!("{}: {}", m.name, e.emit_to_string(&src)));
+                    continue;
+                }
+            };
+            let caps = if m.int64 {
+                Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
+            } else {
+                Capabilities::empty()
+            };
+            if let Err(e) = Validator::new(ValidationFlags::all(), caps).validate(&module) {
+                failures.push(format!("{}: {}", m.name, e.emit_to_string(&src)));
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+    }
+
+    #[test]
+    fn the_64_bit_projection_needs_its_capability() {
+        use naga::valid::{Capabilities, ValidationFlags, Validator};
+        let src = PROJECT64.source();
+        let module = naga::front::wgsl::parse_str(&src).unwrap();
+        assert!(
+            Validator::new(ValidationFlags::all(), Capabilities::empty())
+                .validate(&module)
+                .is_err()
+        );
+    }
+}

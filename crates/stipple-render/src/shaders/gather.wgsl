@@ -1,0 +1,46 @@
+// gather: for every pixel whose point lies in this chunk of the cloud, fetch the point's
+// position, normal and albedo into per-pixel attribute buffers, so shade reads one place
+// whatever the chunk. Runs once per chunk, after the geometry passes.
+
+struct Gather {
+    base: u32,
+    count: u32,
+    has_normals: u32,
+    has_albedo: u32,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<uniform> gp: Gather;
+@group(0) @binding(2) var<storage, read> id: array<u32>;
+@group(0) @binding(3) var<storage, read> positions: array<f32>;
+@group(0) @binding(4) var<storage, read> normals: array<f32>;
+// sRGB 8-bit albedo per point, packed r | g << 8 | b << 16.
+@group(0) @binding(5) var<storage, read> albedo: array<u32>;
+// xyz = position, w = the albedo word (bit pattern).
+@group(0) @binding(6) var<storage, read_write> attr_pos: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> attr_normal: array<vec4<f32>>;
+
+@compute @workgroup_size(256)
+fn gather(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let i = group_index(wg, groups) * 256u + li;
+    if (i >= view.width * view.height) {
+        return;
+    }
+    let pid = id[i];
+    if (pid == BACKGROUND || pid < gp.base || pid - gp.base >= gp.count) {
+        return;
+    }
+    let l = pid - gp.base;
+    var a = 0u;
+    if (gp.has_albedo == 1u) {
+        a = albedo[l];
+    }
+    attr_pos[i] = vec4<f32>(positions[3u * l], positions[3u * l + 1u], positions[3u * l + 2u], bitcast<f32>(a));
+    if (gp.has_normals == 1u) {
+        attr_normal[i] = vec4<f32>(normals[3u * l], normals[3u * l + 1u], normals[3u * l + 2u], 0.0);
+    }
+}

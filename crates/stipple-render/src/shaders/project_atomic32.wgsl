@@ -1,0 +1,54 @@
+// project without 64-bit atomics: two passes over the points. Pass 1 keeps the nearest depth
+// per pixel (atomicMax of the complemented depth bits; depths are positive, so their bits
+// order like the values); pass 2 keeps, among the points at exactly that depth, the smallest
+// index. The result equals the 64-bit key minimum.
+
+@group(0) @binding(5) var<storage, read_write> vis_depth: array<atomic<u32>>;
+@group(0) @binding(6) var<storage, read_write> vis_id: array<atomic<u32>>;
+
+@compute @workgroup_size(256)
+fn project_depth(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    for (var k = 0u; k < BATCH; k++) {
+        let local = point_index(wg, groups, li, k);
+        if (local >= chunk.count) {
+            continue;
+        }
+        let p = point_at(local);
+        let h = project_point(p);
+        if (!h.ok || back_facing(p, local)) {
+            continue;
+        }
+        atomicAdd(&kept, 1u);
+        let key = ~bitcast<u32>(h.depth);
+        if (key > atomicLoad(&vis_depth[h.pixel])) {
+            atomicMax(&vis_depth[h.pixel], key);
+        }
+    }
+    count_kept(li);
+}
+
+@compute @workgroup_size(256)
+fn project_index(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    for (var k = 0u; k < BATCH; k++) {
+        let local = point_index(wg, groups, li, k);
+        if (local >= chunk.count) {
+            continue;
+        }
+        let p = point_at(local);
+        let h = project_point(p);
+        if (!h.ok || back_facing(p, local)) {
+            continue;
+        }
+        if (~bitcast<u32>(h.depth) == atomicLoad(&vis_depth[h.pixel])) {
+            atomicMax(&vis_id[h.pixel], ~(chunk.base + local));
+        }
+    }
+}

@@ -1,0 +1,142 @@
+// shade (Dobrev §3.1): point id → lit linear colour and surface depth. CPU twin: cpu/shade.rs
+// (see there for the maths: Phong with one light, two-sided normals, and the tangent-plane
+// surface depth capped by d̃).
+
+struct Shade {
+    // 0 headlight, 1 directional (light = direction towards the light), 2 point (position).
+    light_kind: u32,
+    has_normals: u32,
+    // 0: constant albedo, 1: per-point sRGB albedo from gather.
+    has_albedo: u32,
+    shininess: i32,
+    light: vec3<f32>,
+    ambient: f32,
+    base_colour: vec3<f32>,
+    diffuse: f32,
+    background: vec3<f32>,
+    specular: f32,
+    max_correction: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<uniform> sp: Shade;
+@group(0) @binding(2) var<storage, read> g_depth: array<f32>;
+@group(0) @binding(3) var<storage, read> g_id: array<u32>;
+@group(0) @binding(4) var<storage, read> attr_pos: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> attr_normal: array<vec4<f32>>;
+// sRGB 8-bit → linear (shade::srgb_to_linear_table).
+@group(0) @binding(6) var<storage, read> to_linear: array<f32, 256>;
+@group(0) @binding(7) var<storage, read_write> colour: array<vec4<f32>>;
+@group(0) @binding(8) var<storage, read_write> surface_depth: array<f32>;
+
+fn normalize3(v: vec3<f32>) -> vec3<f32> {
+    return v * (1.0 / sqrt(dot3(v, v)));
+}
+
+fn powi(x: f32, n: i32) -> f32 {
+    var r = 1.0;
+    var b = x;
+    var e = abs(n);
+    loop {
+        if (e == 0) {
+            break;
+        }
+        if ((e & 1) == 1) {
+            r = r * b;
+        }
+        b = b * b;
+        e = e >> 1u;
+    }
+    if (n < 0) {
+        return 1.0 / r;
+    }
+    return r;
+}
+
+@compute @workgroup_size(8, 8)
+fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if (gid.x >= view.width || gid.y >= view.height) {
+        return;
+    }
+    let k = gid.y * view.width + gid.x;
+    let pid = g_id[k];
+    if (pid == BACKGROUND) {
+        colour[k] = vec4<f32>(sp.background, 1.0);
+        surface_depth[k] = infinity();
+        return;
+    }
+    let a = attr_pos[k];
+    var albedo = sp.base_colour;
+    if (sp.has_albedo == 1u) {
+        let bits = bitcast<u32>(a.w);
+        albedo = vec3<f32>(to_linear[bits & 0xffu], to_linear[(bits >> 8u) & 0xffu], to_linear[(bits >> 16u) & 0xffu]);
+    }
+    var depth = g_depth[k];
+    if (sp.has_normals == 0u) {
+        colour[k] = vec4<f32>(albedo, 1.0);
+        surface_depth[k] = depth;
+        return;
+    }
+    var n = attr_normal[k].xyz;
+    // view.pixel_ray
+    let ndx = 2.0 * (f32(gid.x) + 0.5) / f32(view.width) - 1.0;
+    let ndy = 1.0 - 2.0 * (f32(gid.y) + 0.5) / f32(view.height);
+    let off = view.right * (ndx / view.sx) + view.up * (ndy / view.sy);
+    var o = view.eye;
+    var dir = view.forward;
+    if (view.perspective == 1u) {
+        dir = view.forward + off;
+    } else {
+        o = view.eye + off;
+    }
+    let unit = normalize3(dir);
+    let q = a.xyz;
+    let nd = dot3(n, dir);
+    let shift = dot3(o - view.eye, view.forward);
+    if (abs(dot3(n, unit)) >= 0.2) {
+        var t = dot3(n, q - o) / nd;
+        if (view.perspective != 1u) {
+            t = t + shift;
+        }
+        if (abs(t - depth) <= sp.max_correction) {
+            depth = t;
+        }
+    }
+    var hit: vec3<f32>;
+    if (view.perspective == 1u) {
+        hit = o + dir * depth;
+    } else {
+        hit = o + dir * (depth - shift);
+    }
+    let to_eye = -unit;
+    var l = to_eye;
+    if (sp.light_kind == 1u) {
+        l = sp.light;
+    } else if (sp.light_kind == 2u) {
+        let lv = sp.light - hit;
+        let len2 = dot3(lv, lv);
+        if (len2 > 0.0) {
+            l = normalize3(lv);
+        } else {
+            l = vec3<f32>(0.0);
+        }
+    }
+    // shade::phong
+    if (dot3(n, to_eye) < 0.0) {
+        n = -n;
+    }
+    let nl = dot3(n, l);
+    var diff = 0.0;
+    var spec = 0.0;
+    if (nl > 0.0) {
+        let r = 2.0 * nl * n - l;
+        diff = nl;
+        spec = powi(max(dot3(r, to_eye), 0.0), sp.shininess);
+    }
+    let kk = sp.ambient + sp.diffuse * diff;
+    colour[k] = vec4<f32>(albedo * kk + sp.specular * spec, 1.0);
+    surface_depth[k] = depth;
+}
