@@ -183,8 +183,8 @@ fn inputs_are_never_overwritten_and_errors_are_clear() {
             "not an iteration count",
         ),
         (
-            vec!["render", "--backend", "gpu"],
-            "GPU backend is not implemented",
+            vec!["render", "--backend", "cpu", "--projection", "hardware"],
+            "needs the GPU backend",
         ),
         (
             vec!["render", "--eye", "0,0,0", "--target", "0,0,0"],
@@ -258,5 +258,38 @@ fn real_files_render() {
             "{name}: nearly empty"
         );
     }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// With no adapter (WGPU_BACKEND names a backend this build has no adapter for), `gpu` is a
+/// clear error and `auto` renders on the CPU, saying so once.
+#[test]
+fn backend_choice_without_an_adapter() {
+    let dir = tempdir("backend");
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .args(args)
+            .env("WGPU_BACKEND", "metal")
+            .current_dir(&dir)
+            .output()
+            .unwrap()
+    };
+    let small = ["--points", "20000", "--size", "64x48"];
+    let mut a = vec!["render", "--backend", "gpu"];
+    a.extend(small);
+    let o = run(&a);
+    assert!(!o.status.success());
+    assert!(text(&o).contains("no suitable GPU adapter"), "{}", text(&o));
+    assert!(!text(&o).contains("panicked"), "{}", text(&o));
+    let mut a = vec!["render", "--backend", "auto"];
+    a.extend(small);
+    let o = run(&a);
+    assert!(o.status.success(), "{}", text(&o));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.matches("rendering on the CPU").count(), 1, "{err}");
+    assert!(String::from_utf8_lossy(&o.stdout).contains("on cpu"));
+    let o = run(&["devices"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("no GPU adapters found"), "{}", text(&o));
     std::fs::remove_dir_all(dir).ok();
 }

@@ -58,7 +58,7 @@ impl AdapterReport {
             int64_atomics: f
                 .contains(Features::SHADER_INT64 | Features::SHADER_INT64_ATOMIC_MIN_MAX),
             timestamps: f.contains(Features::TIMESTAMP_QUERY),
-            max_storage_binding: l.max_storage_buffer_binding_size as u64,
+            max_storage_binding: l.max_storage_buffer_binding_size,
             max_buffer: l.max_buffer_size,
             suitable: suitability(a),
         }

@@ -363,14 +363,14 @@ impl GpuRenderer {
 
     fn prepare(&mut self, v: &ViewParams) -> Result<(), GpuError> {
         let n = v.width as u64 * v.height as u64;
-        let max = self.ctx.limits.max_storage_buffer_binding_size as u64;
+        let max = self.ctx.limits.max_storage_buffer_binding_size;
         if 16 * n > max || 16 * n > self.ctx.limits.max_buffer_size {
             return Err(GpuError::TooLarge(format!(
                 "{}×{} pixels: per-pixel buffers of {} MiB exceed the device's binding limit of \
                  {} MiB",
                 v.width,
                 v.height,
-                16 * n >> 20,
+                (16 * n) >> 20,
                 max >> 20
             )));
         }
