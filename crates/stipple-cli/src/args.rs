@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use stipple_core::demo::{self, DemoScene};
 use stipple_core::{Camera, PointCloud, Projection};
-use stipple_render::pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline};
 use stipple_render::gpu::{GpuOptions, ProjectionPath};
+use stipple_render::pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline};
 use stipple_render::{Backend, PreparedCloud, Renderer};
 
 #[derive(clap::Args, Clone)]
@@ -323,7 +323,8 @@ impl BackendArgs {
             force_32bit: self.gpu_32bit,
             ..Default::default()
         };
-        let mut r = Renderer::new(self.backend, options).map_err(|e| format!("--backend gpu: {e}"))?;
+        let mut r =
+            Renderer::new(self.backend, options).map_err(|e| format!("--backend gpu: {e}"))?;
         match r.gpu_mut() {
             Some(g) => g.projection = self.projection,
             None if self.projection == ProjectionPath::Hardware => {

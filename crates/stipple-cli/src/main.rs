@@ -27,6 +27,8 @@ Examples:
   stipple info tile.laz                             count, bounds, attributes, spacing
   stipple gen torus -o torus.ply --points 500000    write a demo scene
   stipple bench tile.laz --frames 20                ms per pass, points/s
+  stipple render tile.laz --backend gpu             on the GPU (auto: GPU if usable, else CPU)
+  stipple devices                                   GPU adapters and what they support
 
 The rendering pipeline (Dobrev et al. 2010, §3): points are projected (nearest wins),
 holes are filled in image space (background fill, then occluded-pixel fill with the layer
