@@ -294,8 +294,8 @@ impl PipelineArgs {
 /// Where the passes run, shared by `render` and `bench`.
 #[derive(clap::Args, Clone)]
 pub struct BackendArgs {
-    /// Where the passes run: cpu, gpu, or auto (a suitable GPU adapter if there is one, else
-    /// the CPU, saying why once). `stipple devices` lists the adapters; WGPU_BACKEND=vulkan|gl|…
+    /// Where the passes run: cpu, gpu, or auto (a suitable hardware GPU adapter if there is
+    /// one, else the CPU, saying why once; software adapters like lavapipe only with gpu). `stipple devices` lists the adapters; WGPU_BACKEND=vulkan|gl|…
     /// restricts the search.
     #[arg(long, default_value = "auto", value_parser = Backend::parse)]
     pub backend: Backend,

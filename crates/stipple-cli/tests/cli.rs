@@ -293,3 +293,44 @@ fn backend_choice_without_an_adapter() {
     assert!(text(&o).contains("no GPU adapters found"), "{}", text(&o));
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// On a machine whose only adapter is a software rasterizer (lavapipe, as in CI), `auto`
+/// renders on the CPU and says why; `gpu` uses the software adapter.
+#[test]
+fn auto_passes_over_a_software_adapter() {
+    let Ok(ctx) = stipple_render::gpu::GpuContext::new(Default::default()) else {
+        eprintln!("skipped: no GPU adapter");
+        return;
+    };
+    if !ctx.adapter.is_software() {
+        eprintln!(
+            "skipped: the adapter is a hardware GPU ({})",
+            ctx.describe()
+        );
+        return;
+    }
+    let dir = tempdir("software");
+    let o = stipple(&dir, &["render", "--points", "20000", "--size", "64x48"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("software rasterizer"), "{}", text(&o));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("on cpu"));
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--points",
+            "20000",
+            "--size",
+            "64x48",
+            "--backend",
+            "gpu",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("on gpu"),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

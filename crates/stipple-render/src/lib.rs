@@ -124,8 +124,10 @@ enum Inner {
 }
 
 impl Renderer {
-    /// Opens a renderer. `Auto` takes a suitable GPU adapter when there is one and otherwise
-    /// falls back to the CPU, saying why once on stderr; `Gpu` without one is an error.
+    /// Opens a renderer. `Auto` takes a suitable hardware GPU adapter when there is one and
+    /// otherwise falls back to the CPU, saying why once on stderr (a software adapter such as
+    /// lavapipe is slower than the CPU backend, so `Auto` passes it over); `Gpu` takes any
+    /// suitable adapter, and without one is an error.
     pub fn new(backend: Backend, options: gpu::GpuOptions) -> Result<Renderer, RenderError> {
         let open = || -> Result<Renderer, gpu::GpuError> {
             let ctx = gpu::GpuContext::new(options)?;
@@ -143,7 +145,15 @@ impl Renderer {
             Backend::Cpu => Ok(cpu()),
             Backend::Gpu => Ok(open()?),
             Backend::Auto => match open() {
-                Ok(r) => Ok(r),
+                Ok(r) if !r.is_software_gpu() => Ok(r),
+                Ok(r) => {
+                    eprintln!(
+                        "note: rendering on the CPU (the only GPU adapter, {}, is a software \
+                         rasterizer, slower than the CPU backend; --backend gpu uses it anyway)",
+                        r.describe()
+                    );
+                    Ok(cpu())
+                }
                 Err(e) => {
                     eprintln!("note: rendering on the CPU ({e})");
                     Ok(cpu())
@@ -157,6 +167,14 @@ impl Renderer {
         match &self.inner {
             Inner::Cpu(_) => format!("cpu ({} threads)", rayon::current_num_threads()),
             Inner::Gpu { renderer, .. } => format!("gpu: {}", renderer.context().describe()),
+        }
+    }
+
+    /// A GPU backend on a software adapter (lavapipe, llvmpipe, WARP).
+    fn is_software_gpu(&self) -> bool {
+        match &self.inner {
+            Inner::Gpu { renderer, .. } => renderer.context().adapter.is_software(),
+            Inner::Cpu(_) => false,
         }
     }
 

@@ -64,6 +64,11 @@ impl AdapterReport {
         }
     }
 
+    /// A software rasterizer (lavapipe, llvmpipe, WARP) rather than a GPU.
+    pub fn is_software(&self) -> bool {
+        self.device_type == DeviceType::Cpu
+    }
+
     /// Preference order: real GPUs first, then non-GL backends, then 64-bit atomics.
     fn rank(&self) -> (u8, u8, u8) {
         let t = match self.device_type {
