@@ -37,6 +37,8 @@ struct Hit {
     ok: bool,
     pixel: u32,
     depth: f32,
+    // The point's index in the whole cloud.
+    index: u32,
 }
 
 fn point_at(i: u32) -> vec3<f32> {
@@ -90,8 +92,20 @@ fn back_facing(p: vec3<f32>, local: u32) -> bool {
     return dot3(n, to_point) > 0.0;
 }
 
-// The point a thread handles in round k, or count (past the end) when none.
-fn point_index(wg: vec3<u32>, groups: vec3<u32>, li: u32, k: u32) -> u32 {
-    let g = group_index(wg, groups);
-    return (g * BATCH + k) * WG + li;
+// The point a thread handles in round k of its workgroup's batch, projected: not ok when
+// past the end of the chunk, outside the view or back-facing.
+fn visible_point(wg: vec3<u32>, groups: vec3<u32>, li: u32, k: u32) -> Hit {
+    let local = (group_index(wg, groups) * BATCH + k) * WG + li;
+    var h: Hit;
+    h.ok = false;
+    if (local >= chunk.count) {
+        return h;
+    }
+    let p = point_at(local);
+    h = project_point(p);
+    if (h.ok && back_facing(p, local)) {
+        h.ok = false;
+    }
+    h.index = chunk.base + local;
+    return h;
 }

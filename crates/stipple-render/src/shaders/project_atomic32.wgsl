@@ -13,13 +13,8 @@ fn project_depth(
     @builtin(local_invocation_index) li: u32,
 ) {
     for (var k = 0u; k < BATCH; k++) {
-        let local = point_index(wg, groups, li, k);
-        if (local >= chunk.count) {
-            continue;
-        }
-        let p = point_at(local);
-        let h = project_point(p);
-        if (!h.ok || back_facing(p, local)) {
+        let h = visible_point(wg, groups, li, k);
+        if (!h.ok) {
             continue;
         }
         atomicAdd(&kept, 1u);
@@ -38,17 +33,12 @@ fn project_index(
     @builtin(local_invocation_index) li: u32,
 ) {
     for (var k = 0u; k < BATCH; k++) {
-        let local = point_index(wg, groups, li, k);
-        if (local >= chunk.count) {
-            continue;
-        }
-        let p = point_at(local);
-        let h = project_point(p);
-        if (!h.ok || back_facing(p, local)) {
+        let h = visible_point(wg, groups, li, k);
+        if (!h.ok) {
             continue;
         }
         if (~bitcast<u32>(h.depth) == atomicLoad(&vis_depth[h.pixel])) {
-            atomicMax(&vis_id[h.pixel], ~(chunk.base + local));
+            atomicMax(&vis_id[h.pixel], ~h.index);
         }
     }
 }

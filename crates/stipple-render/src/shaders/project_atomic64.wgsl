@@ -12,17 +12,12 @@ fn project(
     @builtin(local_invocation_index) li: u32,
 ) {
     for (var k = 0u; k < BATCH; k++) {
-        let local = point_index(wg, groups, li, k);
-        if (local >= chunk.count) {
-            continue;
-        }
-        let p = point_at(local);
-        let h = project_point(p);
-        if (!h.ok || back_facing(p, local)) {
+        let h = visible_point(wg, groups, li, k);
+        if (!h.ok) {
             continue;
         }
         atomicAdd(&kept, 1u);
-        let key = ~((u64(bitcast<u32>(h.depth)) << 32u) | u64(chunk.base + local));
+        let key = ~((u64(bitcast<u32>(h.depth)) << 32u) | u64(h.index));
         if (key > atomicLoad(&vis[h.pixel])) {
             atomicMax(&vis[h.pixel], key);
         }
