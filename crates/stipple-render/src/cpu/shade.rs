@@ -60,6 +60,12 @@ pub struct ShadeInput<'a> {
 }
 
 /// sRGB 8-bit → linear.
+/// The sRGB 8-bit grey level that shows LiDAR intensity `t` under `scale` (1 / p99).
+#[inline]
+pub fn intensity_grey(t: u16, scale: f32) -> u8 {
+    ((t as f32 * scale).min(1.0) * 255.0) as u8
+}
+
 pub fn srgb_to_linear_table() -> [f32; 256] {
     let mut t = [0.0; 256];
     for (i, v) in t.iter_mut().enumerate() {
@@ -86,6 +92,12 @@ impl SrgbEncoder {
                 .map(|i| linear_to_srgb8(i as f32 / (Self::N - 1) as f32))
                 .collect(),
         )
+    }
+
+    /// The table itself: entry i encodes the linear value i / (N − 1) (the GPU output pass
+    /// uploads it, so both backends encode identically).
+    pub fn table(&self) -> &[u8] {
+        &self.0
     }
 
     #[inline]
@@ -155,10 +167,7 @@ pub fn shade(
                 let id = id as usize;
                 let albedo = match input.albedo {
                     Albedo::Colours(c) => c[id].map(|x| lut[x as usize]),
-                    Albedo::Intensity(t, s) => {
-                        let g = lut[((t[id] as f32 * s).min(1.0) * 255.0) as usize];
-                        [g; 3]
-                    }
+                    Albedo::Intensity(t, s) => [lut[intensity_grey(t[id], s) as usize]; 3],
                     Albedo::Constant(c) => c,
                 };
                 let mut depth = g.depth[k];

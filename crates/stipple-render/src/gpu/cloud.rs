@@ -2,6 +2,7 @@
 //! storage binding (128 MiB on lavapipe), so clouds of any size project chunk by chunk.
 
 use super::context::{GpuContext, GpuError};
+use crate::cpu::shade::intensity_grey;
 use crate::PreparedCloud;
 use glam::DVec3;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -61,13 +62,9 @@ impl GpuCloud {
                     .collect(),
             )
         } else if let (Some(i), Some(s)) = (&c.intensity, cloud.intensity_scale) {
-            // The same grey level as cpu::shade's Albedo::Intensity.
             Some(
                 i.iter()
-                    .map(|&t| {
-                        let g = ((t as f32 * s).min(1.0) * 255.0) as u32;
-                        g | g << 8 | g << 16
-                    })
+                    .map(|&t| intensity_grey(t, s) as u32 * 0x01_01_01)
                     .collect(),
             )
         } else {

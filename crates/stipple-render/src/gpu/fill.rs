@@ -1,10 +1,9 @@
 //! The hole-filling step shared by the GPU fill_background and fill_occluded passes
 //! (shaders/fill.wgsl + the pass's own file), with the window cells of masks::window.
 
-use super::util::{self, Res, DYNAMIC, READ, UNIFORM, WRITE};
+use super::util::{Pass, DYNAMIC, READ, UNIFORM, WRITE};
 use super::GpuContext;
 use crate::masks::{window, MAX_RADIUS};
-use wgpu::ShaderStages;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -15,52 +14,14 @@ pub(crate) struct FillBlock {
     pub slot: u32,
 }
 
-pub(crate) struct Fill {
-    pub bgl: wgpu::BindGroupLayout,
-    pub pipeline: wgpu::ComputePipeline,
-}
-
-impl Fill {
-    pub fn new(ctx: &GpuContext, m: &super::shaders::ShaderModule) -> Fill {
-        let d = &ctx.device;
-        let bgl = util::layout(
-            d,
-            m.name,
-            &[UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE],
-            ShaderStages::COMPUTE,
-        );
-        let module = util::module(d, m);
-        let pipeline = util::compute(d, &module, "fill", &bgl);
-        Fill { bgl, pipeline }
-    }
-
-    #[allow(clippy::too_many_arguments)]
-    pub fn bind(
-        &self,
-        ctx: &GpuContext,
-        view: &wgpu::Buffer,
-        arena: &wgpu::Buffer,
-        cells: &wgpu::Buffer,
-        src: (&wgpu::Buffer, &wgpu::Buffer),
-        dst: (&wgpu::Buffer, &wgpu::Buffer),
-        counters: &wgpu::Buffer,
-    ) -> wgpu::BindGroup {
-        util::bind(
-            &ctx.device,
-            "fill",
-            &self.bgl,
-            &[
-                Res::Buf(view),
-                Res::Arena(arena, std::mem::size_of::<FillBlock>() as u64),
-                Res::Buf(cells),
-                Res::Buf(src.0),
-                Res::Buf(src.1),
-                Res::Buf(dst.0),
-                Res::Buf(dst.1),
-                Res::Buf(counters),
-            ],
-        )
-    }
+/// The pipeline of a fill pass: shaders/fill.wgsl with the pass's `candidate` and `solid`.
+pub(crate) fn new(ctx: &GpuContext, m: &super::shaders::ShaderModule) -> Pass {
+    Pass::new(
+        &ctx.device,
+        m,
+        "fill",
+        &[UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE],
+    )
 }
 
 /// Window cells (dx, dy, mask, ring) for radius 1, 2, …, MAX_RADIUS, concatenated; and where

@@ -3,6 +3,6 @@
 //! shaders/fill_occluded.wgsl: candidates are covered pixels, solid neighbours are at least d̃
 //! nearer; the step itself is shaders/fill.wgsl (see [`super::fill`]).
 
-pub(crate) fn new(ctx: &super::GpuContext) -> super::fill::Fill {
-    super::fill::Fill::new(ctx, &super::shaders::FILL_OCCLUDED_MODULE)
+pub(crate) fn new(ctx: &super::GpuContext) -> super::util::Pass {
+    super::fill::new(ctx, &super::shaders::FILL_OCCLUDED_MODULE)
 }

@@ -7,7 +7,7 @@
 //! The cloud is projected chunk by chunk (one storage binding each) and dispatches beyond the
 //! per-dimension limit are split in 2-D. `resolve` then unpacks the keys into the G-buffer.
 
-use super::util::{self, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use super::util::{self, Slot, DYNAMIC, READ, UNIFORM, WRITE};
 use super::GpuContext;
 use wgpu::ShaderStages;
 
@@ -77,35 +77,12 @@ impl Project {
         }
     }
 
-    /// The bind group of one chunk: view, chunk block (arena), positions, normals, counters,
-    /// then the visibility buffer(s).
-    #[allow(clippy::too_many_arguments)]
-    pub fn bind(
-        &self,
-        ctx: &GpuContext,
-        view: &wgpu::Buffer,
-        arena: &wgpu::Buffer,
-        positions: &wgpu::Buffer,
-        normals: &wgpu::Buffer,
-        counters: &wgpu::Buffer,
-        vis: &wgpu::Buffer,
-        vis_id: &wgpu::Buffer,
-    ) -> wgpu::BindGroup {
-        let mut res = vec![
-            Res::Buf(view),
-            Res::Arena(arena, std::mem::size_of::<ChunkBlock>() as u64),
-            Res::Buf(positions),
-            Res::Buf(normals),
-            Res::Buf(counters),
-            Res::Buf(vis),
-        ];
-        let bgl = match &self.wide {
+    /// The layout of the projection in use: view, chunk block (arena), positions, normals,
+    /// counters, then the visibility buffer(s).
+    pub fn bgl(&self) -> &wgpu::BindGroupLayout {
+        match &self.wide {
             Some((bgl, _)) => bgl,
-            None => {
-                res.push(Res::Buf(vis_id));
-                &self.narrow_bgl
-            }
-        };
-        util::bind(&ctx.device, "project", bgl, &res)
+            None => &self.narrow_bgl,
+        }
     }
 }

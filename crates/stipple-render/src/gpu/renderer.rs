@@ -5,18 +5,19 @@
 use super::antialias::AntialiasBlock;
 use super::cloud::GpuCloud;
 use super::context::{GpuContext, GpuError};
-use super::fill::{window_cells, Fill, FillBlock};
+use super::fill::{window_cells, FillBlock};
 use super::iterate::IterateBlock;
 use super::project::{ChunkBlock, Project, ResolveBlock, POINTS_PER_GROUP};
 use super::project_hw::{ProjectHw, Targets};
 use super::shade::{GatherBlock, Shade, ShadeBlock};
 use super::smooth::SmoothBlock;
-use super::util::{self, Arena, Pass, Res, BLOCK};
+use super::util::{self, Arena, Pass, Res};
 use crate::cpu::shade::{srgb_to_linear_table, SrgbEncoder};
 use crate::gbuffer::{GBuffer, PassStat};
 use crate::params::ViewParams;
 use crate::pipeline::{ColourPass, GeometryPass, Iterations, Pipeline};
 use crate::Frame;
+use std::mem::size_of;
 use std::sync::Arc;
 use std::time::Instant;
 use wgpu::{Buffer, BufferUsages, CommandEncoder};
@@ -55,9 +56,12 @@ struct Kit {
     timer: Option<Timer>,
     project: Project,
     project_hw: ProjectHw,
-    fill_background: Fill,
-    fill_occluded: Fill,
+    fill_background: Pass,
+    fill_occluded: Pass,
     iterate: Pass,
+    /// The bind groups that depend on nothing but the set-up.
+    iterate_group: wgpu::BindGroup,
+    hw_group: wgpu::BindGroup,
     shade: Shade,
     smooth: Pass,
     antialias: Pass,
@@ -77,7 +81,12 @@ struct FrameBuffers {
     surface: Buffer,
     rgba: Buffer,
     read: Buffer,
-    targets: Option<Targets>,
+    /// The hardware path's render targets and the group that copies them out.
+    targets: Option<(Targets, wgpu::BindGroup)>,
+    /// Made with the buffers (see [`FrameGroups`]).
+    groups: Option<FrameGroups>,
+    /// The per-chunk groups of the last cloud rendered at this size.
+    cloud: Option<CloudGroups>,
 }
 
 impl FrameBuffers {
@@ -104,6 +113,192 @@ impl FrameBuffers {
                 mapped_at_creation: false,
             }),
             targets: None,
+            groups: None,
+            cloud: None,
+        }
+    }
+
+    fn groups(&self) -> &FrameGroups {
+        self.groups.as_ref().expect("made with the buffers")
+    }
+
+    fn cloud_groups(&self) -> &CloudGroups {
+        self.cloud.as_ref().expect("made before recording")
+    }
+}
+
+/// Size of a uniform block as bound from the arena.
+fn block<T>() -> u64 {
+    size_of::<T>() as u64
+}
+
+/// Bind groups over the frame buffers, made once per frame size. Arrays are indexed by which
+/// ping-pong image is the source (`g`: geometry, `c`: colour).
+struct FrameGroups {
+    resolve: wgpu::BindGroup,
+    fill_background: [wgpu::BindGroup; 2],
+    fill_occluded: [wgpu::BindGroup; 2],
+    shade: [wgpu::BindGroup; 2],
+    smooth: [[wgpu::BindGroup; 2]; 2],
+    antialias: [wgpu::BindGroup; 2],
+    output: [wgpu::BindGroup; 2],
+}
+
+impl FrameGroups {
+    fn new(ctx: &GpuContext, kit: &Kit, arena: &Buffer, f: &FrameBuffers) -> FrameGroups {
+        let d = &ctx.device;
+        let fill = |pass: &Pass, src: usize| {
+            pass.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<FillBlock>()),
+                    Res::Buf(&kit.cells),
+                    Res::Buf(&f.depth[src]),
+                    Res::Buf(&f.id[src]),
+                    Res::Buf(&f.depth[1 - src]),
+                    Res::Buf(&f.id[1 - src]),
+                    Res::Buf(&kit.counters),
+                ],
+            )
+        };
+        let shade = |g: usize| {
+            kit.shade.shade.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<ShadeBlock>()),
+                    Res::Buf(&f.depth[g]),
+                    Res::Buf(&f.id[g]),
+                    Res::Buf(&f.attr_pos),
+                    Res::Buf(&f.attr_normal),
+                    Res::Buf(&kit.to_linear),
+                    Res::Buf(&f.colour[0]),
+                    Res::Buf(&f.surface),
+                ],
+            )
+        };
+        let smooth = |g: usize, c: usize| {
+            kit.smooth.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<SmoothBlock>()),
+                    Res::Buf(&f.id[g]),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(&f.colour[1 - c]),
+                ],
+            )
+        };
+        let antialias = |c: usize| {
+            kit.antialias.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<AntialiasBlock>()),
+                    Res::Buf(&f.surface),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(&f.colour[1 - c]),
+                    Res::Buf(&kit.counters),
+                ],
+            )
+        };
+        let output = |c: usize| {
+            kit.output.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(&kit.encode_table),
+                    Res::Buf(&f.rgba),
+                ],
+            )
+        };
+        FrameGroups {
+            resolve: util::bind(
+                d,
+                "resolve",
+                &kit.project.resolve_bgl,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<ResolveBlock>()),
+                    Res::Buf(&f.vis),
+                    Res::Buf(&f.vis_id),
+                    Res::Buf(&f.depth[0]),
+                    Res::Buf(&f.id[0]),
+                ],
+            ),
+            fill_background: [fill(&kit.fill_background, 0), fill(&kit.fill_background, 1)],
+            fill_occluded: [fill(&kit.fill_occluded, 0), fill(&kit.fill_occluded, 1)],
+            shade: [shade(0), shade(1)],
+            smooth: [[smooth(0, 0), smooth(0, 1)], [smooth(1, 0), smooth(1, 1)]],
+            antialias: [antialias(0), antialias(1)],
+            output: [output(0), output(1)],
+        }
+    }
+}
+
+/// Bind groups over one uploaded cloud's chunks and the frame buffers, made when the cloud or
+/// the frame size changes.
+struct CloudGroups {
+    key: u64,
+    project: Vec<wgpu::BindGroup>,
+    /// Per chunk, by geometry image.
+    gather: Vec<[wgpu::BindGroup; 2]>,
+}
+
+impl CloudGroups {
+    fn new(
+        ctx: &GpuContext,
+        kit: &Kit,
+        arena: &Buffer,
+        f: &FrameBuffers,
+        cloud: &GpuCloud,
+    ) -> CloudGroups {
+        let d = &ctx.device;
+        let project = cloud
+            .chunks
+            .iter()
+            .map(|c| {
+                let mut res = vec![
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<ChunkBlock>()),
+                    Res::Buf(&c.positions),
+                    Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                    Res::Buf(&kit.counters),
+                    Res::Buf(&f.vis),
+                ];
+                if kit.project.wide.is_none() {
+                    res.push(Res::Buf(&f.vis_id));
+                }
+                util::bind(d, "project", kit.project.bgl(), &res)
+            })
+            .collect();
+        let gather = cloud
+            .chunks
+            .iter()
+            .map(|c| {
+                [0, 1].map(|g| {
+                    kit.shade.gather.bind(
+                        d,
+                        &[
+                            Res::Buf(&kit.view),
+                            Res::Arena(arena, block::<GatherBlock>()),
+                            Res::Buf(&f.id[g]),
+                            Res::Buf(&c.positions),
+                            Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                            Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
+                            Res::Buf(&f.attr_pos),
+                            Res::Buf(&f.attr_normal),
+                        ],
+                    )
+                })
+            })
+            .collect();
+        CloudGroups {
+            key: cloud.key,
+            project,
+            gather,
         }
     }
 }
@@ -283,8 +478,10 @@ impl GpuRenderer {
     pub fn new(ctx: Arc<GpuContext>) -> Result<GpuRenderer, GpuError> {
         let d = &ctx.device;
         let (cells, cell_ranges) = window_cells();
-        let table: Vec<u32> = (0..16384)
-            .map(|i| SrgbEncoder::new().encode(i as f32 / 16383.0) as u32)
+        let table: Vec<u32> = SrgbEncoder::new()
+            .table()
+            .iter()
+            .map(|&b| b as u32)
             .collect();
         let timer = ctx.timestamps.then(|| Timer {
             set: d.create_query_set(&wgpu::QuerySetDescriptor {
@@ -306,13 +503,23 @@ impl GpuRenderer {
             }),
             period_ns: ctx.queue.get_timestamp_period() as f64,
         });
+        let arena = Arena::new(d, ctx.limits.min_uniform_buffer_offset_alignment);
+        let view = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("view"),
+            size: std::mem::size_of::<ViewParams>() as u64,
+            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let counters = util::storage(d, "counters", SLOTS * 4);
+        let indirect = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("indirect"),
+            size: SLOTS * 12,
+            usage: BufferUsages::STORAGE | BufferUsages::INDIRECT,
+            mapped_at_creation: false,
+        });
+        let iterate = super::iterate::new(&ctx);
+        let project_hw = ProjectHw::new(&ctx);
         let kit = Kit {
-            view: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("view"),
-                size: std::mem::size_of::<ViewParams>() as u64,
-                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
             cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
             cell_ranges,
             to_linear: util::storage_init(
@@ -321,31 +528,43 @@ impl GpuRenderer {
                 bytemuck::cast_slice(&srgb_to_linear_table()),
             ),
             encode_table: util::storage_init(d, "srgb encode", bytemuck::cast_slice(&table)),
-            counters: util::storage(d, "counters", SLOTS * 4),
             counters_read: d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("counters read"),
                 size: SLOTS * 4,
                 usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            indirect: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("indirect"),
-                size: SLOTS * 12,
-                usage: BufferUsages::STORAGE | BufferUsages::INDIRECT,
-                mapped_at_creation: false,
-            }),
             timer,
             project: Project::new(&ctx),
-            project_hw: ProjectHw::new(&ctx),
             fill_background: super::fill_background::new(&ctx),
             fill_occluded: super::fill_occluded::new(&ctx),
-            iterate: super::iterate::new(&ctx),
+            iterate_group: iterate.bind(
+                d,
+                &[
+                    Res::Arena(&arena.buffer, block::<IterateBlock>()),
+                    Res::Buf(&counters),
+                    Res::Buf(&indirect),
+                ],
+            ),
+            iterate,
+            hw_group: util::bind(
+                d,
+                "project_hw",
+                &project_hw.bgl,
+                &[
+                    Res::Buf(&view),
+                    Res::Arena(&arena.buffer, block::<ChunkBlock>()),
+                ],
+            ),
+            project_hw,
+            counters,
+            indirect,
+            view,
             shade: Shade::new(&ctx),
             smooth: super::smooth::new(&ctx),
             antialias: super::antialias::new(&ctx),
             output: super::output::new(&ctx),
         };
-        let arena = Arena::new(d, ctx.limits.min_uniform_buffer_offset_alignment);
         ctx.take_errors()?;
         Ok(GpuRenderer {
             ctx,
@@ -375,19 +594,55 @@ impl GpuRenderer {
             )));
         }
         grid_2d(&self.ctx, v.width, v.height)?;
-        if !matches!(&self.frame, Some(f) if f.width == v.width && f.height == v.height) {
-            self.frame = Some(FrameBuffers::new(&self.ctx, v.width, v.height));
-        }
-        if let Some(f) = &mut self.frame {
-            if self.projection == ProjectionPath::Hardware && f.targets.is_none() {
-                f.targets = Some(Targets::new(&self.ctx, v.width, v.height));
+        let f = match self.frame.take() {
+            Some(f) if f.width == v.width && f.height == v.height => f,
+            _ => {
+                let mut f = FrameBuffers::new(&self.ctx, v.width, v.height);
+                f.groups = Some(FrameGroups::new(
+                    &self.ctx,
+                    &self.kit,
+                    &self.arena.buffer,
+                    &f,
+                ));
+                f
             }
+        };
+        let f = self.frame.insert(f);
+        if self.projection == ProjectionPath::Hardware && f.targets.is_none() {
+            let t = Targets::new(&self.ctx, v.width, v.height);
+            let copy = util::bind(
+                &self.ctx.device,
+                "project_hw copy",
+                &self.kit.project_hw.copy_bgl,
+                &[
+                    Res::Buf(&self.kit.view),
+                    Res::Skip,
+                    Res::View(&t.id),
+                    Res::View(&t.depth),
+                    Res::Buf(&f.depth[0]),
+                    Res::Buf(&f.id[0]),
+                ],
+            );
+            f.targets = Some((t, copy));
         }
         self.ctx
             .queue
             .write_buffer(&self.kit.view, 0, bytemuck::bytes_of(v));
         self.arena.clear();
         Ok(())
+    }
+}
+
+/// Makes the cloud's bind groups unless the frame buffers already hold them.
+fn ensure_cloud(
+    ctx: &GpuContext,
+    kit: &Kit,
+    arena: &Buffer,
+    f: &mut FrameBuffers,
+    cloud: &GpuCloud,
+) {
+    if f.cloud.as_ref().map(|c| c.key) != Some(cloud.key) {
+        f.cloud = Some(CloudGroups::new(ctx, kit, arena, f, cloud));
     }
 }
 
@@ -417,18 +672,17 @@ impl GpuRenderer {
     ) -> Result<Frame, GpuError> {
         self.prepare(v)?;
         let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
-        let params = crate::cpu::shade_params(cloud.origin, pipe, gap);
-        let constant = (!cloud.has_albedo).then_some(pipe.material.base_colour);
-        let shade_block = ShadeBlock::new(&params, cloud.has_normals && pipe.lighting, constant);
+        let shade_block = ShadeBlock::for_cloud(cloud, pipe);
         let projection = self.projection;
-        let f = self.frame.take().expect("prepared");
+        let mut f = self.frame.take().expect("prepared");
+        ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
         let result = (|| {
             let kit = &self.kit;
             let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
             let mut cur = Cursor::default();
             match (projection, &f.targets) {
-                (ProjectionPath::Hardware, Some(t)) => {
-                    record_project_hw(&mut rec, kit, &f, t, cloud, pipe.backface_culling)?
+                (ProjectionPath::Hardware, Some((t, copy))) => {
+                    record_project_hw(&mut rec, kit, &f, t, copy, cloud, pipe.backface_culling)?
                 }
                 _ => record_project(&mut rec, kit, &f, cloud, pipe.backface_culling)?,
             }
@@ -471,14 +725,15 @@ impl GpuRenderer {
         cull: bool,
     ) -> Result<(GBuffer, u64), GpuError> {
         self.prepare(v)?;
-        let f = self.frame.take().expect("prepared");
+        let mut f = self.frame.take().expect("prepared");
+        ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
         let r = (|| {
             let kit = &self.kit;
             let projection = self.projection;
             let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
             match (projection, &f.targets) {
-                (ProjectionPath::Hardware, Some(t)) => {
-                    record_project_hw(&mut rec, kit, &f, t, cloud, cull)?
+                (ProjectionPath::Hardware, Some((t, copy))) => {
+                    record_project_hw(&mut rec, kit, &f, t, copy, cloud, cull)?
                 }
                 _ => record_project(&mut rec, kit, &f, cloud, cull)?,
             }
@@ -529,11 +784,9 @@ impl GpuRenderer {
         pipe: &Pipeline,
     ) -> Result<(Vec<[f32; 3]>, Vec<f32>), GpuError> {
         self.prepare(v)?;
-        let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
-        let params = crate::cpu::shade_params(cloud.origin, pipe, gap);
-        let constant = (!cloud.has_albedo).then_some(pipe.material.base_colour);
-        let block = ShadeBlock::new(&params, cloud.has_normals && pipe.lighting, constant);
-        let f = self.frame.take().expect("prepared");
+        let block = ShadeBlock::for_cloud(cloud, pipe);
+        let mut f = self.frame.take().expect("prepared");
+        ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
         let r = (|| {
             let kit = &self.kit;
             let q = &self.ctx.queue;
@@ -684,44 +937,20 @@ fn record_project(
     let slot = rec.slot()?;
     let q = rec.queries();
     let cull = cull && cloud.has_normals;
-    let mut groups = Vec::new();
-    for c in &cloud.chunks {
+    let mut chunks = Vec::new();
+    for (c, bg) in cloud.chunks.iter().zip(&f.cloud_groups().project) {
         let off = rec.arena.push(&ChunkBlock {
             base: c.base,
             count: c.count,
             cull: cull as u32,
             slot,
         })?;
-        let bg = kit.project.bind(
-            ctx,
-            &kit.view,
-            &rec.arena.buffer,
-            &c.positions,
-            c.normals.as_ref().unwrap_or(&cloud.dummy),
-            &kit.counters,
-            &f.vis,
-            &f.vis_id,
-        );
-        groups.push((bg, off, ctx.grid(c.count.div_ceil(POINTS_PER_GROUP))));
+        chunks.push((bg, off, ctx.grid(c.count.div_ceil(POINTS_PER_GROUP))));
     }
-    let wide = ResolveBlock {
+    let roff = rec.arena.push(&ResolveBlock {
         wide: kit.project.wide.is_some() as u32,
         pad: [0; 3],
-    };
-    let roff = rec.arena.push(&wide)?;
-    let rbg = util::bind(
-        &ctx.device,
-        "resolve",
-        &kit.project.resolve_bgl,
-        &[
-            Res::Buf(&kit.view),
-            Res::Arena(&rec.arena.buffer, BLOCK.min(16)),
-            Res::Buf(&f.vis),
-            Res::Buf(&f.vis_id),
-            Res::Buf(&f.depth[0]),
-            Res::Buf(&f.id[0]),
-        ],
-    );
+    })?;
     let mut pass = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
     let stages: Vec<&wgpu::ComputePipeline> = match &kit.project.wide {
         Some((_, p)) => vec![p],
@@ -729,13 +958,13 @@ fn record_project(
     };
     for p in stages {
         pass.set_pipeline(p);
-        for (bg, off, (gx, gy)) in &groups {
-            pass.set_bind_group(0, bg, &[*off]);
+        for (bg, off, (gx, gy)) in &chunks {
+            pass.set_bind_group(0, *bg, &[*off]);
             pass.dispatch_workgroups(*gx, *gy, 1);
         }
     }
     pass.set_pipeline(&kit.project.resolve);
-    pass.set_bind_group(0, &rbg, &[roff]);
+    pass.set_bind_group(0, &f.groups().resolve, &[roff]);
     let (gx, gy) = flat_groups(ctx, f.width as u64 * f.height as u64);
     pass.dispatch_workgroups(gx, gy, 1);
     drop(pass);
@@ -747,6 +976,7 @@ fn record_project_hw(
     kit: &Kit,
     f: &FrameBuffers,
     t: &Targets,
+    copy: &wgpu::BindGroup,
     cloud: &GpuCloud,
     cull: bool,
 ) -> Result<(), GpuError> {
@@ -763,16 +993,7 @@ fn record_project_hw(
             cull: cull as u32,
             slot: 0,
         })?;
-        let bg = util::bind(
-            &ctx.device,
-            "project_hw",
-            &hw.bgl,
-            &[
-                Res::Buf(&kit.view),
-                Res::Arena(&rec.arena.buffer, std::mem::size_of::<ChunkBlock>() as u64),
-            ],
-        );
-        draws.push((bg, off, c));
+        draws.push((off, c));
     }
     {
         let clear = |c: wgpu::Color| wgpu::Operations {
@@ -821,30 +1042,17 @@ fn record_project_hw(
             multiview_mask: None,
         });
         pass.set_pipeline(&hw.pipeline);
-        for (bg, off, c) in &draws {
-            pass.set_bind_group(0, bg, &[*off]);
+        for (off, c) in &draws {
+            pass.set_bind_group(0, &kit.hw_group, &[*off]);
             pass.set_vertex_buffer(0, c.positions.slice(..));
             let n = c.normals.as_ref().unwrap_or(&c.positions);
             pass.set_vertex_buffer(1, n.slice(..));
             pass.draw(0..c.count, 0..1);
         }
     }
-    let bg = util::bind(
-        &ctx.device,
-        "project_hw copy",
-        &hw.copy_bgl,
-        &[
-            Res::Buf(&kit.view),
-            Res::Skip,
-            Res::View(&t.id),
-            Res::View(&t.depth),
-            Res::Buf(&f.depth[0]),
-            Res::Buf(&f.id[0]),
-        ],
-    );
     let mut pass = rec.cpass(None, q.map(|q| q.1));
     pass.set_pipeline(&hw.copy);
-    pass.set_bind_group(0, &bg, &[]);
+    pass.set_bind_group(0, copy, &[]);
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     pass.dispatch_workgroups(gx, gy, 1);
     drop(pass);
@@ -861,16 +1069,21 @@ fn record_geometry(
 ) -> Result<(), GpuError> {
     let ctx = rec.ctx;
     rec.start();
-    let (fill, its, radius, gap) = match *pass {
-        GeometryPass::FillBackground { iterations, radius } => {
-            (&kit.fill_background, iterations, radius, 0.0)
-        }
+    let (fill, groups, its, radius, gap) = match *pass {
+        GeometryPass::FillBackground { iterations, radius } => (
+            &kit.fill_background,
+            &f.groups().fill_background,
+            iterations,
+            radius,
+            0.0,
+        ),
         GeometryPass::FillOccluded {
             iterations,
             layer_gap,
             radius,
         } => (
             &kit.fill_occluded,
+            &f.groups().fill_occluded,
             iterations,
             radius,
             layer_gap.unwrap_or(default_gap),
@@ -882,26 +1095,6 @@ fn record_geometry(
         .filter(|_| radius >= 1)
         .ok_or_else(|| GpuError::TooLarge(format!("fill radius {radius} (1 to 3)")))?;
     let q = rec.queries();
-    let bind = |src: usize, arena: &Buffer| {
-        fill.bind(
-            ctx,
-            &kit.view,
-            arena,
-            &kit.cells,
-            (&f.depth[src], &f.id[src]),
-            (&f.depth[1 - src], &f.id[1 - src]),
-            &kit.counters,
-        )
-    };
-    let groups = [bind(0, &rec.arena.buffer), bind(1, &rec.arena.buffer)];
-    let iterate_bg = kit.iterate.bind(
-        &ctx.device,
-        &[
-            Res::Arena(&rec.arena.buffer, 16),
-            Res::Buf(&kit.counters),
-            Res::Buf(&kit.indirect),
-        ],
-    );
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     let stable = matches!(its, Iterations::UntilStable { .. });
     let mut steps = Vec::new();
@@ -932,7 +1125,7 @@ fn record_geometry(
     for (src, off, it, slot) in steps {
         if let Some(ioff) = it {
             p.set_pipeline(&kit.iterate.pipeline);
-            p.set_bind_group(0, &iterate_bg, &[ioff]);
+            p.set_bind_group(0, &kit.iterate_group, &[ioff]);
             p.dispatch_workgroups(1, 1, 1);
             p.set_pipeline(&fill.pipeline);
             p.set_bind_group(0, &groups[src], &[off]);
@@ -958,55 +1151,27 @@ fn record_shade(
     let ctx = rec.ctx;
     rec.start();
     let q = rec.queries();
-    let d = &ctx.device;
     let mut gathers = Vec::new();
-    for c in &cloud.chunks {
+    for (c, groups) in cloud.chunks.iter().zip(&f.cloud_groups().gather) {
         let off = rec.arena.push(&GatherBlock {
             base: c.base,
             count: c.count,
             has_normals: c.normals.is_some() as u32,
             has_albedo: c.albedo.is_some() as u32,
         })?;
-        let bg = kit.shade.gather.bind(
-            d,
-            &[
-                Res::Buf(&kit.view),
-                Res::Arena(&rec.arena.buffer, 16),
-                Res::Buf(&f.id[cur.g]),
-                Res::Buf(&c.positions),
-                Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
-                Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
-                Res::Buf(&f.attr_pos),
-                Res::Buf(&f.attr_normal),
-            ],
-        );
-        gathers.push((bg, off));
+        gathers.push((&groups[cur.g], off));
     }
     let soff = rec.arena.push(&block)?;
-    let sbg = kit.shade.shade.bind(
-        d,
-        &[
-            Res::Buf(&kit.view),
-            Res::Arena(&rec.arena.buffer, std::mem::size_of::<ShadeBlock>() as u64),
-            Res::Buf(&f.depth[cur.g]),
-            Res::Buf(&f.id[cur.g]),
-            Res::Buf(&f.attr_pos),
-            Res::Buf(&f.attr_normal),
-            Res::Buf(&kit.to_linear),
-            Res::Buf(&f.colour[0]),
-            Res::Buf(&f.surface),
-        ],
-    );
     let (fx, fy) = flat_groups(ctx, f.width as u64 * f.height as u64);
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
     p.set_pipeline(&kit.shade.gather.pipeline);
     for (bg, off) in &gathers {
-        p.set_bind_group(0, bg, &[*off]);
+        p.set_bind_group(0, *bg, &[*off]);
         p.dispatch_workgroups(fx, fy, 1);
     }
     p.set_pipeline(&kit.shade.shade.pipeline);
-    p.set_bind_group(0, &sbg, &[soff]);
+    p.set_bind_group(0, &f.groups().shade[cur.g], &[soff]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     rec.end("shade", 1, vec![], q)
@@ -1021,26 +1186,13 @@ fn record_colour(
     v: &ViewParams,
 ) -> Result<(), GpuError> {
     let ctx = rec.ctx;
-    let d = &ctx.device;
     rec.start();
     let q = rec.queries();
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     match *pass {
         ColourPass::Smooth { kernel, iterations } => {
             let off = rec.arena.push(&SmoothBlock::new(kernel))?;
-            let bind = |src: usize| {
-                kit.smooth.bind(
-                    d,
-                    &[
-                        Res::Buf(&kit.view),
-                        Res::Arena(&rec.arena.buffer, 48),
-                        Res::Buf(&f.id[cur.g]),
-                        Res::Buf(&f.colour[src]),
-                        Res::Buf(&f.colour[1 - src]),
-                    ],
-                )
-            };
-            let groups = [bind(0), bind(1)];
+            let groups = &f.groups().smooth[cur.g];
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.smooth.pipeline);
             for _ in 0..iterations {
@@ -1062,20 +1214,9 @@ fn record_colour(
                 strength,
                 slot,
             })?;
-            let bg = kit.antialias.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(&rec.arena.buffer, 16),
-                    Res::Buf(&f.surface),
-                    Res::Buf(&f.colour[cur.colour]),
-                    Res::Buf(&f.colour[1 - cur.colour]),
-                    Res::Buf(&kit.counters),
-                ],
-            );
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.antialias.pipeline);
-            p.set_bind_group(0, &bg, &[off]);
+            p.set_bind_group(0, &f.groups().antialias[cur.colour], &[off]);
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
@@ -1093,19 +1234,10 @@ fn record_output(
     let ctx = rec.ctx;
     rec.start();
     let q = rec.queries();
-    let bg = kit.output.bind(
-        &ctx.device,
-        &[
-            Res::Buf(&kit.view),
-            Res::Buf(&f.colour[cur.colour]),
-            Res::Buf(&kit.encode_table),
-            Res::Buf(&f.rgba),
-        ],
-    );
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
     p.set_pipeline(&kit.output.pipeline);
-    p.set_bind_group(0, &bg, &[]);
+    p.set_bind_group(0, &f.groups().output[cur.colour], &[]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     rec.end("output", 1, vec![], q)

@@ -37,6 +37,15 @@ pub(crate) struct ShadeBlock {
 const _: () = assert!(std::mem::size_of::<ShadeBlock>() == 80);
 
 impl ShadeBlock {
+    /// The block for a cloud under a pipeline: the CPU's shade parameters (cpu::shade_params)
+    /// with the cloud's attributes.
+    pub fn for_cloud(cloud: &super::GpuCloud, pipe: &crate::Pipeline) -> ShadeBlock {
+        let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
+        let params = crate::cpu::shade_params(cloud.origin, pipe, gap);
+        let constant = (!cloud.has_albedo).then_some(pipe.material.base_colour);
+        ShadeBlock::new(&params, cloud.has_normals && pipe.lighting, constant)
+    }
+
     pub fn new(p: &ShadeParams, has_normals: bool, albedo: Option<[f32; 3]>) -> ShadeBlock {
         let (light_kind, light) = match p.light {
             LocalLight::Headlight => (0, [0.0; 3]),
