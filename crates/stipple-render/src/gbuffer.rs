@@ -3,8 +3,19 @@
 /// Point id of a background pixel.
 pub const BACKGROUND: u32 = u32::MAX;
 
+/// Id of a pixel the visibility operator (Pintus §4) emptied: it shows no point, like
+/// `BACKGROUND`, but the anisotropic fill may give it a value (mutable), while `BACKGROUND`
+/// pixels it judged visible stay background (immutable).
+pub const HOLE: u32 = u32::MAX - 1;
+
+/// Whether a G-buffer id names a point (not `BACKGROUND` or `HOLE`).
+#[inline]
+pub fn is_point(id: u32) -> bool {
+    id < HOLE
+}
+
 /// The visibility G-buffer: for each pixel the view depth of the point shown there and its
-/// index (`BACKGROUND` and +inf where no point is). The colour, normal and lit value of a pixel
+/// index (`BACKGROUND` or `HOLE`, and +inf, where no point is). The colour, normal and lit value of a pixel
 /// are functions of its point id, resolved by the `shade` pass, so the geometry passes move
 /// eight bytes per pixel instead of a full G-buffer.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,7 +38,7 @@ impl GBuffer {
     }
 
     pub fn covered(&self) -> usize {
-        self.id.iter().filter(|&&i| i != BACKGROUND).count()
+        self.id.iter().filter(|&&i| is_point(i)).count()
     }
 
     /// Builds a G-buffer from a picture for tests: `#` = a point at depth 1, `.` = background,
@@ -59,7 +70,7 @@ impl GBuffer {
         let mut s = String::new();
         for j in 0..self.height as usize {
             for i in 0..self.width as usize {
-                s.push(if self.id[j * self.width as usize + i] == BACKGROUND {
+                s.push(if !is_point(self.id[j * self.width as usize + i]) {
                     '.'
                 } else {
                     '#'

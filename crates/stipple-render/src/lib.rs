@@ -8,13 +8,14 @@
 //! for the passes.
 
 pub mod cpu;
+pub mod eval;
 pub mod gbuffer;
 pub mod gpu;
 pub mod masks;
 pub mod params;
 pub mod pipeline;
 
-pub use gbuffer::{GBuffer, PassStat, BACKGROUND};
+pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
 pub use params::ViewParams;
 pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Light, Material, Pipeline};
 
@@ -87,6 +88,13 @@ impl PreparedCloud {
             intensity_scale,
             key: NEXT_CLOUD_KEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         }
+    }
+
+    /// The pipeline with its automatic settings resolved for this cloud and view.
+    pub fn resolve(&self, pipe: &Pipeline, v: &ViewParams) -> Pipeline {
+        let c = self.cloud.bounds().center();
+        let depth = (c - glam::Vec3::from(v.eye)).dot(glam::Vec3::from(v.forward));
+        pipe.resolved(v, self.spacing, depth)
     }
 
     /// The layer gap d̃ a pipeline uses for this cloud: its own, else derived from spacing.
@@ -201,6 +209,7 @@ impl Renderer {
             return Err(RenderError::EmptyCloud);
         }
         let v = ViewParams::new(camera, cloud.cloud.origin);
+        let pipe = &cloud.resolve(pipe, &v);
         match &mut self.inner {
             Inner::Cpu(r) => Ok(r.render(cloud, &v, pipe)),
             Inner::Gpu { renderer, uploaded } => {

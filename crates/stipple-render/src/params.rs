@@ -69,4 +69,21 @@ impl ViewParams {
             (Vec3::from(self.eye) + off, f)
         }
     }
+
+    /// The view-space position (camera at the origin, +z forward, x right, y up) of the point
+    /// at view depth `z` on pixel (i, j)'s centre ray. Written as the WGSL twin computes it.
+    #[inline]
+    pub fn view_position(&self, i: u32, j: u32, z: f32) -> Vec3 {
+        let nx = 2.0 * (i as f32 + 0.5) / self.width as f32 - 1.0;
+        let ny = 1.0 - 2.0 * (j as f32 + 0.5) / self.height as f32;
+        let s = if self.perspective == 1 { z } else { 1.0 };
+        Vec3::new(nx / self.sx * s, ny / self.sy * s, z)
+    }
+
+    /// The world size of one pixel (vertically) at view depth `z`.
+    #[inline]
+    pub fn footprint(&self, z: f32) -> f32 {
+        let s = if self.perspective == 1 { z } else { 1.0 };
+        2.0 / (self.height as f32 * self.sy) * s
+    }
 }

@@ -76,6 +76,12 @@ pub enum GeometryPass {
         layer_gap: Option<f32>,
         radius: u32,
     },
+    /// Pintus §4: screen-space visibility. Each pixel's free solid angle towards the eye,
+    /// estimated over the disc of diameter `kernel` pixels in 8 sectors, as a fraction of the
+    /// hemisphere; pixels below `threshold` become [`crate::gbuffer::HOLE`] (empty and
+    /// mutable), points and background above it stay (immutable). `kernel` 0 = automatic
+    /// (see [`auto_kernel`]), resolved per frame.
+    Visibility { kernel: u32, threshold: f32 },
 }
 
 /// Passes that work on the shaded colour.
@@ -86,6 +92,25 @@ pub enum ColourPass {
     /// Dobrev §3.5: Laplace on depth/z_far; pixels above `threshold` are blended with their
     /// Gaussian-weighted neighbourhood by `strength`.
     Antialias { threshold: f32, strength: f32 },
+    /// Pintus §5: fill the pixels visibility emptied (3×3, Jacobi iterations). An empty pixel
+    /// first takes the median depth of its valid neighbours (and that neighbour's colour);
+    /// later iterations average depth and colour with Eq. 1's weights. `delta` is δ in
+    /// pixel footprints at the pixel's depth (so the same value works at any distance).
+    /// `iterations` 0 = twice the visibility kernel (§5), resolved per frame.
+    /// `all_empty`: every empty pixel is mutable, background included (the raw preset with
+    /// visibility off, Pintus Fig. 9a); otherwise only [`crate::gbuffer::HOLE`] pixels.
+    FillAnisotropic {
+        iterations: u32,
+        delta: f32,
+        all_empty: bool,
+    },
+    /// Pintus §6: multi-level shape depiction on the filled depth (Eq. 2 per level, levels
+    /// merged by Eq. 3 with `xi`, normalised so a flat facing surface shades to 1). `levels`
+    /// = 1 is the single-level mode. `epsilon` is Eq. 2's ε in pixel footprints.
+    Depiction { levels: u32, xi: f32, epsilon: f32 },
+    /// Eye-dome lighting (as in Potree and CloudCompare): darkens pixels by how much nearer
+    /// their neighbours at `radius` pixels are, in log2 depth; background neighbours outline.
+    Edl { strength: f32, radius: f32 },
 }
 
 /// Where the light is.
@@ -170,7 +195,89 @@ impl Default for Pipeline {
     }
 }
 
+/// Shading of the raw preset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RawShading {
+    /// Pintus §6 with this many levels (1 = single-level).
+    Depiction(u32),
+    Edl,
+    /// The filled colour only.
+    None,
+}
+
+/// Settings of the raw preset (Pintus §3–6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RawSettings {
+    /// Visibility kernel size k (the k×k neighbourhood; 4 to 9 in the paper); 0 = automatic
+    /// from the point spacing on screen ([`auto_kernel`]).
+    pub kernel: u32,
+    /// Run the visibility operator (off: every empty pixel is filled, nothing is removed).
+    pub visibility: bool,
+    /// Free fraction of the hemisphere above which a pixel is visible.
+    pub threshold: f32,
+    /// Fill iterations (default: twice the kernel size, as §5 advises).
+    pub fill_iterations: Option<u32>,
+    /// δ of Eq. 1, in pixel footprints.
+    pub delta: f32,
+    pub shading: RawShading,
+    /// ξ of Eq. 3.
+    pub xi: f32,
+    /// ε of Eq. 2, in pixel footprints.
+    pub epsilon: f32,
+}
+
+impl Default for RawSettings {
+    fn default() -> Self {
+        RawSettings {
+            kernel: 0,
+            visibility: true,
+            threshold: 0.4,
+            fill_iterations: None,
+            delta: 8.0,
+            shading: RawShading::Depiction(6),
+            xi: 1.5,
+            epsilon: 2.0,
+        }
+    }
+}
+
 impl Pipeline {
+    /// The raw-cloud preset (Pintus §3): visibility → anisotropic filling → shape depiction,
+    /// ignoring normals (no culling, no lighting).
+    pub fn raw(s: RawSettings) -> Pipeline {
+        let mut colour = vec![ColourPass::FillAnisotropic {
+            iterations: s.fill_iterations.unwrap_or(2 * s.kernel),
+            delta: s.delta,
+            all_empty: !s.visibility,
+        }];
+        match s.shading {
+            RawShading::Depiction(levels) => colour.push(ColourPass::Depiction {
+                levels,
+                xi: s.xi,
+                epsilon: s.epsilon,
+            }),
+            RawShading::Edl => colour.push(ColourPass::Edl {
+                strength: 1.0,
+                radius: 1.4,
+            }),
+            RawShading::None => {}
+        }
+        Pipeline {
+            backface_culling: false,
+            geometry: if s.visibility {
+                vec![GeometryPass::Visibility {
+                    kernel: s.kernel,
+                    threshold: s.threshold,
+                }]
+            } else {
+                vec![]
+            },
+            colour,
+            lighting: false,
+            ..Pipeline::default()
+        }
+    }
+
     /// Only projection and shading: the raw points (Dobrev Fig. 1).
     pub fn points_only() -> Pipeline {
         Pipeline {
@@ -178,6 +285,48 @@ impl Pipeline {
             colour: vec![],
             ..Pipeline::default()
         }
+    }
+}
+
+/// The visibility kernel for points `spacing_px` pixels apart on screen: 6 × the spacing,
+/// from 4 to 15. Why: a pixel behind a surface must find nearer points in most of its 8
+/// sectors; with points s pixels apart that needs a radius of about 3s (measured on the bunny
+/// against its mesh, `tests/raw.rs`). Beyond 15 (points over 2.5 px apart) the cost grows
+/// with the square of the kernel; render smaller instead.
+pub fn auto_kernel(spacing_px: f32) -> u32 {
+    if !spacing_px.is_finite() {
+        return 7;
+    }
+    ((6.0 * spacing_px).ceil() as u32).clamp(4, *crate::cpu::visibility::KERNELS.end())
+}
+
+impl Pipeline {
+    /// Resolves the automatic settings (kernel 0, fill iterations 0) for a cloud of median
+    /// point spacing `spacing` whose centre is at view depth `depth`.
+    pub fn resolved(&self, v: &crate::ViewParams, spacing: f32, depth: f32) -> Pipeline {
+        let mut p = self.clone();
+        let px = if depth > v.near {
+            spacing / v.footprint(depth)
+        } else {
+            f32::NAN
+        };
+        let mut kernel = 7;
+        for g in &mut p.geometry {
+            if let GeometryPass::Visibility { kernel: k, .. } = g {
+                if *k == 0 {
+                    *k = auto_kernel(px);
+                }
+                kernel = *k;
+            }
+        }
+        for c in &mut p.colour {
+            if let ColourPass::FillAnisotropic { iterations, .. } = c {
+                if *iterations == 0 {
+                    *iterations = 2 * kernel;
+                }
+            }
+        }
+        p
     }
 }
 
@@ -207,6 +356,7 @@ impl GeometryPass {
         match self {
             GeometryPass::FillBackground { .. } => "fill_background",
             GeometryPass::FillOccluded { .. } => "fill_occluded",
+            GeometryPass::Visibility { .. } => "visibility",
         }
     }
 }
@@ -216,6 +366,9 @@ impl ColourPass {
         match self {
             ColourPass::Smooth { .. } => "smooth",
             ColourPass::Antialias { .. } => "antialias",
+            ColourPass::FillAnisotropic { .. } => "fill_anisotropic",
+            ColourPass::Depiction { .. } => "depiction",
+            ColourPass::Edl { .. } => "edl",
         }
     }
 }

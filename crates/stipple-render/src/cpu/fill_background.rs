@@ -14,7 +14,7 @@
 //! ever fills. `radius` 2 applies the same half-plane masks to the 5×5 window (`masks.rs`),
 //! which closes such gaps while silhouettes still keep a clear half-plane outside.
 
-use crate::gbuffer::{GBuffer, BACKGROUND};
+use crate::gbuffer::{is_point, GBuffer, BACKGROUND};
 use crate::masks::window;
 use rayon::prelude::*;
 
@@ -25,8 +25,8 @@ pub fn fill_background(src: &GBuffer, dst: &mut GBuffer, radius: u32) -> u64 {
         src,
         dst,
         radius,
-        |_, id| id == BACKGROUND,
-        |_, _, _, nid| nid != BACKGROUND,
+        |_, id| !is_point(id),
+        |_, _, _, nid| is_point(nid),
     )
 }
 

@@ -9,7 +9,7 @@
 //! world units along the view axis.
 
 use super::fill_background::fill_pass;
-use crate::gbuffer::{GBuffer, BACKGROUND};
+use crate::gbuffer::{is_point, GBuffer};
 
 /// One iteration from `src` into `dst` (masks over the (2·radius+1)² window); returns the
 /// number of pixels replaced.
@@ -19,7 +19,7 @@ pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32, radius: u
         src,
         dst,
         radius,
-        |_, id| id != BACKGROUND,
+        |_, id| is_point(id),
         |d, cd, _, _| cd <= d - layer_gap,
     )
 }

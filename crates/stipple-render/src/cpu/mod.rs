@@ -2,11 +2,15 @@
 //! backend is compared against. One module per pass, named as the pass.
 
 pub mod antialias;
+pub mod depiction;
+pub mod edl;
+pub mod fill_anisotropic;
 pub mod fill_background;
 pub mod fill_occluded;
 pub mod project;
 pub mod shade;
 pub mod smooth;
+pub mod visibility;
 
 use crate::gbuffer::{GBuffer, PassStat};
 use crate::params::ViewParams;
@@ -26,6 +30,10 @@ pub struct CpuRenderer {
     g: Option<(GBuffer, GBuffer)>,
     colour: (Vec<[f32; 3]>, Vec<[f32; 3]>),
     surface_depth: Vec<f32>,
+    /// The anisotropic fill's second depth image, the depiction's level images and term.
+    depth_b: Vec<f32>,
+    scratch: (Vec<f32>, Vec<f32>),
+    shading: Vec<f32>,
     srgb: shade::SrgbEncoder,
 }
 
@@ -129,6 +137,11 @@ impl CpuRenderer {
                             fill_occluded::fill_occluded(s, d, gap, radius)
                         })
                     }
+                    GeometryPass::Visibility { kernel, threshold } => {
+                        iterate(ga, gb, Iterations::Fixed(1), |s, d| {
+                            visibility::visibility(v, s, d, kernel, threshold)
+                        })
+                    }
                 };
                 ((), its, changed)
             });
@@ -145,6 +158,9 @@ impl CpuRenderer {
         };
         let (ca, cb) = (&mut self.colour.0, &mut self.colour.1);
         let sd = &mut self.surface_depth;
+        let sd_b = &mut self.depth_b;
+        sd_b.resize(n, 0.0);
+        let (scratch, shading) = (&mut self.scratch, &mut self.shading);
         timed(&mut stats, "shade", || {
             shade::shade(v, ga, &input, &params, ca, sd);
             ((), 1, 0)
@@ -177,6 +193,35 @@ impl CpuRenderer {
                     );
                     std::mem::swap(ca, cb);
                     ((), 1, k)
+                }
+                ColourPass::FillAnisotropic {
+                    iterations,
+                    delta,
+                    all_empty,
+                } => {
+                    let mut filled = 0;
+                    for _ in 0..iterations {
+                        filled += fill_anisotropic::fill_anisotropic(
+                            v, &ga.id, delta, all_empty, sd, ca, sd_b, cb,
+                        );
+                        std::mem::swap(sd, sd_b);
+                        std::mem::swap(ca, cb);
+                    }
+                    ((), iterations, filled)
+                }
+                ColourPass::Depiction {
+                    levels,
+                    xi,
+                    epsilon,
+                } => {
+                    depiction::depiction(v, sd, levels, xi, epsilon, scratch, shading, ca, cb);
+                    std::mem::swap(ca, cb);
+                    ((), levels, 0)
+                }
+                ColourPass::Edl { strength, radius } => {
+                    edl::edl(v, sd, strength, radius, ca, cb);
+                    std::mem::swap(ca, cb);
+                    ((), 1, 0)
                 }
             });
         }

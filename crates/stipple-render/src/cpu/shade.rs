@@ -13,7 +13,7 @@
 //! spacing (see the fidelity test). The correction is skipped at grazing angles
 //! (|⟨n, ray⟩| < 0.2) and when it would move the depth by more than d̃.
 
-use crate::gbuffer::{GBuffer, BACKGROUND};
+use crate::gbuffer::{is_point, GBuffer};
 use crate::params::ViewParams;
 use glam::Vec3;
 use rayon::prelude::*;
@@ -159,7 +159,7 @@ pub fn shade(
             for i in 0..w {
                 let k = j * w + i;
                 let id = g.id[k];
-                if id == BACKGROUND {
+                if !is_point(id) {
                     crow[i] = p.background;
                     drow[i] = f32::INFINITY;
                     continue;

@@ -5,7 +5,7 @@
 //! the weighted mean of its covered neighbours (weights renormalised over those present), so
 //! background never bleeds into the surface; background pixels are untouched.
 
-use crate::gbuffer::BACKGROUND;
+use crate::gbuffer::is_point;
 use crate::pipeline::Kernel;
 use rayon::prelude::*;
 
@@ -22,11 +22,11 @@ pub fn smooth(
     dst.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         for x in 0..w {
             let k = y * w + x;
-            if id[k] == BACKGROUND {
+            if !is_point(id[k]) {
                 row[x] = src[k];
                 continue;
             }
-            row[x] = weighted_3x3(w, h, x, y, &wt, src, |n| id[n] != BACKGROUND);
+            row[x] = weighted_3x3(w, h, x, y, &wt, src, |n| is_point(id[n]));
         }
     });
 }
@@ -87,7 +87,7 @@ mod tests {
     fn smoothing_ignores_background_and_averages_the_rest() {
         // 3×3, centre bright, others dark; top-left background (colour 100 must not leak).
         let mut id = vec![1u32; 9];
-        id[0] = BACKGROUND;
+        id[0] = crate::gbuffer::BACKGROUND;
         let mut src = vec![[0.0f32; 3]; 9];
         src[0] = [100.0; 3];
         src[4] = [1.0; 3];

@@ -1088,6 +1088,9 @@ fn record_geometry(
             radius,
             layer_gap.unwrap_or(default_gap),
         ),
+        GeometryPass::Visibility { .. } => {
+            return Err(GpuError::TooLarge("TEMP visibility".into()))
+        }
     };
     let (first, count) = *kit
         .cell_ranges
@@ -1222,6 +1225,7 @@ fn record_colour(
             cur.colour = 1 - cur.colour;
             rec.end("antialias", 1, vec![slot], q)
         }
+        _ => Err(GpuError::TooLarge("TEMP raw".into())),
     }
 }
 

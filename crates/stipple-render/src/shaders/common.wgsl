@@ -18,6 +18,12 @@ struct View {
 
 // The id of a pixel that shows no point (gbuffer.rs BACKGROUND).
 const BACKGROUND: u32 = 0xffffffffu;
+// The id of a pixel the visibility operator emptied (gbuffer.rs HOLE): mutable by the fill.
+const HOLE: u32 = 0xfffffffeu;
+
+fn is_point(id: u32) -> bool {
+    return id < HOLE;
+}
 
 fn infinity() -> f32 {
     return bitcast<f32>(0x7f800000u);

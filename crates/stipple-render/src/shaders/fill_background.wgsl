@@ -2,9 +2,9 @@
 // point. Used with fill.wgsl; CPU twin: cpu/fill_background.rs.
 
 fn candidate(d: f32, id: u32) -> bool {
-    return id == BACKGROUND;
+    return !is_point(id);
 }
 
 fn solid(d: f32, nd: f32, nid: u32) -> bool {
-    return nid != BACKGROUND;
+    return is_point(nid);
 }

@@ -3,7 +3,7 @@
 // fill.wgsl; CPU twin: cpu/fill_occluded.rs.
 
 fn candidate(d: f32, id: u32) -> bool {
-    return id != BACKGROUND;
+    return is_point(id);
 }
 
 fn solid(d: f32, nd: f32, nid: u32) -> bool {

@@ -31,7 +31,7 @@ fn gather(
         return;
     }
     let pid = id[i];
-    if (pid == BACKGROUND || pid < gp.base || pid - gp.base >= gp.count) {
+    if (!is_point(pid) || pid < gp.base || pid - gp.base >= gp.count) {
         return;
     }
     let l = pid - gp.base;

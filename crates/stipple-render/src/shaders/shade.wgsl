@@ -63,7 +63,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let k = gid.y * view.width + gid.x;
     let pid = g_id[k];
-    if (pid == BACKGROUND) {
+    if (!is_point(pid)) {
         colour[k] = vec4<f32>(sp.background, 1.0);
         surface_depth[k] = infinity();
         return;

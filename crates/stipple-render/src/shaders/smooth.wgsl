@@ -15,7 +15,7 @@ struct Smooth {
 @group(0) @binding(4) var<storage, read_write> dst: array<vec4<f32>>;
 
 fn include(n: i32) -> bool {
-    return id[n] != BACKGROUND;
+    return is_point(id[n]);
 }
 
 @compute @workgroup_size(8, 8)
@@ -24,7 +24,7 @@ fn smooth_pass(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let k = gid.y * view.width + gid.x;
-    if (id[k] == BACKGROUND) {
+    if (!is_point(id[k])) {
         dst[k] = src[k];
         return;
     }
