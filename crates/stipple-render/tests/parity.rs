@@ -14,7 +14,10 @@ use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 use stipple_core::rng::Rng;
 use stipple_core::{Camera, PointCloud, Projection};
-use stipple_render::cpu::{antialias, fill_background, fill_occluded, project, shade, smooth};
+use stipple_render::cpu::{
+    antialias, depiction, edl, fill_anisotropic, fill_background, fill_occluded, project, shade,
+    smooth, visibility,
+};
 use stipple_render::gpu::{GpuCloud, GpuContext, GpuOptions, GpuRenderer, ProjectionPath};
 use stipple_render::{
     ColourPass, GBuffer, GeometryPass, Iterations, Kernel, Pipeline, PreparedCloud, ViewParams,
@@ -245,6 +248,7 @@ fn fill_passes_match_the_cpu() {
                             GeometryPass::FillOccluded { .. } => {
                                 fill_occluded::fill_occluded(&a, &mut b, gap, radius)
                             }
+                            GeometryPass::Visibility { .. } => unreachable!(),
                         };
                         std::mem::swap(&mut a, &mut b);
                         done += 1;
@@ -345,7 +349,7 @@ fn colour_passes_match_the_cpu() {
             strength: 1.0,
         },
     ] {
-        let (out, stat) = r.colour_pass(&v, &g.id, &g.depth, &colour, &pass).unwrap();
+        let (out, _, stat) = r.colour_pass(&v, &g.id, &g.depth, &colour, &pass).unwrap();
         let mut a = colour.clone();
         let mut b = colour.clone();
         let mut count = 0;
@@ -369,6 +373,7 @@ fn colour_passes_match_the_cpu() {
                 std::mem::swap(&mut a, &mut b);
                 assert!(count > 0);
             }
+            _ => unreachable!("raw_operators_match_the_cpu covers the raw passes"),
         }
         assert_eq!(stat.count, count, "{pass:?}: pixels blended");
         for k in 0..w * h {
@@ -383,5 +388,187 @@ fn colour_passes_match_the_cpu() {
         }
         let untouched = (0..w * h).filter(|&k| g.id[k] == BACKGROUND).count();
         assert!(untouched > 0);
+    }
+}
+
+/// A raw-cloud G-buffer: a tilted surface (depths all different) with 30% of its pixels
+/// replaced by a nearer sparse layer, and background outside a disc and in scattered holes.
+fn raw_gbuffer(v: &ViewParams, seed: u64) -> GBuffer {
+    let (w, h) = (v.width, v.height);
+    let mut rng = Rng::new(seed);
+    let mut g = GBuffer::new(w, h);
+    let base = if v.perspective == 1 { 10.0 } else { 8.0 };
+    for k in 0..g.id.len() {
+        let (x, y) = ((k as u32 % w) as f32, (k as u32 / w) as f32);
+        let r = ((x - w as f32 / 2.0).powi(2) + (y - h as f32 / 2.0).powi(2)).sqrt();
+        if r > 0.42 * w.min(h) as f32 || rng.f32() < 0.12 {
+            continue;
+        }
+        g.id[k] = k as u32;
+        g.depth[k] = if rng.f32() < 0.3 {
+            base - 5.0 + 0.003 * x
+        } else {
+            base + 0.0137 * x + 0.0071 * y + 0.3 * (0.1 * x).sin()
+        };
+    }
+    g
+}
+
+/// Colours varying smoothly over the image (a different choice among close neighbours moves
+/// a colour a little, not by a random amount).
+fn smooth_colours(w: usize, h: usize) -> Vec<[f32; 3]> {
+    (0..w * h)
+        .map(|k| {
+            let (x, y) = ((k % w) as f32 / w as f32, (k / w) as f32 / h as f32);
+            [x, y, 0.5 + 0.4 * (6.0 * x).sin()]
+        })
+        .collect()
+}
+
+fn assert_close(gpu: &[[f32; 3]], cpu: &[[f32; 3]], tol: f32, what: &str) {
+    let bad: Vec<usize> = (0..gpu.len())
+        .filter(|&k| (0..3).any(|i| (gpu[k][i] - cpu[k][i]).abs() > tol))
+        .collect();
+    assert!(
+        bad.is_empty(),
+        "{what}: {} pixels differ, first at {}: gpu {:?} cpu {:?}",
+        bad.len(),
+        bad[0],
+        gpu[bad[0]],
+        cpu[bad[0]]
+    );
+}
+
+fn assert_depth_close(gpu: &[f32], cpu: &[f32], what: &str) {
+    for k in 0..gpu.len() {
+        let (a, b) = (gpu[k], cpu[k]);
+        assert!(
+            a == b || (a - b).abs() <= 1e-5 * b.abs(),
+            "{what}: depth at {k}: gpu {a} cpu {b}"
+        );
+    }
+}
+
+#[test]
+fn raw_operators_match_the_cpu() {
+    let Some(ctx) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let mut r = GpuRenderer::new(ctx).unwrap();
+    for perspective in [true, false] {
+        let cam = camera(83, 61, perspective);
+        let v = ViewParams::new(&cam, DVec3::ZERO);
+        let (w, h) = (v.width as usize, v.height as usize);
+        let g = raw_gbuffer(&v, 3 + perspective as u64);
+        for (kernel, threshold) in [(4, 0.4), (7, 0.4), (9, 0.3), (15, 0.5)] {
+            let what = format!("perspective {perspective}, kernel {kernel}");
+            let pass = GeometryPass::Visibility { kernel, threshold };
+            let (got, stat) = r.geometry_pass(&v, &g, &pass, 1.0).unwrap();
+            let mut want = GBuffer::new(v.width, v.height);
+            let hidden = visibility::visibility(&v, &g, &mut want, kernel, threshold);
+            assert!(hidden > 0, "{what}: nothing hidden");
+            // A pixel whose open fraction lies within rounding of the threshold may go either
+            // way; allow 0.1% of pixels and check the rest exactly.
+            let differ = (0..w * h).filter(|&k| got.id[k] != want.id[k]).count();
+            assert!(differ * 1000 <= w * h, "{what}: {differ} ids differ");
+            assert!(
+                stat.count.abs_diff(hidden) as usize <= differ,
+                "{what}: hidden count"
+            );
+            if differ > 0 {
+                eprintln!("{what}: {differ} pixels on the threshold");
+            }
+
+            // Fill and shading on the CPU's visibility result.
+            let colour = smooth_colours(w, h);
+            for (iterations, all_empty) in [(1, false), (2 * kernel, false), (4, true)] {
+                let pass = ColourPass::FillAnisotropic {
+                    iterations,
+                    delta: 8.0,
+                    all_empty,
+                };
+                let (gc, gd, stat) = r
+                    .colour_pass(&v, &want.id, &want.depth, &colour, &pass)
+                    .unwrap();
+                let (mut d, mut c) = (want.depth.clone(), colour.clone());
+                let (mut d2, mut c2) = (d.clone(), c.clone());
+                let mut filled = 0;
+                for _ in 0..iterations {
+                    filled += fill_anisotropic::fill_anisotropic(
+                        &v, &want.id, 8.0, all_empty, &d, &c, &mut d2, &mut c2,
+                    );
+                    std::mem::swap(&mut d, &mut d2);
+                    std::mem::swap(&mut c, &mut c2);
+                }
+                let what = format!("{what}: fill {iterations} (all empty {all_empty})");
+                assert!(filled > 0, "{what}: nothing filled");
+                assert_eq!(stat.count, filled, "{what}: pixels filled");
+                assert_depth_close(&gd, &d, &what);
+                assert_close(&gc, &c, 1.0 / 255.0, &what);
+            }
+        }
+        // Depiction and EDL on a filled depth image.
+        let colour = smooth_colours(w, h);
+        let mut vis = GBuffer::new(v.width, v.height);
+        visibility::visibility(&v, &g, &mut vis, 7, 0.4);
+        let (mut d, mut c) = (vis.depth.clone(), colour.clone());
+        let (mut d2, mut c2) = (d.clone(), c.clone());
+        for _ in 0..14 {
+            fill_anisotropic::fill_anisotropic(&v, &vis.id, 8.0, false, &d, &c, &mut d2, &mut c2);
+            std::mem::swap(&mut d, &mut d2);
+            std::mem::swap(&mut c, &mut c2);
+        }
+        for pass in [
+            ColourPass::Depiction {
+                levels: 1,
+                xi: 1.5,
+                epsilon: 2.0,
+            },
+            ColourPass::Depiction {
+                levels: 6,
+                xi: 1.0,
+                epsilon: 0.5,
+            },
+            ColourPass::Edl {
+                strength: 1.0,
+                radius: 1.4,
+            },
+            ColourPass::Edl {
+                strength: 0.2,
+                radius: 3.0,
+            },
+        ] {
+            let what = format!("perspective {perspective}: {pass:?}");
+            let (gc, _, _) = r.colour_pass(&v, &vis.id, &d, &c, &pass).unwrap();
+            let mut want = c.clone();
+            match pass {
+                ColourPass::Depiction {
+                    levels,
+                    xi,
+                    epsilon,
+                } => {
+                    let mut scratch = (Vec::new(), Vec::new());
+                    let mut term = Vec::new();
+                    depiction::depiction(
+                        &v,
+                        &d,
+                        levels,
+                        xi,
+                        epsilon,
+                        &mut scratch,
+                        &mut term,
+                        &c,
+                        &mut want,
+                    );
+                    assert!(term.iter().any(|&t| t < 0.9), "{what}: flat shading");
+                }
+                ColourPass::Edl { strength, radius } => {
+                    edl::edl(&v, &d, strength, radius, &c, &mut want);
+                }
+                _ => unreachable!(),
+            }
+            assert!(want != c, "{what}: the pass changed nothing");
+            assert_close(&gc, &want, 1.0 / 255.0, &what);
+        }
     }
 }

@@ -4,13 +4,17 @@
 //!
 //! ```text
 //! project (compute rasterizer | project_hw) → resolve → fill_background / fill_occluded
-//!   → shade (gather per chunk, then shade) → smooth / antialias → output
+//!   | visibility → shade (gather per chunk, then shade)
+//!   → smooth / antialias | fill_anisotropic / depiction / edl → output
 //! ```
 
 pub mod antialias;
 pub mod cloud;
 pub mod context;
+pub mod depiction;
+pub mod edl;
 pub mod fill;
+pub mod fill_anisotropic;
 pub mod fill_background;
 pub mod fill_occluded;
 pub mod iterate;
@@ -22,6 +26,7 @@ pub mod shade;
 pub mod shaders;
 pub mod smooth;
 mod util;
+pub mod visibility;
 
 pub use cloud::GpuCloud;
 pub use context::{list_adapters, AdapterReport, GpuContext, GpuError, GpuOptions};

@@ -5,13 +5,17 @@
 use super::antialias::AntialiasBlock;
 use super::cloud::GpuCloud;
 use super::context::{GpuContext, GpuError};
+use super::depiction::{Depiction, DepictionBlock};
+use super::edl::EdlBlock;
 use super::fill::{window_cells, FillBlock};
+use super::fill_anisotropic::FillAnisotropicBlock;
 use super::iterate::IterateBlock;
 use super::project::{ChunkBlock, Project, ResolveBlock, POINTS_PER_GROUP};
 use super::project_hw::{ProjectHw, Targets};
 use super::shade::{GatherBlock, Shade, ShadeBlock};
 use super::smooth::SmoothBlock;
 use super::util::{self, Arena, Pass, Res};
+use super::visibility::VisibilityBlock;
 use crate::cpu::shade::{srgb_to_linear_table, SrgbEncoder};
 use crate::gbuffer::{GBuffer, PassStat};
 use crate::params::ViewParams;
@@ -66,6 +70,12 @@ struct Kit {
     smooth: Pass,
     antialias: Pass,
     output: Pass,
+    visibility: Pass,
+    vis_offsets: Buffer,
+    vis_ranges: Vec<(u32, u32)>,
+    fill_anisotropic: Pass,
+    depiction: Depiction,
+    edl: Pass,
 }
 
 struct FrameBuffers {
@@ -79,6 +89,10 @@ struct FrameBuffers {
     attr_normal: Buffer,
     colour: [Buffer; 2],
     surface: Buffer,
+    /// The anisotropic fill's second depth image; the depiction's level images and term.
+    surface_b: Buffer,
+    levels: [Buffer; 2],
+    shading: Buffer,
     rgba: Buffer,
     read: Buffer,
     /// The hardware path's render targets and the group that copies them out.
@@ -105,6 +119,9 @@ impl FrameBuffers {
             attr_normal: s("pixel normals", 16 * n),
             colour: [s("colour a", 16 * n), s("colour b", 16 * n)],
             surface: s("surface depth", 4 * n),
+            surface_b: s("surface depth b", 4 * n),
+            levels: [s("depiction level a", 4 * n), s("depiction level b", 4 * n)],
+            shading: s("depiction term", 4 * n),
             rgba: s("rgba", 4 * n),
             read: d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("readback"),
@@ -142,6 +159,13 @@ struct FrameGroups {
     smooth: [[wgpu::BindGroup; 2]; 2],
     antialias: [wgpu::BindGroup; 2],
     output: [wgpu::BindGroup; 2],
+    visibility: [wgpu::BindGroup; 2],
+    /// By geometry image, colour image and depth image (0: surface, 1: surface_b).
+    fill_anisotropic: [[[wgpu::BindGroup; 2]; 2]; 2],
+    /// By source level image.
+    depiction_level: [wgpu::BindGroup; 2],
+    depiction_apply: [wgpu::BindGroup; 2],
+    edl: [wgpu::BindGroup; 2],
 }
 
 impl FrameGroups {
@@ -214,7 +238,85 @@ impl FrameGroups {
                 ],
             )
         };
+        let visibility = |g: usize| {
+            kit.visibility.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<VisibilityBlock>()),
+                    Res::Buf(&kit.vis_offsets),
+                    Res::Buf(&f.depth[g]),
+                    Res::Buf(&f.id[g]),
+                    Res::Buf(&f.depth[1 - g]),
+                    Res::Buf(&f.id[1 - g]),
+                    Res::Buf(&kit.counters),
+                ],
+            )
+        };
+        let surfaces = [&f.surface, &f.surface_b];
+        let fill_anisotropic = |g: usize, c: usize, s: usize| {
+            kit.fill_anisotropic.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<FillAnisotropicBlock>()),
+                    Res::Buf(&f.id[g]),
+                    Res::Buf(surfaces[s]),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(surfaces[1 - s]),
+                    Res::Buf(&f.colour[1 - c]),
+                    Res::Buf(&kit.counters),
+                ],
+            )
+        };
+        let level = |l: usize| {
+            kit.depiction.level.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<DepictionBlock>()),
+                    Res::Buf(&f.levels[l]),
+                    Res::Buf(&f.levels[1 - l]),
+                    Res::Buf(&f.shading),
+                ],
+            )
+        };
+        let apply = |c: usize| {
+            kit.depiction.apply.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Buf(&f.surface),
+                    Res::Buf(&f.shading),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(&f.colour[1 - c]),
+                ],
+            )
+        };
+        let edl = |c: usize| {
+            kit.edl.bind(
+                d,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<EdlBlock>()),
+                    Res::Buf(&f.surface),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(&f.colour[1 - c]),
+                ],
+            )
+        };
+        let fa = |g: usize| {
+            [
+                [fill_anisotropic(g, 0, 0), fill_anisotropic(g, 0, 1)],
+                [fill_anisotropic(g, 1, 0), fill_anisotropic(g, 1, 1)],
+            ]
+        };
         FrameGroups {
+            visibility: [visibility(0), visibility(1)],
+            fill_anisotropic: [fa(0), fa(1)],
+            depiction_level: [level(0), level(1)],
+            depiction_apply: [apply(0), apply(1)],
+            edl: [edl(0), edl(1)],
             resolve: util::bind(
                 d,
                 "resolve",
@@ -518,6 +620,7 @@ impl GpuRenderer {
             mapped_at_creation: false,
         });
         let iterate = super::iterate::new(&ctx);
+        let (vis_table, vis_ranges) = super::visibility::offset_table();
         let project_hw = ProjectHw::new(&ctx);
         let kit = Kit {
             cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
@@ -564,6 +667,16 @@ impl GpuRenderer {
             smooth: super::smooth::new(&ctx),
             antialias: super::antialias::new(&ctx),
             output: super::output::new(&ctx),
+            visibility: super::visibility::new(&ctx),
+            vis_offsets: util::storage_init(
+                d,
+                "visibility offsets",
+                bytemuck::cast_slice(&vis_table),
+            ),
+            vis_ranges,
+            fill_anisotropic: super::fill_anisotropic::new(&ctx),
+            depiction: Depiction::new(&ctx),
+            edl: super::edl::new(&ctx),
         };
         ctx.take_errors()?;
         Ok(GpuRenderer {
@@ -803,8 +916,9 @@ impl GpuRenderer {
         r
     }
 
-    /// Runs one colour pass: `id` (for smooth) and `depth` (surface depth, for antialias)
-    /// with a linear colour image; returns the new colour and the pass statistics.
+    /// Runs one colour pass: `id` (for smooth and fill_anisotropic) and `depth` (surface
+    /// depth) with a linear colour image; returns the new colour, the surface depth after the
+    /// pass (fill_anisotropic changes it) and the pass statistics.
     pub fn colour_pass(
         &mut self,
         v: &ViewParams,
@@ -812,7 +926,7 @@ impl GpuRenderer {
         depth: &[f32],
         colour: &[[f32; 3]],
         pass: &ColourPass,
-    ) -> Result<(Vec<[f32; 3]>, PassStat), GpuError> {
+    ) -> Result<(Vec<[f32; 3]>, Vec<f32>, PassStat), GpuError> {
         self.prepare(v)?;
         let f = self.frame.take().expect("prepared");
         let r = (|| {
@@ -829,6 +943,7 @@ impl GpuRenderer {
             let stats = stats(&self.ctx, kit, &sections)?;
             Ok((
                 read_colour(&self.ctx, &f.colour[cur.colour], v.pixels())?,
+                read_f32(&self.ctx, &f.surface, v.pixels())?,
                 stats[0].clone(),
             ))
         })();
@@ -1088,8 +1203,30 @@ fn record_geometry(
             radius,
             layer_gap.unwrap_or(default_gap),
         ),
-        GeometryPass::Visibility { .. } => {
-            return Err(GpuError::TooLarge("TEMP visibility".into()))
+        GeometryPass::Visibility { kernel, threshold } => {
+            let (first, count) = *kit
+                .vis_ranges
+                .get(kernel as usize)
+                .filter(|r| r.1 > 0)
+                .ok_or_else(|| {
+                    GpuError::TooLarge(format!("visibility kernel {kernel} (3 to 15)"))
+                })?;
+            let slot = rec.slot()?;
+            let off = rec.arena.push(&VisibilityBlock {
+                first,
+                count,
+                threshold,
+                slot,
+            })?;
+            let q = rec.queries();
+            let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+            p.set_pipeline(&kit.visibility.pipeline);
+            p.set_bind_group(0, &f.groups().visibility[cur.g], &[off]);
+            p.dispatch_workgroups(gx, gy, 1);
+            drop(p);
+            cur.g = 1 - cur.g;
+            return rec.end(pass.name(), 1, vec![slot], q);
         }
     };
     let (first, count) = *kit
@@ -1225,7 +1362,85 @@ fn record_colour(
             cur.colour = 1 - cur.colour;
             rec.end("antialias", 1, vec![slot], q)
         }
-        _ => Err(GpuError::TooLarge("TEMP raw".into())),
+        ColourPass::FillAnisotropic {
+            iterations,
+            delta,
+            all_empty,
+        } => {
+            let mut steps = Vec::new();
+            let mut slots = Vec::new();
+            for _ in 0..iterations {
+                let slot = rec.slot()?;
+                steps.push(rec.arena.push(&FillAnisotropicBlock {
+                    delta,
+                    all_empty: all_empty as u32,
+                    slot,
+                    pad: 0,
+                })?);
+                slots.push(slot);
+            }
+            let groups = &f.groups().fill_anisotropic[cur.g];
+            let mut s = 0;
+            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+            p.set_pipeline(&kit.fill_anisotropic.pipeline);
+            for off in steps {
+                p.set_bind_group(0, &groups[cur.colour][s], &[off]);
+                p.dispatch_workgroups(gx, gy, 1);
+                cur.colour = 1 - cur.colour;
+                s = 1 - s;
+            }
+            drop(p);
+            if s == 1 {
+                // The filled depth ended in surface_b: every later pass reads `surface`.
+                let n = f.width as u64 * f.height as u64;
+                rec.enc
+                    .copy_buffer_to_buffer(&f.surface_b, 0, &f.surface, 0, 4 * n);
+            }
+            rec.end("fill_anisotropic", iterations, slots, q)
+        }
+        ColourPass::Depiction {
+            levels,
+            xi,
+            epsilon,
+        } => {
+            let mut offs = Vec::new();
+            for (k, weight) in crate::cpu::depiction::level_weights(levels, xi)
+                .into_iter()
+                .enumerate()
+            {
+                offs.push(rec.arena.push(&DepictionBlock {
+                    weight,
+                    epsilon,
+                    first: (k == 0) as u32,
+                    pad: 0,
+                })?);
+            }
+            let n = f.width as u64 * f.height as u64;
+            rec.enc
+                .copy_buffer_to_buffer(&f.surface, 0, &f.levels[0], 0, 4 * n);
+            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+            p.set_pipeline(&kit.depiction.level.pipeline);
+            for (k, off) in offs.iter().enumerate() {
+                p.set_bind_group(0, &f.groups().depiction_level[k % 2], &[*off]);
+                p.dispatch_workgroups(gx, gy, 1);
+            }
+            p.set_pipeline(&kit.depiction.apply.pipeline);
+            p.set_bind_group(0, &f.groups().depiction_apply[cur.colour], &[]);
+            p.dispatch_workgroups(gx, gy, 1);
+            drop(p);
+            cur.colour = 1 - cur.colour;
+            rec.end("depiction", levels, vec![], q)
+        }
+        ColourPass::Edl { strength, radius } => {
+            let off = rec.arena.push(&EdlBlock::new(strength, radius))?;
+            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+            p.set_pipeline(&kit.edl.pipeline);
+            p.set_bind_group(0, &f.groups().edl[cur.colour], &[off]);
+            p.dispatch_workgroups(gx, gy, 1);
+            drop(p);
+            cur.colour = 1 - cur.colour;
+            rec.end("edl", 1, vec![], q)
+        }
     }
 }
 

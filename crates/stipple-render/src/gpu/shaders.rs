@@ -17,6 +17,12 @@ const WEIGHTED: &str = include_str!("../shaders/weighted.wgsl");
 const SMOOTH: &str = include_str!("../shaders/smooth.wgsl");
 const ANTIALIAS: &str = include_str!("../shaders/antialias.wgsl");
 const OUTPUT: &str = include_str!("../shaders/output.wgsl");
+const SCREEN: &str = include_str!("../shaders/screen.wgsl");
+const VISIBILITY: &str = include_str!("../shaders/visibility.wgsl");
+const FILL_ANISOTROPIC: &str = include_str!("../shaders/fill_anisotropic.wgsl");
+const DEPICTION: &str = include_str!("../shaders/depiction.wgsl");
+const DEPICTION_APPLY: &str = include_str!("../shaders/depiction_apply.wgsl");
+const EDL: &str = include_str!("../shaders/edl.wgsl");
 
 /// A shader module: its name and the files it is made of (after `common.wgsl`).
 #[derive(Clone, Copy, Debug)]
@@ -99,6 +105,32 @@ pub const OUTPUT_MODULE: ShaderModule = ShaderModule {
     int64: false,
 };
 
+pub const VISIBILITY_MODULE: ShaderModule = ShaderModule {
+    name: "visibility",
+    parts: &[VISIBILITY, SCREEN],
+    int64: false,
+};
+pub const FILL_ANISOTROPIC_MODULE: ShaderModule = ShaderModule {
+    name: "fill_anisotropic",
+    parts: &[FILL_ANISOTROPIC, SCREEN],
+    int64: false,
+};
+pub const DEPICTION_MODULE: ShaderModule = ShaderModule {
+    name: "depiction",
+    parts: &[DEPICTION, SCREEN],
+    int64: false,
+};
+pub const DEPICTION_APPLY_MODULE: ShaderModule = ShaderModule {
+    name: "depiction_apply",
+    parts: &[DEPICTION_APPLY],
+    int64: false,
+};
+pub const EDL_MODULE: ShaderModule = ShaderModule {
+    name: "edl",
+    parts: &[EDL],
+    int64: false,
+};
+
 /// Every module the GPU backend compiles (the naga validation test walks this list).
 pub const ALL: &[ShaderModule] = &[
     PROJECT64,
@@ -113,6 +145,11 @@ pub const ALL: &[ShaderModule] = &[
     SMOOTH_MODULE,
     ANTIALIAS_MODULE,
     OUTPUT_MODULE,
+    VISIBILITY_MODULE,
+    FILL_ANISOTROPIC_MODULE,
+    DEPICTION_MODULE,
+    DEPICTION_APPLY_MODULE,
+    EDL_MODULE,
 ];
 
 #[cfg(test)]

@@ -38,3 +38,7 @@ fn dot3(a: vec3<f32>, b: vec3<f32>) -> f32 {
 fn group_index(wg: vec3<u32>, groups: vec3<u32>) -> u32 {
     return wg.x + wg.y * groups.x;
 }
+
+fn is_finite(d: f32) -> bool {
+    return d < infinity();
+}
