@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 use stipple_core::demo::{self, DemoScene};
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::gpu::{GpuOptions, ProjectionPath};
-use stipple_render::pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline};
+use stipple_render::pipeline::{
+    ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline, RawSettings, RawShading,
+};
 use stipple_render::{Backend, PreparedCloud, Renderer};
 
 #[derive(clap::Args, Clone)]
@@ -175,6 +177,164 @@ fn parse_colour(s: &str) -> std::result::Result<[u8; 3], String> {
     v.try_into().map_err(|_| err())
 }
 
+/// Which pipeline renders the cloud.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PipelineChoice {
+    /// Raw for clouds without normals, Dobrev for clouds with them.
+    Auto,
+    Dobrev,
+    Raw,
+}
+
+fn parse_pipeline(s: &str) -> std::result::Result<PipelineChoice, String> {
+    match s {
+        "auto" => Ok(PipelineChoice::Auto),
+        "dobrev" => Ok(PipelineChoice::Dobrev),
+        "raw" | "pintus" => Ok(PipelineChoice::Raw),
+        _ => Err(format!("unknown pipeline `{s}` (auto, dobrev, raw)")),
+    }
+}
+
+fn parse_kernel(s: &str) -> std::result::Result<u32, String> {
+    if s == "auto" {
+        return Ok(0);
+    }
+    let k = stipple_render::cpu::visibility::KERNELS;
+    match s.parse::<u32>() {
+        Ok(n) if k.contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}` is not a kernel size ({} to {}, or auto)",
+            k.start(),
+            k.end()
+        )),
+    }
+}
+
+fn parse_shading(s: &str) -> std::result::Result<RawShading, String> {
+    match s {
+        "depiction" => Ok(RawShading::Depiction(0)),
+        "depiction-single" => Ok(RawShading::Depiction(1)),
+        "edl" => Ok(RawShading::Edl),
+        "none" => Ok(RawShading::None),
+        _ => Err(format!(
+            "unknown shading `{s}` (depiction, depiction-single, edl, none)"
+        )),
+    }
+}
+
+/// Settings of the raw-cloud pipeline (Pintus et al. §4–6).
+#[derive(clap::Args, Clone)]
+#[command(
+    next_help_heading = "Raw clouds (Pintus et al. §4-6; the default for clouds without normals)"
+)]
+pub struct RawArgs {
+    /// Pipeline: auto (raw for clouds without normals, such as most LAS/LAZ; dobrev where
+    /// normals exist), dobrev (image-space filters and Phong lighting with normals), or raw
+    /// (screen-space visibility, anisotropic filling and shape depiction, no normals needed).
+    #[arg(long, default_value = "auto", value_parser = parse_pipeline, value_name = "NAME")]
+    pub pipeline: PipelineChoice,
+    /// Shorthand for --pipeline raw.
+    #[arg(long)]
+    pub raw: bool,
+    /// Visibility kernel k (a k×k neighbourhood, 3 to 15; the paper used 4 to 9), or auto:
+    /// 8 × the median point spacing on screen + 4. Sparser points need larger kernels.
+    #[arg(long, default_value = "auto", value_parser = parse_kernel, value_name = "K|auto")]
+    pub visibility_kernel: u32,
+    /// Free fraction of the hemisphere above a pixel needed to count as visible (0..1).
+    /// Higher removes more (fewer surfaces showing through, but eroded silhouettes).
+    #[arg(long, default_value_t = 0.4)]
+    pub visibility_threshold: f32,
+    /// Skip the visibility operator: every empty pixel is filled and nothing is removed, so
+    /// hidden surfaces show through and silhouettes grow (Pintus Fig. 9a).
+    #[arg(long)]
+    pub no_visibility: bool,
+    /// Anisotropic fill iterations (default: twice the kernel, the largest hole closed).
+    #[arg(long, value_name = "N")]
+    pub raw_fill_iterations: Option<u32>,
+    /// Depth tolerance δ of the fill (Eq. 1), in pixel footprints: neighbours farther than
+    /// this in depth do not blend.
+    #[arg(long, default_value_t = 8.0)]
+    pub fill_delta: f32,
+    /// Shading: depiction (multi-level shape depiction), depiction-single (one level: sharp
+    /// lines and directional light), edl (eye-dome lighting), or none (colour only).
+    #[arg(long, default_value = "depiction", value_parser = parse_shading)]
+    pub shading: RawShading,
+    /// Levels of the multi-level depiction (more = broader, ambient-occlusion-like shading).
+    #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=32))]
+    pub depiction_levels: u32,
+    /// ξ of Eq. 3: how fast the levels' weights fall (0 = equal; larger = sharper).
+    #[arg(long, default_value_t = 1.5)]
+    pub depiction_xi: f32,
+    /// ε of Eq. 2 in pixel footprints: larger = gentler shading of tilted surfaces.
+    #[arg(long, default_value_t = 2.0)]
+    pub depiction_epsilon: f32,
+    /// EDL strength (with --shading edl).
+    #[arg(long, default_value_t = 1.0)]
+    pub edl_strength: f32,
+    /// EDL neighbour radius in pixels (with --shading edl).
+    #[arg(long, default_value_t = 1.4)]
+    pub edl_radius: f32,
+}
+
+impl RawArgs {
+    /// Whether the raw pipeline renders a cloud with (or without) normals.
+    pub fn is_raw(&self, has_normals: bool) -> bool {
+        self.raw
+            || match self.pipeline {
+                PipelineChoice::Raw => true,
+                PipelineChoice::Dobrev => false,
+                PipelineChoice::Auto => !has_normals,
+            }
+    }
+
+    pub fn build(&self, background: [u8; 3]) -> Result<Pipeline> {
+        let finite_pos = |v: f32, name: &str| {
+            if v > 0.0 && v.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("--{name} {v}: must be a positive number"))
+            }
+        };
+        finite_pos(self.fill_delta, "fill-delta")?;
+        finite_pos(self.depiction_epsilon, "depiction-epsilon")?;
+        finite_pos(self.edl_strength, "edl-strength")?;
+        finite_pos(self.edl_radius, "edl-radius")?;
+        if !(0.0..=1.0).contains(&self.visibility_threshold) {
+            return Err(format!(
+                "--visibility-threshold {}: must lie in 0..1",
+                self.visibility_threshold
+            ));
+        }
+        if !(self.depiction_xi >= 0.0 && self.depiction_xi.is_finite()) {
+            return Err(format!(
+                "--depiction-xi {}: must be 0 or more",
+                self.depiction_xi
+            ));
+        }
+        let shading = match self.shading {
+            RawShading::Depiction(0) => RawShading::Depiction(self.depiction_levels),
+            s => s,
+        };
+        let mut p = Pipeline::raw(RawSettings {
+            kernel: self.visibility_kernel,
+            visibility: !self.no_visibility,
+            threshold: self.visibility_threshold,
+            fill_iterations: self.raw_fill_iterations,
+            delta: self.fill_delta,
+            shading,
+            xi: self.depiction_xi,
+            epsilon: self.depiction_epsilon,
+        });
+        for c in &mut p.colour {
+            if let ColourPass::Edl { strength, radius } = c {
+                (*strength, *radius) = (self.edl_strength, self.edl_radius);
+            }
+        }
+        p.background = background;
+        Ok(p)
+    }
+}
+
 #[derive(clap::Args, Clone)]
 #[command(next_help_heading = "Pipeline (Dobrev et al. §3; defaults: one iteration of each step)")]
 pub struct PipelineArgs {
@@ -235,9 +395,21 @@ pub struct PipelineArgs {
     /// Background colour: r,g,b or #rrggbb.
     #[arg(long, default_value = "24,26,31", value_parser = parse_colour)]
     pub background: [u8; 3],
+    #[command(flatten)]
+    pub raw: RawArgs,
 }
 
 impl PipelineArgs {
+    /// The pipeline for a cloud with (or without) normals: see `--pipeline`.
+    pub fn build_for(&self, has_normals: bool) -> Result<Pipeline> {
+        if self.raw.is_raw(has_normals) {
+            self.raw.build(self.background)
+        } else {
+            self.build()
+        }
+    }
+
+    /// The Dobrev pipeline.
     pub fn build(&self) -> Result<Pipeline> {
         if let Some(g) = self.layer_gap {
             if !(g > 0.0 && g.is_finite()) {

@@ -81,7 +81,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let (cloud, label) = a.source.load()?;
     let load_s = t0.elapsed().as_secs_f64();
     let camera = a.camera.build(&cloud.cloud)?;
-    let pipe = a.pipeline.build()?;
+    let pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
     let (mut per_pass, mut totals) =
         time_frames(&mut r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
     let n = cloud.cloud.len();

@@ -334,3 +334,97 @@ fn auto_passes_over_a_software_adapter() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+#[test]
+fn clouds_without_normals_use_the_raw_pipeline_unless_told_otherwise() {
+    let Some(laz) = data("lidar/autzen_trim.laz") else {
+        return;
+    };
+    let dir = tempdir("raw");
+    let laz = laz.to_str().unwrap();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["render", laz, "--size", "200x150", "--stats", "-o", "r.png"];
+        args.extend_from_slice(extra);
+        let o = stipple(&dir, &args);
+        assert!(o.status.success(), "{extra:?}: {}", text(&o));
+        text(&o)
+    };
+    let auto = run(&["--backend", "cpu"]);
+    for pass in ["visibility", "fill_anisotropic", "depiction"] {
+        assert!(auto.contains(pass), "default for LAZ lacks {pass}: {auto}");
+    }
+    let dobrev = run(&["--backend", "cpu", "--pipeline", "dobrev"]);
+    assert!(dobrev.contains("fill_background") && !dobrev.contains("visibility"));
+    let edl = run(&[
+        "--backend",
+        "cpu",
+        "--shading",
+        "edl",
+        "--visibility-kernel",
+        "5",
+    ]);
+    assert!(edl.contains("edl") && !edl.contains("depiction"), "{edl}");
+    let off = run(&["--backend", "cpu", "--no-visibility", "--shading", "none"]);
+    assert!(!off.contains("visibility") && off.contains("fill_anisotropic"));
+    for bad in [
+        vec!["--visibility-kernel", "20"],
+        vec!["--visibility-threshold", "1.5"],
+        vec!["--pipeline", "fancy"],
+        vec!["--fill-delta", "-1"],
+    ] {
+        let mut args = vec!["render", laz, "-o", "x.png"];
+        args.extend_from_slice(&bad);
+        let o = stipple(&dir, &args);
+        assert!(!o.status.success(), "{bad:?} accepted");
+        assert!(!text(&o).contains("panicked"), "{}", text(&o));
+    }
+    assert!(!dir.join("x.png").exists());
+    std::fs::remove_dir_all(dir).ok();
+}
+
+#[test]
+fn eval_compares_a_raw_rendering_with_the_mesh() {
+    let Some(mesh) = data("stanford/bunny/bun_zipper.ply") else {
+        return;
+    };
+    let dir = tempdir("eval");
+    let o = stipple(
+        &dir,
+        &[
+            "eval",
+            mesh.to_str().unwrap(),
+            "--size",
+            "256x256",
+            "--backend",
+            "cpu",
+            "--render-out",
+            "raw.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    assert!(
+        t.contains("above 0.5%") && t.contains("wrote bun_zipper-error.png"),
+        "{t}"
+    );
+    let (w, h, err) = stipple_io::image::read_png(&dir.join("bun_zipper-error.png")).unwrap();
+    assert_eq!((w, h), (256, 256));
+    // Black background and mostly small errors inside; white (error ≥ 0.5%) only along
+    // contours, a small share.
+    let grey = |p: &[u8]| p[0] == p[1] && p[1] == p[2];
+    let dark = err.chunks_exact(4).filter(|p| grey(p) && p[0] < 40).count();
+    let white = err
+        .chunks_exact(4)
+        .filter(|p| grey(p) && p[0] == 255)
+        .count();
+    assert!(dark > 256 * 256 * 3 / 4, "{dark}");
+    assert!(white > 0 && white < 256 * 256 / 20, "{white}");
+    assert!(dir.join("raw.png").exists());
+    // A cloud without faces cannot be evaluated.
+    if let Some(laz) = data("lidar/autzen_trim.laz") {
+        let o = stipple(&dir, &["eval", laz.to_str().unwrap()]);
+        assert!(!o.status.success());
+        assert!(text(&o).contains("has no faces"), "{}", text(&o));
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -92,9 +92,25 @@ impl PreparedCloud {
 
     /// The pipeline with its automatic settings resolved for this cloud and view.
     pub fn resolve(&self, pipe: &Pipeline, v: &ViewParams) -> Pipeline {
+        pipe.resolved(v, self.spacing, self.centre_depth(v))
+    }
+
+    /// View depth of the centre of the cloud's bounds.
+    fn centre_depth(&self, v: &ViewParams) -> f32 {
         let c = self.cloud.bounds().center();
-        let depth = (c - glam::Vec3::from(v.eye)).dot(glam::Vec3::from(v.forward));
-        pipe.resolved(v, self.spacing, depth)
+        (c - glam::Vec3::from(v.eye)).dot(glam::Vec3::from(v.forward))
+    }
+
+    /// The median point spacing in pixels at the centre of the cloud (NaN when the camera is
+    /// inside the cloud's bounds centre plane).
+    pub fn screen_spacing(&self, camera: &Camera) -> f32 {
+        let v = ViewParams::new(camera, self.cloud.origin);
+        let d = self.centre_depth(&v);
+        if d > v.near {
+            self.spacing / v.footprint(d)
+        } else {
+            f32::NAN
+        }
     }
 
     /// The layer gap d̃ a pipeline uses for this cloud: its own, else derived from spacing.
@@ -124,7 +140,7 @@ pub struct Renderer {
 }
 
 enum Inner {
-    Cpu(cpu::CpuRenderer),
+    Cpu(Box<cpu::CpuRenderer>),
     Gpu {
         renderer: Box<gpu::GpuRenderer>,
         uploaded: Option<(u64, gpu::GpuCloud)>,
@@ -147,7 +163,7 @@ impl Renderer {
             })
         };
         let cpu = || Renderer {
-            inner: Inner::Cpu(cpu::CpuRenderer::new()),
+            inner: Inner::Cpu(Box::default()),
         };
         match backend {
             Backend::Cpu => Ok(cpu()),

@@ -558,6 +558,9 @@ fn grid_2d(ctx: &GpuContext, w: u32, h: u32) -> Result<(u32, u32), GpuError> {
     Ok((gx, gy))
 }
 
+/// What [`GpuRenderer::colour_pass`] returns: colour, surface depth and statistics.
+pub type ColourPassResult = (Vec<[f32; 3]>, Vec<f32>, PassStat);
+
 /// The long-lived GPU renderer.
 pub struct GpuRenderer {
     ctx: Arc<GpuContext>,
@@ -926,7 +929,7 @@ impl GpuRenderer {
         depth: &[f32],
         colour: &[[f32; 3]],
         pass: &ColourPass,
-    ) -> Result<(Vec<[f32; 3]>, Vec<f32>, PassStat), GpuError> {
+    ) -> Result<ColourPassResult, GpuError> {
         self.prepare(v)?;
         let f = self.frame.take().expect("prepared");
         let r = (|| {
