@@ -324,12 +324,9 @@ impl RawArgs {
             shading,
             xi: self.depiction_xi,
             epsilon: self.depiction_epsilon,
+            edl_strength: self.edl_strength,
+            edl_radius: self.edl_radius,
         });
-        for c in &mut p.colour {
-            if let ColourPass::Edl { strength, radius } = c {
-                (*strength, *radius) = (self.edl_strength, self.edl_radius);
-            }
-        }
         p.background = background;
         Ok(p)
     }

@@ -243,27 +243,10 @@ pub fn error_image(rendered: &[f32], reference: &[f32], tolerance: f32) -> Vec<u
 mod tests {
     use super::*;
 
-    fn view(w: u32, h: u32, perspective: u32) -> ViewParams {
-        ViewParams {
-            eye: [0.0; 3],
-            near: 0.1,
-            right: [1.0, 0.0, 0.0],
-            far: 100.0,
-            up: [0.0, 1.0, 0.0],
-            sx: 1.0,
-            forward: [0.0, 0.0, 1.0],
-            sy: 1.0,
-            width: w,
-            height: h,
-            perspective,
-            _pad: 0,
-        }
-    }
-
     #[test]
     fn a_tilted_quad_rasterizes_to_its_plane() {
         // The plane z = 5 + 0.5 y over a quad covering the view.
-        let v = view(32, 32, 1);
+        let v = ViewParams::axis_aligned(32, 32, true, 1.0);
         let p = |x: f32, y: f32| Vec3::new(x, y, 5.0 + 0.5 * y);
         let pos = vec![p(-9.0, -3.0), p(9.0, -3.0), p(9.0, 3.0), p(-9.0, 3.0)];
         let d = mesh_depth(&v, &pos, &[[0, 1, 2], [0, 2, 3]]);

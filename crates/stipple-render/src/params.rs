@@ -70,6 +70,26 @@ impl ViewParams {
         }
     }
 
+    /// A camera at the origin looking along +z (x right, y up) with NDC scale `scale` on both
+    /// axes, near 0.1 and far 100: the view of hand-made test images, where world, local and
+    /// view coordinates coincide.
+    pub fn axis_aligned(width: u32, height: u32, perspective: bool, scale: f32) -> ViewParams {
+        ViewParams {
+            eye: [0.0; 3],
+            near: 0.1,
+            right: [1.0, 0.0, 0.0],
+            far: 100.0,
+            up: [0.0, 1.0, 0.0],
+            sx: scale,
+            forward: [0.0, 0.0, 1.0],
+            sy: scale,
+            width,
+            height,
+            perspective: perspective as u32,
+            _pad: 0,
+        }
+    }
+
     /// The view-space position (camera at the origin, +z forward, x right, y up) of the point
     /// at view depth `z` on pixel (i, j)'s centre ray. Written as the WGSL twin computes it.
     #[inline]

@@ -224,6 +224,9 @@ pub struct RawSettings {
     pub xi: f32,
     /// ε of Eq. 2, in pixel footprints.
     pub epsilon: f32,
+    /// Eye-dome lighting strength and neighbour radius in pixels (with `RawShading::Edl`).
+    pub edl_strength: f32,
+    pub edl_radius: f32,
 }
 
 impl Default for RawSettings {
@@ -237,6 +240,8 @@ impl Default for RawSettings {
             shading: RawShading::Depiction(6),
             xi: 1.5,
             epsilon: 2.0,
+            edl_strength: 1.0,
+            edl_radius: 1.4,
         }
     }
 }
@@ -257,8 +262,8 @@ impl Pipeline {
                 epsilon: s.epsilon,
             }),
             RawShading::Edl => colour.push(ColourPass::Edl {
-                strength: 1.0,
-                radius: 1.4,
+                strength: s.edl_strength,
+                radius: s.edl_radius,
             }),
             RawShading::None => {}
         }

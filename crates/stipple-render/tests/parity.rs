@@ -449,6 +449,26 @@ fn assert_depth_close(gpu: &[f32], cpu: &[f32], what: &str) {
     }
 }
 
+/// `iterations` of the CPU anisotropic fill: depth, colour and pixels filled.
+fn cpu_fill(
+    v: &ViewParams,
+    g: &GBuffer,
+    colour: &[[f32; 3]],
+    iterations: u32,
+    all_empty: bool,
+) -> (Vec<f32>, Vec<[f32; 3]>, u64) {
+    let (mut d, mut c) = (g.depth.clone(), colour.to_vec());
+    let (mut d2, mut c2) = (d.clone(), c.clone());
+    let mut filled = 0;
+    for _ in 0..iterations {
+        filled +=
+            fill_anisotropic::fill_anisotropic(v, &g.id, 8.0, all_empty, &d, &c, &mut d2, &mut c2);
+        std::mem::swap(&mut d, &mut d2);
+        std::mem::swap(&mut c, &mut c2);
+    }
+    (d, c, filled)
+}
+
 #[test]
 fn raw_operators_match_the_cpu() {
     let Some(ctx) = gpu(GpuOptions::default()) else {
@@ -490,16 +510,7 @@ fn raw_operators_match_the_cpu() {
                 let (gc, gd, stat) = r
                     .colour_pass(&v, &want.id, &want.depth, &colour, &pass)
                     .unwrap();
-                let (mut d, mut c) = (want.depth.clone(), colour.clone());
-                let (mut d2, mut c2) = (d.clone(), c.clone());
-                let mut filled = 0;
-                for _ in 0..iterations {
-                    filled += fill_anisotropic::fill_anisotropic(
-                        &v, &want.id, 8.0, all_empty, &d, &c, &mut d2, &mut c2,
-                    );
-                    std::mem::swap(&mut d, &mut d2);
-                    std::mem::swap(&mut c, &mut c2);
-                }
+                let (d, c, filled) = cpu_fill(&v, &want, &colour, iterations, all_empty);
                 let what = format!("{what}: fill {iterations} (all empty {all_empty})");
                 assert!(filled > 0, "{what}: nothing filled");
                 assert_eq!(stat.count, filled, "{what}: pixels filled");
@@ -511,13 +522,7 @@ fn raw_operators_match_the_cpu() {
         let colour = smooth_colours(w, h);
         let mut vis = GBuffer::new(v.width, v.height);
         visibility::visibility(&v, &g, &mut vis, 7, 0.4);
-        let (mut d, mut c) = (vis.depth.clone(), colour.clone());
-        let (mut d2, mut c2) = (d.clone(), c.clone());
-        for _ in 0..14 {
-            fill_anisotropic::fill_anisotropic(&v, &vis.id, 8.0, false, &d, &c, &mut d2, &mut c2);
-            std::mem::swap(&mut d, &mut d2);
-            std::mem::swap(&mut c, &mut c2);
-        }
+        let (d, c, _) = cpu_fill(&v, &vis, &colour, 14, false);
         for pass in [
             ColourPass::Depiction {
                 levels: 1,

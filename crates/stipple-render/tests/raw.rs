@@ -161,20 +161,7 @@ fn a_plane_seen_through_a_sparse_nearer_layer_is_judged_invisible() {
 }
 
 fn ortho_view(w: u32, h: u32) -> ViewParams {
-    ViewParams {
-        eye: [0.0; 3],
-        near: 0.1,
-        right: [1.0, 0.0, 0.0],
-        far: 100.0,
-        up: [0.0, 1.0, 0.0],
-        sx: 1.0 / 16.0,
-        forward: [0.0, 0.0, 1.0],
-        sy: 1.0 / 16.0,
-        width: w,
-        height: h,
-        perspective: 0,
-        _pad: 0,
-    }
+    ViewParams::axis_aligned(w, h, false, 1.0 / 16.0)
 }
 
 /// The depiction term of a depth image (levels, ξ = 1.5, ε = 2 footprints).

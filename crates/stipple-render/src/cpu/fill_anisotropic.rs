@@ -110,22 +110,9 @@ mod tests {
     use super::*;
     use crate::gbuffer::BACKGROUND;
 
+    /// A narrow field of view: one pixel is 1/100 of the depth.
     fn view(w: u32, h: u32) -> ViewParams {
-        ViewParams {
-            eye: [0.0; 3],
-            near: 0.1,
-            right: [1.0, 0.0, 0.0],
-            far: 100.0,
-            up: [0.0, 1.0, 0.0],
-            sx: 1.0,
-            forward: [0.0, 0.0, 1.0],
-            // A narrow field of view: one pixel is 1/100 of the depth.
-            sy: 200.0,
-            width: w,
-            height: h,
-            perspective: 1,
-            _pad: 0,
-        }
+        ViewParams::axis_aligned(w, h, true, 200.0)
     }
 
     /// Runs `its` iterations.

@@ -161,28 +161,11 @@ mod tests {
         );
     }
 
-    fn view(w: u32, h: u32) -> ViewParams {
-        ViewParams {
-            eye: [0.0; 3],
-            near: 0.1,
-            right: [1.0, 0.0, 0.0],
-            far: 100.0,
-            up: [0.0, 1.0, 0.0],
-            sx: 1.0,
-            forward: [0.0, 0.0, 1.0],
-            sy: 1.0,
-            width: w,
-            height: h,
-            perspective: 1,
-            _pad: 0,
-        }
-    }
-
     #[test]
     fn a_flat_surface_is_open_and_a_pixel_between_nearer_points_is_not() {
         // A facing plane at depth 5 with every third pixel of a plane at depth 2 in front.
         let (w, h) = (24, 24);
-        let v = view(w, h);
+        let v = ViewParams::axis_aligned(w, h, true, 1.0);
         let mut g = GBuffer::new(w, h);
         for k in 0..(w * h) as usize {
             let (x, y) = (k % w as usize, k / w as usize);
@@ -215,7 +198,7 @@ mod tests {
     fn background_outside_a_silhouette_stays_and_holes_inside_empty() {
         // A facing square of points with a 1-pixel hole in the middle.
         let (w, h) = (32, 32);
-        let v = view(w, h);
+        let v = ViewParams::axis_aligned(w, h, true, 1.0);
         let mut g = GBuffer::new(w, h);
         for y in 8..24 {
             for x in 8..24 {
