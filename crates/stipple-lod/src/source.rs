@@ -1,0 +1,261 @@
+//! Build inputs, read as a stream of [`Record`] batches.
+//!
+//! LAS and LAZ (the formats of large scans and national LiDAR) are streamed: only a batch is
+//! in memory at a time, so inputs may be far larger than RAM. Other formats (PLY, XYZ text)
+//! are read whole by `stipple-io` and refused when the file alone exceeds the memory budget;
+//! the error says to convert them to LAS/LAZ.
+//!
+//! Colour: RGB where the file has it (16-bit LAS colours are shifted to 8 bits, decided on
+//! the file's first batch), else grey from intensity (scaled by the first batch's 99th
+//! percentile), else a neutral grey.
+
+use crate::record::Record;
+use crate::LodError;
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+use stipple_core::PointCloud;
+
+/// Grey for points without colour or intensity.
+pub const NEUTRAL: [u8; 3] = [200, 200, 200];
+
+pub struct Input {
+    pub path: PathBuf,
+    pub count: u64,
+    /// World bounds, from the header (LAS) or the points (others).
+    pub lo: DVec3,
+    pub hi: DVec3,
+    /// The points carry colour or intensity.
+    pub coloured: bool,
+    kind: Kind,
+}
+
+enum Kind {
+    Las,
+    Loaded(Box<PointCloud>),
+}
+
+/// Opens every input and reads what the build needs to plan: counts and bounds.
+pub fn open_inputs(paths: &[PathBuf], memory: u64) -> Result<Vec<Input>, LodError> {
+    if paths.is_empty() {
+        return Err(LodError::Invalid("no input files".into()));
+    }
+    paths.iter().map(|p| open_input(p, memory)).collect()
+}
+
+fn open_input(path: &Path, memory: u64) -> Result<Input, LodError> {
+    let mut head = [0u8; 4];
+    {
+        use std::io::Read;
+        let mut f = std::fs::File::open(path).map_err(|e| LodError::io(path, e))?;
+        let _ = f.read(&mut head).map_err(|e| LodError::io(path, e))?;
+    }
+    let file_len = std::fs::metadata(path)
+        .map_err(|e| LodError::io(path, e))?
+        .len();
+    if &head == b"LASF" {
+        let reader = las::Reader::from_path(path).map_err(|e| bad(path, e))?;
+        let h = reader.header();
+        let count = h.number_of_points();
+        let fmt = h.point_format();
+        let min_bytes = if fmt.is_compressed {
+            count
+        } else {
+            count.saturating_mul(fmt.len() as u64)
+        };
+        if count == 0 {
+            return Err(LodError::Input(stipple_io::IoError::invalid(
+                path,
+                "the cloud has no points (header count 0)",
+            )));
+        }
+        if min_bytes > file_len {
+            return Err(LodError::Input(stipple_io::IoError::invalid(
+                path,
+                format!("the header declares {count} points, more than the file's {file_len} bytes can hold: it is truncated or the count is wrong"),
+            )));
+        }
+        let b = h.bounds();
+        let lo = DVec3::new(b.min.x, b.min.y, b.min.z);
+        let hi = DVec3::new(b.max.x, b.max.y, b.max.z);
+        if !lo.is_finite() || !hi.is_finite() || lo.cmpgt(hi).any() {
+            return Err(LodError::Input(stipple_io::IoError::invalid(
+                path,
+                "the header's bounds are not finite or are inverted",
+            )));
+        }
+        return Ok(Input {
+            path: path.to_owned(),
+            count,
+            lo,
+            hi,
+            coloured: true,
+            kind: Kind::Las,
+        });
+    }
+    if file_len > memory / 2 {
+        return Err(LodError::Budget(format!(
+            "{}: {} MiB of {} does not fit in half the memory budget ({} MiB); only LAS/LAZ inputs \
+             are streamed: convert it (`stipple` reads it, e.g. with PDAL or las2las) or raise --memory",
+            path.display(),
+            file_len >> 20,
+            stipple_io::extension(path),
+            memory >> 21
+        )));
+    }
+    let cloud = stipple_io::read_cloud(path)?;
+    let (lo, hi) = cloud.world_bounds();
+    Ok(Input {
+        path: path.to_owned(),
+        count: cloud.len() as u64,
+        lo,
+        hi,
+        coloured: cloud.colors.is_some() || cloud.intensity.is_some(),
+        kind: Kind::Loaded(Box::new(cloud)),
+    })
+}
+
+fn bad(path: &Path, e: impl std::fmt::Display) -> LodError {
+    LodError::Input(stipple_io::IoError::invalid(path, e.to_string()))
+}
+
+/// How a file's colour becomes 8-bit RGB.
+#[derive(Clone, Copy)]
+enum ColourMode {
+    Rgb { shift: u32 },
+    Intensity { scale: f32 },
+    Neutral,
+}
+
+fn p99(v: impl Iterator<Item = u16>) -> u16 {
+    let mut all: Vec<u16> = v.collect();
+    if all.is_empty() {
+        return 0;
+    }
+    let k = (all.len() - 1) * 99 / 100;
+    *all.select_nth_unstable(k).1
+}
+
+fn intensity_mode(p: u16) -> ColourMode {
+    if p == 0 {
+        ColourMode::Neutral
+    } else {
+        ColourMode::Intensity {
+            scale: 255.0 / p as f32,
+        }
+    }
+}
+
+fn grey(i: u16, scale: f32) -> [u8; 3] {
+    [(i as f32 * scale).min(255.0) as u8; 3]
+}
+
+impl Input {
+    /// Streams the points as records relative to `origin`, `batch` at a time. A point that
+    /// is not finite is an error naming the file.
+    pub fn read(
+        &self,
+        origin: DVec3,
+        batch: usize,
+        f: &mut dyn FnMut(&[Record]) -> Result<(), LodError>,
+    ) -> Result<(), LodError> {
+        let batch = batch.max(1);
+        let path = &self.path;
+        let mut out: Vec<Record> = Vec::with_capacity(batch.min(self.count as usize));
+        match &self.kind {
+            Kind::Loaded(c) => {
+                let mode = match (&c.colors, &c.intensity) {
+                    (Some(_), _) => ColourMode::Rgb { shift: 0 },
+                    (None, Some(i)) => intensity_mode(p99(i.iter().copied())),
+                    _ => ColourMode::Neutral,
+                };
+                for start in (0..c.len()).step_by(batch) {
+                    out.clear();
+                    for i in start..(start + batch).min(c.len()) {
+                        let rgb = match mode {
+                            ColourMode::Rgb { .. } => c.colors.as_ref().unwrap()[i],
+                            ColourMode::Intensity { scale } => {
+                                grey(c.intensity.as_ref().unwrap()[i], scale)
+                            }
+                            ColourMode::Neutral => NEUTRAL,
+                        };
+                        let p = if c.origin == origin {
+                            c.positions[i]
+                        } else {
+                            (c.world(i) - origin).as_vec3()
+                        };
+                        out.push(Record::new(p, rgb));
+                    }
+                    f(&out)?;
+                }
+                Ok(())
+            }
+            Kind::Las => {
+                let mut reader = las::Reader::from_path(path).map_err(|e| bad(path, e))?;
+                let header = reader.header().clone();
+                let mut pd = las::PointDataBuilder::new().for_header(&header).build();
+                let mut mode: Option<ColourMode> = None;
+                let mut read = 0u64;
+                while read < self.count {
+                    let n = reader
+                        .fill_points((batch as u64).min(self.count - read), &mut pd)
+                        .map_err(|e| {
+                            bad(
+                                path,
+                                format!(
+                                    "point data is corrupt or truncated after {read} of {} points: {e}",
+                                    self.count
+                                ),
+                            )
+                        })?;
+                    if n == 0 {
+                        return Err(bad(
+                            path,
+                            format!(
+                                "the file ends after {read} of the {} points its header declares",
+                                self.count
+                            ),
+                        ));
+                    }
+                    let mode = *mode.get_or_insert_with(|| match pd.rgb() {
+                        Some(rgb) => {
+                            let max = rgb.map(|(r, g, b)| r.max(g).max(b)).max().unwrap_or(0);
+                            ColourMode::Rgb {
+                                shift: if max > 255 { 8 } else { 0 },
+                            }
+                        }
+                        None => intensity_mode(p99(pd.intensity())),
+                    });
+                    out.clear();
+                    for (k, ((x, y), z)) in pd.x().zip(pd.y()).zip(pd.z()).enumerate() {
+                        let w = DVec3::new(x, y, z);
+                        if !w.is_finite() {
+                            return Err(bad(
+                                path,
+                                format!("point {} has a non-finite coordinate", read + k as u64),
+                            ));
+                        }
+                        out.push(Record::new((w - origin).as_vec3(), NEUTRAL));
+                    }
+                    match mode {
+                        ColourMode::Rgb { shift } => {
+                            if let Some(rgb) = pd.rgb() {
+                                for (r, (cr, cg, cb)) in out.iter_mut().zip(rgb) {
+                                    r.rgb = [cr, cg, cb].map(|v| (v >> shift).min(255) as u8);
+                                }
+                            }
+                        }
+                        ColourMode::Intensity { scale } => {
+                            for (r, i) in out.iter_mut().zip(pd.intensity()) {
+                                r.rgb = grey(i, scale);
+                            }
+                        }
+                        ColourMode::Neutral => {}
+                    }
+                    f(&out)?;
+                    read += n;
+                }
+                Ok(())
+            }
+        }
+    }
+}
