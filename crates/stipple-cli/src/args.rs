@@ -121,6 +121,11 @@ impl CameraArgs {
     /// come from the cloud's bounds.
     pub fn build(&self, cloud: &PointCloud) -> Result<Camera> {
         let (lo, hi) = cloud.world_bounds();
+        self.build_for_bounds(lo, hi)
+    }
+
+    /// The camera for a scene with these world bounds (a LOD tree's root box).
+    pub fn build_for_bounds(&self, lo: DVec3, hi: DVec3) -> Result<Camera> {
         let (w, h) = self.size;
         let mut cam = Camera::framing(lo, hi, w, h, self.fov);
         let framed_dir = cam.eye - cam.target;

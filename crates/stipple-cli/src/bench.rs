@@ -23,9 +23,11 @@ pub struct BenchArgs {
     warmup: usize,
     #[command(flatten)]
     backend: BackendArgs,
+    #[command(flatten)]
+    lod: crate::lod::LodArgs,
 }
 
-fn median(v: &mut [f64]) -> f64 {
+pub fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     if v.is_empty() {
         return f64::NAN;
@@ -76,6 +78,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
     if let Some(g) = r.gpu_mut() {
         // Without timestamp queries, time each pass by submitting and waiting.
         g.sync_timing = true;
+    }
+    if let Some(p) = a.source.input.as_deref().filter(|p| crate::lod::is_tree(p)) {
+        return crate::lod::bench(p, &a.camera, &a.pipeline, &a.lod, &mut r, a.frames);
     }
     let t0 = Instant::now();
     let (cloud, label) = a.source.load()?;

@@ -3,6 +3,7 @@
 mod args;
 mod bench;
 mod eval;
+mod lod;
 
 use args::{BackendArgs, CameraArgs, PipelineArgs, SourceArgs};
 use clap::{Parser, Subcommand};
@@ -55,9 +56,12 @@ enum Cmd {
     Render(RenderArgs),
     /// Print point count, bounds, attributes and point spacing of cloud files.
     Info {
-        /// Files to inspect (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv).
+        /// Files to inspect (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .stlod).
         #[arg(required = true)]
         files: Vec<PathBuf>,
+        /// For a .stlod tree: read every node and check its checksum.
+        #[arg(long)]
+        verify: bool,
     },
     /// Write a demo scene to a cloud file (sphere, torus, nested-tori, plane-objects).
     Gen(GenArgs),
@@ -65,6 +69,9 @@ enum Cmd {
     Bench(bench::BenchArgs),
     /// List the GPU adapters wgpu finds, their backends and the features stipple uses.
     Devices,
+    /// Build a multi-resolution tree (.stlod) from clouds of any size, for `render` and
+    /// `bench` to draw under a point budget (Pintus et al. 2011, §7).
+    BuildLod(lod::BuildLodArgs),
     /// Render a mesh's vertices as a raw cloud and compare the depth with the mesh's own
     /// (Pintus Fig. 4): error image and the share of pixels off by more than 0.5%.
     Eval(eval::EvalArgs),
@@ -90,6 +97,8 @@ struct RenderArgs {
     pipeline: PipelineArgs,
     #[command(flatten)]
     backend: BackendArgs,
+    #[command(flatten)]
+    lod: lod::LodArgs,
     /// Print the time each pass took.
     #[arg(long)]
     stats: bool,
@@ -126,7 +135,8 @@ fn main() -> ExitCode {
     let result = match cli.cmd {
         None => render(RenderArgs::demo()),
         Some(Cmd::Render(a)) => render(a),
-        Some(Cmd::Info { files }) => info(&files),
+        Some(Cmd::Info { files, verify }) => info(&files, verify),
+        Some(Cmd::BuildLod(a)) => lod::build_lod(a),
         Some(Cmd::Gen(a)) => gen(a),
         Some(Cmd::Bench(a)) => bench::run(a),
         Some(Cmd::Devices) => devices(),
@@ -180,7 +190,15 @@ fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
-    let (cloud, label) = a.source.load()?;
+    let tree = a.source.input.as_deref().filter(|p| lod::is_tree(p));
+    let (cloud, label, camera) = match tree {
+        Some(p) => lod::load_cut(p, &a.camera, &a.lod)?,
+        None => {
+            let (cloud, label) = a.source.load()?;
+            let camera = a.camera.build(&cloud.cloud)?;
+            (cloud, label, camera)
+        }
+    };
     let output = match &a.output {
         Some(o) => o.clone(),
         None => match &a.source.input {
@@ -209,7 +227,6 @@ fn render(a: RenderArgs) -> Result<()> {
     {
         check_output(o, &inputs)?;
     }
-    let camera = a.camera.build(&cloud.cloud)?;
     let pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
     let mut renderer = a.backend.open()?;
     let t0 = Instant::now();
@@ -329,9 +346,16 @@ fn stem(p: &Path) -> String {
     }
 }
 
-fn info(files: &[PathBuf]) -> Result<()> {
+fn info(files: &[PathBuf], verify: bool) -> Result<()> {
     let mut failed = 0;
     for f in files {
+        if lod::is_tree(f) {
+            if let Err(e) = lod::info(f, verify) {
+                eprintln!("stipple: error: {e}");
+                failed += 1;
+            }
+            continue;
+        }
         match args::read_with_progress(f) {
             Ok(c) => {
                 let p = PreparedCloud::new(c);

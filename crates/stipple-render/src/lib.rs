@@ -69,6 +69,12 @@ static NEXT_CLOUD_KEY: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU
 impl PreparedCloud {
     pub fn new(cloud: PointCloud) -> PreparedCloud {
         let spacing = cloud.estimate_spacing();
+        PreparedCloud::with_spacing(cloud, spacing)
+    }
+
+    /// Prepares a cloud whose point spacing is already known (a LOD cut knows it from its
+    /// nodes; estimating it would cost a neighbour search per frame).
+    pub fn with_spacing(cloud: PointCloud, spacing: f32) -> PreparedCloud {
         let intensity_scale = cloud.intensity.as_ref().and_then(|v| {
             let mut hist = vec![0u64; 65536];
             for &i in v {

@@ -1,0 +1,459 @@
+//! `stipple build-lod`, and `.stlod` trees in `render`, `bench` and `info`.
+
+use crate::args::{CameraArgs, PipelineArgs};
+use crate::Result;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use stipple_core::{Camera, PointCloud};
+use stipple_lod::mem::{parse_count, parse_size};
+use stipple_lod::stream::Payload;
+use stipple_lod::{LodTree, Phase, SelectOptions, Selection, Streamer};
+use stipple_render::{PreparedCloud, Renderer};
+
+/// Testing aid: abort `build-lod` (no clean-up, as a kill would) after this many chunks.
+const ABORT_ENV: &str = "STIPPLE_TEST_ABORT_BUILD_AFTER_CHUNKS";
+
+fn parse_m(s: &str) -> std::result::Result<u32, String> {
+    let v = parse_count(s)?;
+    if !(2..=1 << 24).contains(&v) {
+        return Err(format!("`{s}`: the node size must lie in 2..16M"));
+    }
+    Ok(v as u32)
+}
+
+#[derive(clap::Args)]
+pub struct BuildLodArgs {
+    /// Input clouds, merged into one tree. LAS/LAZ are streamed, so they may be larger than
+    /// memory; PLY and XYZ are read whole.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// The tree to write (.stlod). Written under a temporary name and renamed when complete.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// M: a node with fewer points is a leaf; an inner node holds at most M samples filtered
+    /// from its children.
+    #[arg(long, default_value = "32768", value_parser = parse_m, value_name = "M")]
+    max_node_points: u32,
+    /// Memory budget for the build, e.g. 512M or 4G. Inputs larger than half of it are built
+    /// out of core through a spill file. Default: a quarter of RAM, at most 8 GiB.
+    #[arg(long, value_parser = parse_size, value_name = "SIZE")]
+    memory: Option<u64>,
+    /// Directory for the spill file of an out-of-core build (default: beside the output).
+    #[arg(long, value_name = "DIR")]
+    temp_dir: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Replace the output if it exists.
+    #[arg(long)]
+    force: bool,
+}
+
+pub fn build_lod(a: BuildLodArgs) -> Result<()> {
+    if stipple_io::extension(&a.output) != "stlod" {
+        return Err(format!(
+            "{}: the tree's name must end in .stlod",
+            a.output.display()
+        ));
+    }
+    let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
+    crate::check_output(&a.output, &inputs)?;
+    if a.output.exists() && !a.force {
+        return Err(format!(
+            "{}: already exists; pass --force to replace it",
+            a.output.display()
+        ));
+    }
+    if a.threads == Some(0) {
+        return Err("--threads must be at least 1".into());
+    }
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{msg:9} [{bar:30}] {human_pos}/{human_len} points  {per_sec}  ETA {eta}",
+        )
+        .unwrap()
+        .progress_chars("=> "),
+    );
+    let b = bar.clone();
+    let progress = move |phase: Phase, done: u64, total: u64| {
+        let msg = match phase {
+            Phase::Reading => "reading",
+            Phase::Building => "building",
+        };
+        if b.message() != msg {
+            b.set_message(msg);
+            b.reset();
+        }
+        b.set_length(total);
+        b.set_position(done);
+    };
+    let opts = stipple_lod::BuildOptions {
+        max_node_points: a.max_node_points,
+        memory: a.memory.unwrap_or_else(stipple_lod::build::default_memory),
+        temp_dir: a.temp_dir.clone(),
+        progress: Some(Arc::new(progress)),
+        abort_after_chunks: std::env::var(ABORT_ENV).ok().and_then(|v| v.parse().ok()),
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()
+        .map_err(|e| e.to_string())?;
+    let t0 = Instant::now();
+    let r = pool
+        .install(|| stipple_lod::build(&a.inputs, &a.output, &opts))
+        .map_err(|e| e.to_string());
+    bar.finish_and_clear();
+    let r = r?;
+    let s = t0.elapsed().as_secs_f64();
+    println!(
+        "wrote {}: {} points from {} file{} in {s:.1} s ({:.2} M points/s)",
+        a.output.display(),
+        r.points,
+        a.inputs.len(),
+        if a.inputs.len() == 1 { "" } else { "s" },
+        r.points as f64 / s / 1e6
+    );
+    println!(
+        "  {} nodes ({} leaves, depth {}), M = {}, {} MiB",
+        r.nodes,
+        r.leaves,
+        r.depth,
+        a.max_node_points,
+        r.bytes >> 20
+    );
+    let how = if r.out_of_core {
+        format!(
+            "out of core: {} chunks (largest {} points), {} MiB spilled, {} dense spots redistributed",
+            r.chunks,
+            r.largest_chunk,
+            r.spilled >> 20,
+            r.redistributions
+        )
+    } else {
+        "in memory".to_string()
+    };
+    let peak = stipple_lod::mem::peak_rss()
+        .map(|p| format!("peak memory {} MiB", p >> 20))
+        .unwrap_or_default();
+    println!(
+        "  {how}; memory budget {} MiB; {peak}",
+        opts.memory >> 20
+    );
+    Ok(())
+}
+
+/// Options for drawing a tree, shared by `render` and `bench`.
+#[derive(clap::Args, Clone)]
+pub struct LodArgs {
+    /// For a .stlod tree: the most points drawn in a frame (e.g. 5M).
+    #[arg(long, default_value = "5M", value_parser = parse_count, value_name = "N")]
+    pub point_budget: u64,
+    /// For a .stlod tree: refine until samples are at most this many pixels apart on screen.
+    #[arg(long, default_value_t = 1.0, value_name = "PX")]
+    pub lod_error: f32,
+    /// For a .stlod tree: memory for cached node payloads (default: 4 × the point budget's
+    /// size, at least 1 GiB).
+    #[arg(long, value_parser = parse_size, value_name = "SIZE")]
+    pub cache: Option<u64>,
+    /// For a .stlod tree: background threads loading nodes.
+    #[arg(long, default_value_t = 2, value_name = "N")]
+    pub loaders: usize,
+}
+
+impl LodArgs {
+    fn select_options(&self, tree: &LodTree) -> Result<SelectOptions> {
+        let m = tree.header.max_node_points as u64;
+        if self.point_budget < m {
+            return Err(format!(
+                "--point-budget {} is smaller than one node of this tree ({m} points)",
+                self.point_budget
+            ));
+        }
+        if !(self.lod_error > 0.0 && self.lod_error.is_finite()) {
+            return Err(format!(
+                "--lod-error {}: must be a positive number of pixels",
+                self.lod_error
+            ));
+        }
+        Ok(SelectOptions {
+            point_budget: self.point_budget,
+            max_error_px: self.lod_error,
+        })
+    }
+
+    fn cache_bytes(&self) -> u64 {
+        self.cache
+            .unwrap_or((self.point_budget * 16 * 4).max(1 << 30))
+            .max(self.point_budget * 16 * 2)
+    }
+}
+
+/// Whether an input names a tree: by extension, or by its magic.
+pub fn is_tree(p: &Path) -> bool {
+    stipple_io::extension(p) == "stlod" || stipple_lod::is_tree(p)
+}
+
+pub fn open(p: &Path) -> Result<Arc<LodTree>> {
+    LodTree::open(p).map(Arc::new).map_err(|e| e.to_string())
+}
+
+/// The cloud to draw from resident payloads: positions relative to the tree's origin,
+/// colours when the tree has them. The spacing is the sample-weighted median of the nodes'
+/// projected spacing, expressed at the cloud's centre (what the automatic settings expect).
+pub fn cut_cloud(tree: &LodTree, parts: &[(u32, Payload)], camera: &Camera) -> PreparedCloud {
+    let n: usize = parts.iter().map(|p| p.1.len()).sum();
+    let mut positions = Vec::with_capacity(n);
+    let coloured = tree.header.has_colour();
+    let mut colors = Vec::with_capacity(if coloured { n } else { 0 });
+    let mut px: Vec<(f32, usize)> = Vec::with_capacity(parts.len());
+    let b = camera.basis();
+    for (id, recs) in parts {
+        positions.extend(recs.iter().map(|r| r.p()));
+        if coloured {
+            colors.extend(recs.iter().map(|r| r.rgb));
+        }
+        let node = &tree.nodes[*id as usize];
+        let c = tree.header.origin + node.bounds.center().as_dvec3();
+        let depth = (c - camera.eye).dot(b.forward).max(camera.near);
+        let (_, sy) = camera.ndc_scale();
+        let scale = match camera.projection {
+            stipple_core::Projection::Perspective { .. } => sy * 0.5 * camera.height as f64 / depth,
+            stipple_core::Projection::Orthographic { .. } => sy * 0.5 * camera.height as f64,
+        };
+        px.push(((node.spacing as f64 * scale) as f32, recs.len()));
+    }
+    px.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let half = n / 2;
+    let mut acc = 0;
+    let median_px = px
+        .iter()
+        .find(|(_, k)| {
+            acc += k;
+            acc > half
+        })
+        .map(|p| p.0)
+        .unwrap_or(1.0);
+    let cloud = PointCloud {
+        origin: tree.header.origin,
+        positions,
+        colors: coloured.then_some(colors),
+        ..Default::default()
+    };
+    // World spacing that projects to `median_px` at the cloud's centre.
+    let probe = PreparedCloud::with_spacing(cloud, 1.0);
+    let px_per_unit = probe.screen_spacing(camera);
+    let spacing = if px_per_unit.is_finite() && px_per_unit > 0.0 && median_px > 0.0 {
+        median_px / px_per_unit
+    } else {
+        tree.nodes[0].spacing
+    };
+    PreparedCloud::with_spacing(probe.cloud, spacing)
+}
+
+/// Opens a tree and its camera.
+pub fn open_with_camera(p: &Path, camera: &CameraArgs) -> Result<(Arc<LodTree>, Camera)> {
+    let tree = open(p)?;
+    let (lo, hi) = tree.world_bounds();
+    let cam = camera.build_for_bounds(lo, hi)?;
+    Ok((tree, cam))
+}
+
+/// For `render`: the complete cut for the camera (waiting for its nodes, with a spinner).
+pub fn load_cut(
+    p: &Path,
+    camera: &CameraArgs,
+    lod: &LodArgs,
+) -> Result<(PreparedCloud, String, Camera)> {
+    let (tree, cam) = open_with_camera(p, camera)?;
+    let opts = lod.select_options(&tree)?;
+    let sel = stipple_lod::select(&tree, &cam, &opts);
+    let streamer =
+        Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders).map_err(|e| e.to_string())?;
+    streamer.request(&sel.nodes);
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.enable_steady_tick(Duration::from_millis(120));
+    loop {
+        let st = streamer.stats();
+        bar.set_message(format!(
+            "loading {} nodes ({} points): {} to go",
+            sel.nodes.len(),
+            sel.points,
+            st.queued + st.in_flight
+        ));
+        if streamer.wait_idle(Duration::from_millis(200)) {
+            break;
+        }
+    }
+    bar.finish_and_clear();
+    if let Some(e) = streamer.error() {
+        return Err(e);
+    }
+    let (parts, _) = streamer.resident_cut(&sel.nodes);
+    let cloud = cut_cloud(&tree, &parts, &cam);
+    let label = format!(
+        "{} (cut of {} nodes{}, {} of {} points)",
+        p.display(),
+        sel.nodes.len(),
+        if sel.budget_limited {
+            ", limited by --point-budget"
+        } else {
+            ""
+        },
+        sel.points,
+        tree.header.point_count
+    );
+    Ok((cloud, label, cam))
+}
+
+/// `stipple info` for a tree.
+pub fn info(p: &Path, verify: bool) -> Result<()> {
+    let tree = open(p)?;
+    let h = &tree.header;
+    let (lo, hi) = tree.world_bounds();
+    let leaves = tree.nodes.iter().filter(|n| n.is_leaf()).count();
+    let samples: u64 = tree.nodes.iter().map(|n| n.sample_count as u64).sum();
+    println!("{} (stipple LOD tree, format {})", p.display(), stipple_lod::format::VERSION);
+    println!("  points      {}", h.point_count);
+    println!(
+        "  nodes       {} ({leaves} leaves, depth {}), M = {}",
+        h.node_count,
+        tree.depth(),
+        h.max_node_points
+    );
+    println!(
+        "  samples     {samples} stored ({:.2}× the input)",
+        samples as f64 / h.point_count.max(1) as f64
+    );
+    println!("  bounds min  {:.4} {:.4} {:.4}", lo.x, lo.y, lo.z);
+    println!("  bounds max  {:.4} {:.4} {:.4}", hi.x, hi.y, hi.z);
+    println!(
+        "  attributes  position{}",
+        if h.has_colour() { ", color" } else { "" }
+    );
+    println!(
+        "  root        {} samples, spacing {:.4}",
+        tree.root().sample_count,
+        tree.root().spacing
+    );
+    if verify {
+        let t0 = Instant::now();
+        tree.verify().map_err(|e| e.to_string())?;
+        println!(
+            "  checksums   all {} payloads verified in {:.1} s",
+            h.node_count,
+            t0.elapsed().as_secs_f64()
+        );
+    } else {
+        println!("  checksums   header and node table verified (--verify reads every payload)");
+    }
+    Ok(())
+}
+
+/// `stipple bench` for a tree: time to first image, frames until the cut is resident, and
+/// steady frames.
+pub fn bench(
+    p: &Path,
+    camera: &CameraArgs,
+    pipeline: &PipelineArgs,
+    lod: &LodArgs,
+    r: &mut Renderer,
+    frames: usize,
+) -> Result<()> {
+    let t0 = Instant::now();
+    let (tree, cam) = open_with_camera(p, camera)?;
+    let opts = lod.select_options(&tree)?;
+    let streamer =
+        Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders).map_err(|e| e.to_string())?;
+    let open_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let pipe = pipeline.build_for(false)?;
+    let mut first_ms = None;
+    let mut converged: Option<(usize, f64)> = None;
+    let mut cloud: Option<(Vec<u32>, PreparedCloud)> = None;
+    let mut sel = Selection::default();
+    let mut select_ms = Vec::new();
+    let mut compose_ms = Vec::new();
+    let mut frame_ms = Vec::new();
+    let mut k = 0;
+    // Refining frames (bounded so that a cut that never fits the cache cannot loop forever).
+    while converged.is_none() && k < 100_000 {
+        let t = Instant::now();
+        sel = stipple_lod::select(&tree, &cam, &opts);
+        streamer.request(&sel.nodes);
+        select_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        let (parts, missing) = streamer.resident_cut(&sel.nodes);
+        let ids: Vec<u32> = parts.iter().map(|p| p.0).collect();
+        if cloud.as_ref().is_none_or(|c| c.0 != ids) {
+            let t = Instant::now();
+            cloud = Some((ids, cut_cloud(&tree, &parts, &cam)));
+            compose_ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        r.render(&cloud.as_ref().unwrap().1, &cam, &pipe)
+            .map_err(|e| e.to_string())?;
+        k += 1;
+        if first_ms.is_none() {
+            first_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
+        }
+        if let Some(e) = streamer.error() {
+            return Err(e);
+        }
+        if missing == 0 {
+            converged = Some((k, t0.elapsed().as_secs_f64() * 1e3));
+        }
+    }
+    let (_, c) = cloud.unwrap();
+    for _ in 0..frames {
+        let t = Instant::now();
+        let s = stipple_lod::select(&tree, &cam, &opts);
+        streamer.request(&s.nodes);
+        r.render(&c, &cam, &pipe).map_err(|e| e.to_string())?;
+        frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    let med = |v: &mut Vec<f64>| crate::bench::median(v);
+    let st = streamer.stats();
+    println!(
+        "stipple bench: {} ({} points, {} nodes), {}x{}, {}",
+        p.display(),
+        tree.header.point_count,
+        tree.nodes.len(),
+        cam.width,
+        cam.height,
+        r.describe()
+    );
+    println!(
+        "  cut               {} nodes, {} points (budget {}{}), error ≤ {} px",
+        sel.nodes.len(),
+        sel.points,
+        lod.point_budget,
+        if sel.budget_limited { ", binding" } else { "" },
+        lod.lod_error
+    );
+    println!("  open + root       {open_ms:>9.1} ms");
+    println!(
+        "  first image       {:>9.1} ms after start",
+        first_ms.unwrap_or(f64::NAN)
+    );
+    if let Some((frames_to, ms)) = converged {
+        println!("  cut resident      {ms:>9.1} ms after start, after {frames_to} frames");
+    }
+    println!("  select            {:>9.3} ms (median)", med(&mut select_ms));
+    println!(
+        "  compose cut       {:>9.1} ms (median over {} changes of the drawn set)",
+        med(&mut compose_ms),
+        compose_ms.len()
+    );
+    let t = med(&mut frame_ms);
+    println!(
+        "  frame             {t:>9.2} ms   ({:.1} fps; select + render of the resident cut, median of {frames})",
+        1e3 / t
+    );
+    println!(
+        "  cache             {} nodes, {} MiB, {} loads, {} evictions",
+        st.resident_nodes,
+        st.resident_bytes >> 20,
+        st.loads,
+        st.evictions
+    );
+    Ok(())
+}
