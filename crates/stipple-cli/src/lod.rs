@@ -51,14 +51,14 @@ pub struct BuildLodArgs {
 }
 
 pub fn build_lod(a: BuildLodArgs) -> Result<()> {
+    let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
+    crate::check_output(&a.output, &inputs)?;
     if stipple_io::extension(&a.output) != "stlod" {
         return Err(format!(
             "{}: the tree's name must end in .stlod",
             a.output.display()
         ));
     }
-    let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
-    crate::check_output(&a.output, &inputs)?;
     if a.output.exists() && !a.force {
         return Err(format!(
             "{}: already exists; pass --force to replace it",
@@ -137,10 +137,7 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
     let peak = stipple_lod::mem::peak_rss()
         .map(|p| format!("peak memory {} MiB", p >> 20))
         .unwrap_or_default();
-    println!(
-        "  {how}; memory budget {} MiB; {peak}",
-        opts.memory >> 20
-    );
+    println!("  {how}; memory budget {} MiB; {peak}", opts.memory >> 20);
     Ok(())
 }
 
@@ -314,7 +311,11 @@ pub fn info(p: &Path, verify: bool) -> Result<()> {
     let (lo, hi) = tree.world_bounds();
     let leaves = tree.nodes.iter().filter(|n| n.is_leaf()).count();
     let samples: u64 = tree.nodes.iter().map(|n| n.sample_count as u64).sum();
-    println!("{} (stipple LOD tree, format {})", p.display(), stipple_lod::format::VERSION);
+    println!(
+        "{} (stipple LOD tree, format {})",
+        p.display(),
+        stipple_lod::format::VERSION
+    );
     println!("  points      {}", h.point_count);
     println!(
         "  nodes       {} ({leaves} leaves, depth {}), M = {}",
@@ -437,7 +438,10 @@ pub fn bench(
     if let Some((frames_to, ms)) = converged {
         println!("  cut resident      {ms:>9.1} ms after start, after {frames_to} frames");
     }
-    println!("  select            {:>9.3} ms (median)", med(&mut select_ms));
+    println!(
+        "  select            {:>9.3} ms (median)",
+        med(&mut select_ms)
+    );
     println!(
         "  compose cut       {:>9.1} ms (median over {} changes of the drawn set)",
         med(&mut compose_ms),

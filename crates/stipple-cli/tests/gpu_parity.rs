@@ -97,5 +97,27 @@ fn gpu_and_cpu_render_the_same_frames() {
         a.extend(size);
         compare(&dir, file, &a);
     }
+    // A LOD tree's cut, mixing levels under a budget that binds.
+    let p = data.join("lidar/autzen_trim.laz");
+    if p.exists() {
+        let tree = dir.join("autzen.stlod");
+        let out = Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .arg("build-lod")
+            .arg(&p)
+            .arg("-o")
+            .arg(&tree)
+            .args(["--max-node-points", "4096"])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let t = tree.to_string_lossy().into_owned();
+        let mut a = vec![t.as_str(), "--point-budget", "60000"];
+        a.extend(size);
+        compare(&dir, "autzen.stlod", &a);
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -140,6 +140,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
     );
     let origin = ((lo + hi) * 0.5).round();
     let coloured = inputs.iter().any(|i| i.coloured);
+    remove_dead_leftovers(output, o.temp_dir.as_deref());
     let tmp = temp_name(output)?;
     let mut guard = RemoveOnDrop(vec![tmp.clone()]);
     let file = File::create(&tmp).map_err(|e| LodError::io(output, e))?;
@@ -310,6 +311,44 @@ fn temp_name(output: &Path) -> Result<PathBuf, LodError> {
     t.push(name);
     t.push(format!(".{}.tmp", std::process::id()));
     Ok(output.with_file_name(t))
+}
+
+/// Removes the temporary and spill files of earlier builds of `output` whose process is gone
+/// (killed builds cannot clean up after themselves). Only on Linux, where `/proc` tells.
+fn remove_dead_leftovers(output: &Path, temp_dir: Option<&Path>) {
+    if !Path::new("/proc/self").exists() {
+        return;
+    }
+    let Some(name) = output.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    let dirs = [output.parent(), temp_dir];
+    for dir in dirs.into_iter().flatten() {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        let Ok(entries) = std::fs::read_dir(dir) else {
+            continue;
+        };
+        for e in entries.flatten() {
+            let f = e.file_name().to_string_lossy().into_owned();
+            let Some(rest) = f.strip_prefix(&prefix) else {
+                continue;
+            };
+            let Some((pid, ext)) = rest.split_once('.') else {
+                continue;
+            };
+            let dead = pid
+                .parse::<u32>()
+                .is_ok_and(|p| !Path::new(&format!("/proc/{p}")).exists());
+            if dead && (ext == "tmp" || ext == "spill") {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
 }
 
 /// Removes temporary files however the build ends (except by a kill).
