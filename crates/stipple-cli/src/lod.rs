@@ -138,6 +138,10 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
         .map(|p| format!("peak memory {} MiB", p >> 20))
         .unwrap_or_default();
     println!("  {how}; memory budget {} MiB; {peak}", opts.memory >> 20);
+    println!(
+        "  reading {:.1} s, building and writing {:.1} s",
+        r.read_seconds, r.build_seconds
+    );
     Ok(())
 }
 

@@ -107,6 +107,10 @@ pub struct BuildReport {
     pub largest_chunk: u64,
     /// Nodes distributed a second time into a finer grid (dense spots).
     pub redistributions: usize,
+    /// Seconds reading the inputs (and distributing them, out of core).
+    pub read_seconds: f64,
+    /// Seconds building nodes and writing the tree.
+    pub build_seconds: f64,
 }
 
 /// Builds a tree from `inputs` into `output` (replacing it only when the build succeeded).
@@ -163,6 +167,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         }
     };
     let batch = (o.memory / 64 / 64).clamp(1 << 14, 1 << 20) as usize;
+    let t0 = std::time::Instant::now();
     let (root, bounds) = if total.saturating_mul(IN_CORE_BYTES) <= o.memory / 2 {
         // In memory: read everything, build one chunk.
         let mut recs: Vec<Record> = Vec::with_capacity(total as usize);
@@ -174,6 +179,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
             })?;
         }
         let bounds = bounds_of(&recs);
+        report.read_seconds = t0.elapsed().as_secs_f64();
         progress(Phase::Building, 0);
         let nodes = kd::build(&mut recs, bounds, 0, m as usize);
         let (root, _) = out.chunk(&nodes, &recs)?;
@@ -236,6 +242,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
                 Err(Distribute::Fail(e)) => return Err(e),
             }
         };
+        report.read_seconds = t0.elapsed().as_secs_f64();
         let full = buckets.grid.full();
         let (root, _) = ctx.node(&mut out, &buckets, full, bounds, 0)?;
         report.spilled = ctx.spill.len;
@@ -300,6 +307,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
     drop(file);
     std::fs::rename(&tmp, output).map_err(|e| LodError::io(output, e))?;
     guard.0.retain(|p| p != &tmp);
+    report.build_seconds = t0.elapsed().as_secs_f64() - report.read_seconds;
     Ok(report)
 }
 
@@ -771,7 +779,9 @@ impl OutOfCore<'_> {
             let mut merged = ls;
             merged.extend_from_slice(&rs);
             drop(rs);
-            let (samples, spacing) = sample::filter(&merged, &bounds, self.m);
+            let child = out.arena[li].spacing.max(out.arena[ri].spacing);
+            let guess = sample::first_guess(child, merged.len(), self.m);
+            let (samples, spacing) = sample::filter(&merged, &bounds, self.m, guess);
             let i = out.node(bounds, count, Some([li, ri]), spacing, depth, &samples)?;
             return Ok((i, samples));
         }

@@ -136,7 +136,8 @@ fn build_at(
     };
     let mut merged = local(&ln[0]);
     merged.extend_from_slice(&local(&rn[0]));
-    let (samples, spacing) = sample::filter(&merged, &bounds, m);
+    let guess = sample::first_guess(ln[0].spacing.max(rn[0].spacing), merged.len(), m);
+    let (samples, spacing) = sample::filter(&merged, &bounds, m, guess);
     drop(merged);
     let mut out = Vec::with_capacity(1 + ln.len() + rn.len());
     out.push(LocalNode {

@@ -16,44 +16,72 @@ use stipple_core::Bounds;
 const ROUNDS: usize = 4;
 /// Target occupancy as a share of M: a little below, so one round usually suffices.
 const TARGET: f64 = 0.85;
+/// Occupancy accepted without another round.
+const ACCEPT: f64 = 0.6;
+
+/// The cell size to try first for `n` samples that are `child_spacing` apart on a surface:
+/// the size at which they would fill [`TARGET`] × m cells.
+pub fn first_guess(child_spacing: f32, n: usize, m: usize) -> Option<f32> {
+    let s = child_spacing * ((n as f64 / (TARGET * m as f64)).max(1.0).sqrt() as f32);
+    (s.is_finite() && s > 0.0).then_some(s)
+}
 
 /// Merges `points` (all inside `bounds`) into at most `m` samples; returns them and the cell
-/// size. Deterministic: samples come out in the order their cells were first met.
-pub fn filter(points: &[Record], bounds: &Bounds, m: usize) -> (Vec<Record>, f32) {
+/// size. `guess` is a cell size to try first (see [`first_guess`]). Deterministic: samples
+/// come out in the order their cells were first met.
+pub fn filter(
+    points: &[Record],
+    bounds: &Bounds,
+    m: usize,
+    guess: Option<f32>,
+) -> (Vec<Record>, f32) {
     let m = m.max(1);
     let e = bounds.extent();
     let emax = e.max_element().max(f32::MIN_POSITIVE);
     // Cell keys hold 21 bits per axis.
     let min_cell = emax / (1 << 20) as f32;
-    let mut table = CellTable::with_capacity(points.len());
+    // A merge stops at m + 1 cells, so the table never holds more keys.
+    let mut table = CellTable::with_capacity(points.len().min(m + 1));
     // First guess: the samples cover a surface spanning the two largest extents.
     let mut ext = e.to_array();
     ext.sort_by(f32::total_cmp);
     let area = (ext[2] * ext[1]).max(ext[2] * ext[2] * 1e-6);
-    let mut s = (area / (TARGET * m as f64) as f32).sqrt().max(min_cell);
-    let mut best: Option<f32> = None;
+    let mut s = guess
+        .unwrap_or_else(|| (area / (TARGET * m as f64) as f32).sqrt())
+        .max(min_cell);
+    // Each round merges at a cell size; a round that overflows M stops early and estimates
+    // the occupancy it would have reached.
+    let mut best: Option<(Vec<Record>, f32)> = None;
     for _ in 0..ROUNDS {
-        let occ = table.count(points, bounds.min, s);
-        if occ <= m {
-            if best.is_none_or(|b| s < b) {
-                best = Some(s);
+        let occ = match table.merge(points, bounds.min, s, m) {
+            Ok(v) => {
+                let occ = v.len();
+                if best.as_ref().is_none_or(|b| s < b.1) {
+                    best = Some((v, s));
+                }
+                if occ as f64 >= ACCEPT * m as f64 || occ == points.len() || s <= min_cell {
+                    break;
+                }
+                occ
             }
-            if occ as f64 >= TARGET * 0.9 * m as f64 || occ == points.len() || s <= min_cell {
-                break;
-            }
-        }
+            Err(estimate) => estimate,
+        };
         // Occupancy of a surface scales with 1/s².
         let next = s * ((occ.max(1) as f64 / (TARGET * m as f64)).sqrt() as f32);
         s = next.clamp(min_cell, emax * 2.0);
-        if best.is_some_and(|b| s >= b) {
+        if best.as_ref().is_some_and(|b| s >= b.1) {
             break;
         }
     }
-    let mut s = best.unwrap_or(s);
-    while table.count(points, bounds.min, s) > m {
-        s *= 1.25;
+    if let Some(b) = best {
+        return b;
     }
-    (table.merge(points, bounds.min, s), s)
+    loop {
+        s *= 1.25;
+        if let Ok(v) = table.merge(points, bounds.min, s, m) {
+            return (v, s);
+        }
+    }
 }
 
 fn key(p: [f32; 3], min: glam::Vec3, inv: f32) -> u64 {
@@ -66,6 +94,8 @@ struct CellTable {
     keys: Vec<u64>,
     slot: Vec<u32>,
     mask: usize,
+    /// Multiplicative hashing keeps the product's top bits: 64 − log2(capacity).
+    shift: u32,
 }
 
 const EMPTY: u64 = u64::MAX;
@@ -77,11 +107,12 @@ impl CellTable {
             keys: vec![EMPTY; cap],
             slot: vec![0; cap],
             mask: cap - 1,
+            shift: 64 - cap.trailing_zeros(),
         }
     }
 
     fn find(&mut self, k: u64) -> (usize, bool) {
-        let mut h = (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize & self.mask;
+        let mut h = (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
         loop {
             if self.keys[h] == k {
                 return (h, false);
@@ -94,23 +125,25 @@ impl CellTable {
         }
     }
 
-    fn count(&mut self, points: &[Record], min: glam::Vec3, s: f32) -> usize {
-        self.keys.fill(EMPTY);
-        let inv = 1.0 / s;
-        points
-            .iter()
-            .filter(|r| self.find(key(r.pos, min, inv)).1)
-            .count()
-    }
-
-    fn merge(&mut self, points: &[Record], min: glam::Vec3, s: f32) -> Vec<Record> {
+    /// One sample per occupied cell of size `s`, or, when more than `limit` cells are
+    /// occupied, an estimate of how many would be (extrapolated from where it stopped).
+    fn merge(
+        &mut self,
+        points: &[Record],
+        min: glam::Vec3,
+        s: f32,
+        limit: usize,
+    ) -> Result<Vec<Record>, usize> {
         self.keys.fill(EMPTY);
         let inv = 1.0 / s;
         // Sums per occupied cell: position (f64), colour, count.
-        let mut acc: Vec<([f64; 3], [u32; 3], u32)> = Vec::new();
-        for r in points {
+        let mut acc: Vec<([f64; 3], [u32; 3], u32)> = Vec::with_capacity(limit.min(points.len()));
+        for (i, r) in points.iter().enumerate() {
             let (h, new) = self.find(key(r.pos, min, inv));
             if new {
+                if acc.len() == limit {
+                    return Err((limit as f64 * points.len() as f64 / (i + 1) as f64) as usize + 1);
+                }
                 self.slot[h] = acc.len() as u32;
                 acc.push(([0.0; 3], [0; 3], 0));
             }
@@ -121,7 +154,8 @@ impl CellTable {
             }
             a.2 += 1;
         }
-        acc.iter()
+        Ok(acc
+            .iter()
             .map(|(p, c, n)| {
                 let k = *n as f64;
                 Record {
@@ -130,7 +164,7 @@ impl CellTable {
                     reserved: 0,
                 }
             })
-            .collect()
+            .collect())
     }
 }
 
@@ -159,7 +193,7 @@ mod tests {
             min: Vec3::ZERO,
             max: Vec3::ONE,
         };
-        let (s, cell) = filter(&pts, &b, 4096);
+        let (s, cell) = filter(&pts, &b, 4096, None);
         assert!(s.len() <= 4096, "{} samples", s.len());
         // A literal 4096-cell cube grid would give 16² = 256 samples on this plane.
         assert!(s.len() >= 2000, "only {} samples", s.len());
@@ -183,13 +217,13 @@ mod tests {
             min: Vec3::ZERO,
             max: Vec3::ONE,
         };
-        let (s, _) = filter(&pts, &b, 2);
+        let (s, _) = filter(&pts, &b, 2, None);
         assert_eq!(s.len(), 2);
         let a = s.iter().find(|r| r.pos[0] < 0.5).unwrap();
         assert!((a.pos[0] - 0.15).abs() < 1e-6);
         assert_eq!(a.rgb, [50, 100, 25]);
         // Few points: every point keeps its own cell.
-        let (s, _) = filter(&pts, &b, 10);
+        let (s, _) = filter(&pts, &b, 10, None);
         assert_eq!(s.len(), 3);
     }
 }
