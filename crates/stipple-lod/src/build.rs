@@ -166,7 +166,9 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
             f(p, d, total)
         }
     };
-    let batch = (o.memory / 64 / 64).clamp(1 << 14, 1 << 20) as usize;
+    // About a tenth of the budget for a batch of input records (LAS bytes + our record); LAZ
+    // decompresses in parallel per batch, so batches should not be small.
+    let batch = (o.memory / 512).clamp(1 << 14, 1 << 20) as usize;
     let t0 = std::time::Instant::now();
     let (root, bounds) = if total.saturating_mul(IN_CORE_BYTES) <= o.memory / 2 {
         // In memory: read everything, build one chunk.
