@@ -181,6 +181,32 @@ fn out_of_core_build_keeps_the_invariants_and_refines_dense_clusters() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+#[test]
+fn wrong_header_bounds_are_survived_out_of_core() {
+    let dir = scratch("bounds");
+    let a = write_las(&dir, "a.las", &terrain(300_000, 0, 5));
+    // LAS 1.2 header: max X is the f64 at byte 179, min X at 187. Claim the points end
+    // half-way along x.
+    let mut b = std::fs::read(&a).unwrap();
+    let max_x = f64::from_le_bytes(b[179..187].try_into().unwrap());
+    let min_x = f64::from_le_bytes(b[187..195].try_into().unwrap());
+    b[179..187].copy_from_slice(&((min_x + max_x) * 0.5).to_le_bytes());
+    std::fs::write(&a, &b).unwrap();
+    let inputs = vec![a];
+    let o = BuildOptions {
+        max_node_points: 2048,
+        memory: 16 << 20,
+        ..Default::default()
+    };
+    let r = build(&inputs, &dir.join("t.stlod"), &o).unwrap();
+    assert!(r.out_of_core);
+    let tree = LodTree::open(&dir.join("t.stlod")).unwrap();
+    let (lo, hi) = tree.world_bounds();
+    assert!(hi.x >= max_x && lo.x <= min_x, "root box {lo}..{hi}");
+    check_invariants(&tree, &inputs);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 fn small_tree(dir: &Path) -> PathBuf {
     let a = write_las(dir, "a.las", &terrain(40_000, 0, 4));
     let out = dir.join("t.stlod");
