@@ -71,7 +71,7 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{msg:9} [{bar:30}] {human_pos}/{human_len} points  {per_sec}  ETA {eta}",
+            "{msg:9} [{bar:30}] {human_pos}/{human_len} points  {per_sec}  {elapsed} elapsed, ETA {eta}",
         )
         .unwrap()
         .progress_chars("=> "),

@@ -240,7 +240,11 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
                     bounds = widen(actual.union(bounds));
                     ctx.spill.reset()?;
                 }
-                Err(Distribute::Outside(_)) => unreachable!("a point outside was inside"),
+                Err(Distribute::Outside(_)) => {
+                    return Err(LodError::Invalid(
+                        "internal error: a point outside the root box was also inside it".into(),
+                    ))
+                }
                 Err(Distribute::Fail(e)) => return Err(e),
             }
         };
@@ -666,7 +670,6 @@ impl OutOfCore<'_> {
         let mut outside = Bounds::EMPTY;
         let mut cells: Vec<u32> = Vec::new();
         let spill = &mut self.spill;
-        let mut fail: Option<Distribute> = None;
         let r = source(&mut |b: &[Record]| {
             b.par_iter()
                 .map(|r| {
@@ -695,12 +698,7 @@ impl OutOfCore<'_> {
             }
             Ok(())
         });
-        if let Err(e) = r {
-            fail = Some(Distribute::Fail(e));
-        }
-        if let Some(f) = fail {
-            return Err(f);
-        }
+        r?;
         if !outside.is_empty() {
             return Err(Distribute::Outside(outside));
         }

@@ -96,20 +96,20 @@ impl Streamer {
             wake: Condvar::new(),
             idle: Condvar::new(),
         });
-        let workers = (0..threads.max(1))
-            .map(|k| {
-                let s = shared.clone();
-                std::thread::Builder::new()
-                    .name(format!("stipple-lod-loader-{k}"))
-                    .spawn(move || loader(&s))
-                    .expect("cannot start a loader thread")
-            })
-            .collect();
-        Ok(Streamer {
+        let mut streamer = Streamer {
             shared,
             parent,
-            workers,
-        })
+            workers: Vec::new(),
+        };
+        for k in 0..threads.max(1) {
+            let s = streamer.shared.clone();
+            let w = std::thread::Builder::new()
+                .name(format!("stipple-lod-loader-{k}"))
+                .spawn(move || loader(&s))
+                .map_err(|e| LodError::Invalid(format!("cannot start a loader thread: {e}")))?;
+            streamer.workers.push(w);
+        }
+        Ok(streamer)
     }
 
     pub fn tree(&self) -> &LodTree {
