@@ -33,6 +33,8 @@ Examples:
   stipple devices                                   GPU adapters and what they support
   stipple render tile.laz --raw --shading edl       raw-cloud pipeline with eye-dome lighting
   stipple eval bun_zipper.ply                       raw rendering of a mesh's vertices vs the mesh
+  stipple build-lod tiles/*.laz -o area.stlod       a multi-resolution tree for clouds beyond memory
+  stipple render area.stlod --point-budget 5M       draw a view-dependent cut of the tree
 
 The rendering pipeline (Dobrev et al. 2010, §3): points are projected (nearest wins),
 holes are filled in image space (background fill, then occluded-pixel fill with the layer
@@ -41,7 +43,11 @@ off or iterated; see `stipple render --help`.
 
 Clouds without normals (most LAS/LAZ) use the raw pipeline instead (Pintus et al. 2011):
 screen-space visibility removes points that should be hidden, an anisotropic fill closes the
-gaps, and multi-level shape depiction shades from depth alone. `--pipeline` chooses.";
+gaps, and multi-level shape depiction shades from depth alone. `--pipeline` chooses.
+
+Clouds larger than memory: `build-lod` builds a kd-tree whose inner nodes hold filtered
+samples (Pintus et al. 2011, §7); `render` and `bench` then draw a cut of it chosen by
+projected size under a point budget, streaming nodes from disk.";
 
 #[derive(Parser)]
 #[command(name = "stipple", version, about = ABOUT, long_about = LONG_ABOUT)]
