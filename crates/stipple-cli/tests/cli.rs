@@ -1,30 +1,10 @@
 //! End to end through the `stipple` binary (DESIGN.md testing ladder, step 6).
 
+mod common;
+
+use common::{stipple, tempdir, text};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn stipple(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run stipple")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
-
-fn tempdir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("stipple-cli-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::process::Command;
 
 fn data(name: &str) -> Option<PathBuf> {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))

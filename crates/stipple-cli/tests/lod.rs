@@ -1,28 +1,9 @@
 //! `stipple build-lod` and trees in `render`, `bench` and `info`, through the binary.
 
+mod common;
+
+use common::{stipple, stipple_env, text};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn stipple(dir: &Path, args: &[&str]) -> Output {
-    stipple_env(dir, args, &[])
-}
-
-fn stipple_env(dir: &Path, args: &[&str], env: &[(&str, &str)]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args(args)
-        .envs(env.iter().copied())
-        .current_dir(dir)
-        .output()
-        .expect("run stipple")
-}
-
-fn text(o: &Output) -> String {
-    format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    )
-}
 
 fn ok(dir: &Path, args: &[&str]) -> String {
     let o = stipple(dir, args);
@@ -31,10 +12,7 @@ fn ok(dir: &Path, args: &[&str]) -> String {
 }
 
 fn tempdir(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("stipple-cli-lod-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::tempdir(&format!("lod-{tag}"))
 }
 
 fn covered(png: &Path) -> usize {

@@ -11,37 +11,100 @@ use stipple_core::PointCloud;
 
 const BATCH: u64 = 1 << 20;
 
+/// A LAS/LAZ file read in batches, its header's count checked against the file's size before
+/// anything is allocated from it. Used by [`read_las`] and by the streaming LOD build.
+pub struct LasBatches {
+    path: std::path::PathBuf,
+    reader: las::Reader,
+    pub header: las::Header,
+    /// Points the header declares (never 0).
+    pub count: u64,
+    /// Points read so far.
+    pub read: u64,
+    /// The latest batch.
+    pub data: las::PointData,
+}
+
+impl LasBatches {
+    pub fn open(path: &Path) -> Result<LasBatches, IoError> {
+        let file_len = std::fs::metadata(path)
+            .map_err(|e| IoError::io(path, e))?
+            .len();
+        let reader = las::Reader::from_path(path)
+            .map_err(|e| IoError::invalid(path, format!("cannot read the LAS header: {e}")))?;
+        let header = reader.header().clone();
+        let count = header.number_of_points();
+        if count == 0 {
+            return Err(IoError::invalid(
+                path,
+                "the cloud has no points (header count 0)",
+            ));
+        }
+        let fmt = header.point_format();
+        let record = fmt.len() as u64;
+        // An uncompressed file must hold every record; a compressed one at least a byte each.
+        let min_bytes = if fmt.is_compressed {
+            count
+        } else {
+            count.saturating_mul(record)
+        };
+        if min_bytes > file_len {
+            return Err(IoError::invalid(
+                path,
+                format!(
+                    "the header declares {count} points of {record} bytes, but the file has only {file_len} bytes: it is truncated or the count is wrong"
+                ),
+            ));
+        }
+        let data = las::PointDataBuilder::new().for_header(&header).build();
+        Ok(LasBatches {
+            path: path.to_owned(),
+            reader,
+            header,
+            count,
+            read: 0,
+            data,
+        })
+    }
+
+    /// Reads the next batch of at most `n` points into `data`; 0 once every declared point
+    /// was read. A file that ends early or is corrupt is an error naming it.
+    pub fn next_batch(&mut self, n: u64) -> Result<u64, IoError> {
+        let (read, count) = (self.read, self.count);
+        if read >= count {
+            return Ok(0);
+        }
+        let got = self
+            .reader
+            .fill_points(n.max(1).min(count - read), &mut self.data)
+            .map_err(|e| {
+                IoError::invalid(
+                    &self.path,
+                    format!(
+                        "point data is corrupt or truncated after {read} of {count} points: {e}"
+                    ),
+                )
+            })?;
+        if got == 0 {
+            return Err(IoError::invalid(
+                &self.path,
+                format!("the file ends after {read} of the {count} points its header declares"),
+            ));
+        }
+        self.read += got;
+        Ok(got)
+    }
+}
+
 /// Reads a LAS/LAZ file.
 pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
     let file_len = std::fs::metadata(path)
         .map_err(|e| IoError::io(path, e))?
         .len();
-    let mut reader = las::Reader::from_path(path)
-        .map_err(|e| IoError::invalid(path, format!("cannot read the LAS header: {e}")))?;
-    let header = reader.header().clone();
-    let count = header.number_of_points();
-    if count == 0 {
-        return Err(IoError::invalid(
-            path,
-            "the cloud has no points (header count 0)",
-        ));
-    }
+    let mut batches = LasBatches::open(path)?;
+    let header = batches.header.clone();
+    let count = batches.count;
     let fmt = header.point_format();
-    let record = fmt.len() as u64;
-    // An uncompressed file must hold every record; a compressed one at least a byte each.
-    let min_bytes = if fmt.is_compressed {
-        count
-    } else {
-        count.saturating_mul(record)
-    };
-    if min_bytes > file_len {
-        return Err(IoError::invalid(
-            path,
-            format!(
-                "the header declares {count} points of {record} bytes, but the file has only {file_len} bytes: it is truncated or the count is wrong"
-            ),
-        ));
-    }
     let b = header.bounds();
     let mut origin = DVec3::new(
         (b.min.x + b.max.x) * 0.5,
@@ -61,25 +124,9 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         ..Default::default()
     };
     let mut rgb16: Option<Vec<[u16; 3]>> = fmt.has_color.then(|| Vec::with_capacity(cap));
-    let mut pd = las::PointDataBuilder::new().for_header(&header).build();
     let mut read: u64 = 0;
-    while read < count {
-        let n = reader
-            .fill_points(BATCH.min(count - read), &mut pd)
-            .map_err(|e| {
-                IoError::invalid(
-                    path,
-                    format!(
-                        "point data is corrupt or truncated after {read} of {count} points: {e}"
-                    ),
-                )
-            })?;
-        if n == 0 {
-            return Err(IoError::invalid(
-                path,
-                format!("the file ends after {read} of the {count} points its header declares"),
-            ));
-        }
+    while batches.next_batch(BATCH)? > 0 {
+        let pd = &batches.data;
         for (k, ((x, y), z)) in pd.x().zip(pd.y()).zip(pd.z()).enumerate() {
             let p = DVec3::new(x, y, z);
             if !p.is_finite() {
@@ -99,7 +146,7 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         if let (Some(dst), Some(src)) = (rgb16.as_mut(), pd.rgb()) {
             dst.extend(src.map(|(r, g, b)| [r, g, b]));
         }
-        read += n;
+        read = batches.read;
     }
     if let Some(rgb) = rgb16 {
         let max = rgb.iter().flatten().copied().max().unwrap_or(0);

@@ -53,27 +53,9 @@ fn open_input(path: &Path, memory: u64) -> Result<Input, LodError> {
         .map_err(|e| LodError::io(path, e))?
         .len();
     if &head == b"LASF" {
-        let reader = las::Reader::from_path(path).map_err(|e| bad(path, e))?;
-        let h = reader.header();
-        let count = h.number_of_points();
-        let fmt = h.point_format();
-        let min_bytes = if fmt.is_compressed {
-            count
-        } else {
-            count.saturating_mul(fmt.len() as u64)
-        };
-        if count == 0 {
-            return Err(LodError::Input(stipple_io::IoError::invalid(
-                path,
-                "the cloud has no points (header count 0)",
-            )));
-        }
-        if min_bytes > file_len {
-            return Err(LodError::Input(stipple_io::IoError::invalid(
-                path,
-                format!("the header declares {count} points, more than the file's {file_len} bytes can hold: it is truncated or the count is wrong"),
-            )));
-        }
+        // Opening checks the header's count against the file's size.
+        let las = stipple_io::las_io::LasBatches::open(path)?;
+        let (h, count) = (&las.header, las.count);
         let b = h.bounds();
         let lo = DVec3::new(b.min.x, b.min.y, b.min.z);
         let hi = DVec3::new(b.max.x, b.max.y, b.max.z);
@@ -190,32 +172,14 @@ impl Input {
                 Ok(())
             }
             Kind::Las => {
-                let mut reader = las::Reader::from_path(path).map_err(|e| bad(path, e))?;
-                let header = reader.header().clone();
-                let mut pd = las::PointDataBuilder::new().for_header(&header).build();
+                let mut las = stipple_io::las_io::LasBatches::open(path)?;
                 let mut mode: Option<ColourMode> = None;
-                let mut read = 0u64;
-                while read < self.count {
-                    let n = reader
-                        .fill_points((batch as u64).min(self.count - read), &mut pd)
-                        .map_err(|e| {
-                            bad(
-                                path,
-                                format!(
-                                    "point data is corrupt or truncated after {read} of {} points: {e}",
-                                    self.count
-                                ),
-                            )
-                        })?;
-                    if n == 0 {
-                        return Err(bad(
-                            path,
-                            format!(
-                                "the file ends after {read} of the {} points its header declares",
-                                self.count
-                            ),
-                        ));
+                loop {
+                    let read = las.read;
+                    if las.next_batch(batch as u64)? == 0 {
+                        break;
                     }
+                    let pd = &las.data;
                     let mode = *mode.get_or_insert_with(|| match pd.rgb() {
                         Some(rgb) => {
                             let max = rgb.map(|(r, g, b)| r.max(g).max(b)).max().unwrap_or(0);
@@ -252,7 +216,6 @@ impl Input {
                         ColourMode::Neutral => {}
                     }
                     f(&out)?;
-                    read += n;
                 }
                 Ok(())
             }
