@@ -427,7 +427,7 @@ impl PipelineArgs {
         let mut p = Pipeline {
             backface_culling: !self.no_backface_culling,
             lighting: !self.no_lighting,
-            light: self.light,
+            lights: vec![self.light],
             background: self.background,
             geometry: vec![],
             colour: vec![],

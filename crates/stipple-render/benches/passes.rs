@@ -25,7 +25,7 @@ fn passes(c: &mut Criterion) {
     let mut group = c.benchmark_group("cpu");
     group.throughput(Throughput::Elements(pts.len() as u64));
     group.bench_function("project_1M_points", |b| {
-        b.iter(|| project::project_private(&v, pts, normals, true, &mut bufs, &mut g))
+        b.iter(|| project::project_private(&v, pts, normals, true, None, &mut bufs, &mut g))
     });
     group.throughput(Throughput::Elements(v.pixels() as u64));
     let mut out = GBuffer::new(v.width, v.height);

@@ -14,10 +14,14 @@ pub mod gpu;
 pub mod masks;
 pub mod params;
 pub mod pipeline;
+pub mod shadow;
 
 pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
 pub use params::ViewParams;
-pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Light, Material, Pipeline};
+pub use pipeline::{
+    AreaLight, AreaShape, ColourPass, GeometryPass, Iterations, Kernel, Light, Material, Pipeline,
+};
+pub use shadow::LitTexture;
 
 use stipple_core::camera::CameraError;
 use stipple_core::{Camera, PointCloud};
@@ -30,6 +34,8 @@ pub enum RenderError {
     EmptyCloud,
     #[error(transparent)]
     Gpu(#[from] gpu::GpuError),
+    #[error("{0}")]
+    Invalid(String),
 }
 
 /// Which implementation runs the passes.
@@ -52,19 +58,51 @@ impl Backend {
     }
 }
 
-/// A cloud with what every frame needs computed once: the point spacing (for d̃) and the
-/// intensity scale.
+/// A scene's objects: the object of each point and each object's material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectTable {
+    /// Object per point (at most [`MAX_OBJECTS`] objects).
+    pub index: Vec<u8>,
+    pub materials: Vec<Material>,
+}
+
+/// Objects a scene may hold (the object index is 8 bits per point).
+pub const MAX_OBJECTS: usize = 256;
+
+/// A point's opacity as blending uses it: 8 bits, as in an sRGBA file (α = a / 255).
+#[inline]
+pub fn alpha8(opacity: f32) -> u8 {
+    (opacity.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// A cloud with what every frame needs computed once: the point spacing (for d̃), the
+/// intensity scale, opacities, and (for scenes) objects and shadow textures.
 pub struct PreparedCloud {
     pub cloud: PointCloud,
     /// Median nearest-neighbour distance, world units.
     pub spacing: f32,
     /// Maps intensity to [0, 1] (1 / the 99th percentile), when the cloud has intensity.
     pub intensity_scale: Option<f32>,
+    /// Per-point opacity in 8 bits (None: every point is opaque).
+    pub alpha: Option<Vec<u8>>,
+    /// The mean opacity: what a pixel filled by the anisotropic fill (no point of its own)
+    /// blends with.
+    pub mean_alpha: f32,
+    /// Objects and their materials (None: one object with the pipeline's material).
+    pub objects: Option<ObjectTable>,
+    /// The shadow texture in use (see [`PreparedCloud::set_lit`]).
+    lit: Option<LitTexture>,
     /// Unique per preparation: the GPU backend re-uploads when it changes.
     pub key: u64,
+    /// Changes whenever the shadow texture does (the GPU backend re-uploads it alone).
+    pub lit_key: u64,
 }
 
 static NEXT_CLOUD_KEY: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_key() -> u64 {
+    NEXT_CLOUD_KEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+}
 
 impl PreparedCloud {
     pub fn new(cloud: PointCloud) -> PreparedCloud {
@@ -88,11 +126,91 @@ impl PreparedCloud {
             })?;
             (p99 > 0).then(|| 1.0 / p99 as f32)
         });
+        let alpha: Option<Vec<u8>> = cloud
+            .opacity
+            .as_ref()
+            .map(|o| o.iter().map(|&a| alpha8(a)).collect());
+        let mean_alpha = match &alpha {
+            Some(a) if !a.is_empty() => {
+                a.iter().map(|&x| x as f64).sum::<f64>() / (255.0 * a.len() as f64)
+            }
+            _ => 1.0,
+        } as f32;
         PreparedCloud {
             cloud,
             spacing,
             intensity_scale,
-            key: NEXT_CLOUD_KEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            alpha,
+            mean_alpha,
+            objects: None,
+            lit: None,
+            key: next_key(),
+            lit_key: next_key(),
+        }
+    }
+
+    /// Gives the points objects with their own materials. Errors when the table does not
+    /// match the cloud.
+    pub fn with_objects(mut self, objects: ObjectTable) -> Result<PreparedCloud, RenderError> {
+        if objects.index.len() != self.cloud.len() {
+            return Err(RenderError::Invalid(format!(
+                "object table for {} points, but the cloud has {}",
+                objects.index.len(),
+                self.cloud.len()
+            )));
+        }
+        if objects.materials.is_empty() || objects.materials.len() > MAX_OBJECTS {
+            return Err(RenderError::Invalid(format!(
+                "{} objects (1 to {MAX_OBJECTS})",
+                objects.materials.len()
+            )));
+        }
+        if let Some(&o) = objects
+            .index
+            .iter()
+            .find(|&&o| o as usize >= objects.materials.len())
+        {
+            return Err(RenderError::Invalid(format!(
+                "a point belongs to object {o}, but there are {} materials",
+                objects.materials.len()
+            )));
+        }
+        self.objects = Some(objects);
+        self.key = next_key();
+        Ok(self)
+    }
+
+    /// Sets (or clears) the shadow texture shading uses. Errors when it does not match.
+    pub fn set_lit(&mut self, lit: Option<LitTexture>) -> Result<(), RenderError> {
+        if let Some(l) = &lit {
+            if l.counts.len() != self.cloud.len() {
+                return Err(RenderError::Invalid(format!(
+                    "shadow texture for {} points, but the cloud has {}",
+                    l.counts.len(),
+                    self.cloud.len()
+                )));
+            }
+        }
+        self.lit = lit;
+        self.lit_key = next_key();
+        Ok(())
+    }
+
+    pub fn lit(&self) -> Option<&LitTexture> {
+        self.lit.as_ref()
+    }
+
+    /// The Phong terms by object.
+    pub fn terms(&self, pipe: &Pipeline) -> Vec<cpu::shade::Terms> {
+        let t = |m: &Material| cpu::shade::Terms {
+            ambient: m.ambient,
+            diffuse: m.diffuse,
+            specular: m.specular,
+            shininess: m.shininess,
+        };
+        match &self.objects {
+            Some(o) => o.materials.iter().map(t).collect(),
+            None => vec![t(&pipe.material)],
         }
     }
 
@@ -137,6 +255,10 @@ pub struct Frame {
     /// Point shown per pixel ([`BACKGROUND`] where none).
     pub id: Vec<u32>,
     pub stats: Vec<PassStat>,
+    /// With depth peeling: how many layers held points, and (with
+    /// [`Pipeline::keep_layers`]) each layer's own image, sRGB 8-bit RGBA, front first.
+    pub layers: Vec<Vec<u8>>,
+    pub layers_peeled: u32,
 }
 
 /// A long-lived renderer on one backend. The GPU one keeps the last cloud uploaded, so
@@ -230,21 +352,115 @@ impl Renderer {
         if cloud.cloud.is_empty() {
             return Err(RenderError::EmptyCloud);
         }
+        pipe.validate().map_err(RenderError::Invalid)?;
         let v = ViewParams::new(camera, cloud.cloud.origin);
         let pipe = &cloud.resolve(pipe, &v);
         match &mut self.inner {
             Inner::Cpu(r) => Ok(r.render(cloud, &v, pipe)),
             Inner::Gpu { renderer, uploaded } => {
-                if uploaded.as_ref().map(|u| u.0) != Some(cloud.key) {
-                    *uploaded = None;
-                    let up = gpu::GpuCloud::upload(renderer.context(), cloud)?;
-                    *uploaded = Some((cloud.key, up));
-                }
-                let up = &uploaded.as_ref().expect("uploaded").1;
+                let up = upload(renderer, uploaded, cloud)?;
                 Ok(renderer.render(up, &v, pipe)?)
             }
         }
     }
+
+    /// Computes a shadow texture (Dobrev §6, see [`shadow`]) for `lights`, or refines
+    /// `start`: each light gets samples up to `min(its samples, max_samples)` (a point light
+    /// takes 1, an area light its own count; headlights and directional lights take none).
+    /// `progress(done, total)` is called after each sample.
+    pub fn shadow_texture(
+        &mut self,
+        cloud: &PreparedCloud,
+        lights: &[Light],
+        settings: &shadow::ShadowSettings,
+        start: Option<LitTexture>,
+        max_samples: u32,
+        progress: &mut dyn FnMut(u32, u32),
+    ) -> Result<LitTexture, RenderError> {
+        if cloud.cloud.is_empty() {
+            return Err(RenderError::EmptyCloud);
+        }
+        shadow::validate_lights(lights).map_err(RenderError::Invalid)?;
+        settings.validate().map_err(RenderError::Invalid)?;
+        let mut lit = start.unwrap_or_else(|| LitTexture::new(cloud.cloud.len()));
+        if lit.counts.len() != cloud.cloud.len() {
+            return Err(RenderError::Invalid(format!(
+                "shadow texture for {} points, but the cloud has {}",
+                lit.counts.len(),
+                cloud.cloud.len()
+            )));
+        }
+        let gap = settings
+            .layer_gap
+            .unwrap_or_else(|| cloud.layer_gap(&Pipeline::default()));
+        let bounds = cloud.cloud.bounds();
+        let mut todo = Vec::new();
+        for (l, light) in lights.iter().enumerate() {
+            let target = shadow::light_samples(light).min(max_samples);
+            for k in lit.samples[l]..target {
+                todo.push((l, k));
+            }
+        }
+        let total = todo.len() as u32;
+        let light_pipe = settings.light_pipeline(gap);
+        for (done, &(l, k)) in todo.iter().enumerate() {
+            let pos = shadow::sample_position(&lights[l], k).expect("lights with samples");
+            let views =
+                shadow::light_views(&bounds, cloud.cloud.origin, cloud.spacing, pos, settings);
+            let params = |face| cpu::shadow_texture::MarkParams {
+                gap,
+                slope_cap: settings.slope_cap,
+                face,
+                light: l as u32,
+            };
+            match &mut self.inner {
+                Inner::Cpu(r) => {
+                    for view in &views {
+                        let mut stats = Vec::new();
+                        r.geometry(cloud, &light_pipe, &view.view, None, &mut stats);
+                        let g = r.gbuffer().expect("made by geometry");
+                        cpu::shadow_texture::mark(
+                            &view.view,
+                            &g.depth,
+                            &cloud.cloud.positions,
+                            cloud.cloud.normals.as_deref(),
+                            &params(view.face),
+                            &mut lit.counts,
+                        );
+                    }
+                }
+                Inner::Gpu { renderer, uploaded } => {
+                    let up = upload(renderer, uploaded, cloud)?;
+                    up.write_counts(renderer.context(), &lit.counts)?;
+                    // The GPU copy now holds counts the cloud does not: rewrite it next frame.
+                    up.lit_key = 0;
+                    let marks: Vec<_> = views.iter().map(|v| (v.view, params(v.face))).collect();
+                    lit.counts = renderer.shadow_texture(up, &marks, &light_pipe)?;
+                }
+            }
+            lit.samples[l] = k + 1;
+            progress(done as u32 + 1, total);
+        }
+        Ok(lit)
+    }
+}
+
+/// The GPU copy of `cloud`, uploaded (or its shadow texture updated) when it changed.
+fn upload<'a>(
+    renderer: &gpu::GpuRenderer,
+    uploaded: &'a mut Option<(u64, gpu::GpuCloud)>,
+    cloud: &PreparedCloud,
+) -> Result<&'a mut gpu::GpuCloud, RenderError> {
+    if uploaded.as_ref().map(|u| u.0) != Some(cloud.key) {
+        *uploaded = None;
+        let up = gpu::GpuCloud::upload(renderer.context(), cloud)?;
+        *uploaded = Some((cloud.key, up));
+    }
+    let up = &mut uploaded.as_mut().expect("uploaded").1;
+    if up.lit_key != cloud.lit_key {
+        up.set_lit(renderer.context(), cloud.lit(), cloud.lit_key)?;
+    }
+    Ok(up)
 }
 
 /// Renders one frame with a fresh renderer (for repeated frames keep a [`Renderer`]).

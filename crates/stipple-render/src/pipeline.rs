@@ -113,7 +113,7 @@ pub enum ColourPass {
     Edl { strength: f32, radius: f32 },
 }
 
-/// Where the light is.
+/// Where a light is.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
     /// At the eye (the default).
@@ -122,6 +122,37 @@ pub enum Light {
     Directional([f64; 3]),
     /// At a world position.
     Point([f64; 3]),
+    /// An area light (Dobrev §6): shaded as a point light at its centre; its shadow texture
+    /// averages `samples` point lights spread over its area.
+    Area(AreaLight),
+}
+
+/// A flat light: a rectangle or a disc centred at `centre`, facing `facing`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaLight {
+    pub centre: [f64; 3],
+    /// The direction the emitting face looks (need not be unit length).
+    pub facing: [f64; 3],
+    pub shape: AreaShape,
+    /// Monte Carlo samples for the shadow texture (1 to [`crate::shadow::MAX_SAMPLES`]).
+    pub samples: u32,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AreaShape {
+    Rectangle { width: f64, height: f64 },
+    Disc { radius: f64 },
+}
+
+impl Light {
+    /// The position shading uses (the centre of an area light), if the light has one.
+    pub fn position(&self) -> Option<[f64; 3]> {
+        match self {
+            Light::Point(p) => Some(*p),
+            Light::Area(a) => Some(a.centre),
+            Light::Headlight | Light::Directional(_) => None,
+        }
+    }
 }
 
 /// Phong material (Dobrev §3.1: ambient, diffuse, specular).
@@ -153,12 +184,21 @@ pub struct Pipeline {
     pub backface_culling: bool,
     pub geometry: Vec<GeometryPass>,
     pub colour: Vec<ColourPass>,
-    pub light: Light,
+    /// The lights (1 to [`crate::shadow::MAX_LIGHTS`]; the Phong terms add up).
+    pub lights: Vec<Light>,
+    /// The material of a plain cloud (a scene's objects carry their own, see
+    /// [`crate::ObjectTable`]).
     pub material: Material,
     /// Whether to light with normals at all (clouds without normals are never lit).
     pub lighting: bool,
     /// Background colour, sRGB 8-bit.
     pub background: [u8; 3],
+    /// Depth peeling (Dobrev §4–5): how many layers to peel and blend front to back with each
+    /// point's opacity; 1 = the nearest surface only. Peeling stops early at an empty layer.
+    /// With more than one layer back faces are kept (a closed surface has a back layer).
+    pub layers: u32,
+    /// Keep every layer's own image in the frame ([`crate::Frame::layers`]).
+    pub keep_layers: bool,
 }
 
 impl Default for Pipeline {
@@ -187,10 +227,12 @@ impl Default for Pipeline {
                     strength: 0.6,
                 },
             ],
-            light: Light::Headlight,
+            lights: vec![Light::Headlight],
             material: Material::default(),
             lighting: true,
             background: [24, 26, 31],
+            layers: 1,
+            keep_layers: false,
         }
     }
 }
@@ -358,6 +400,24 @@ pub fn layer_gap(pipe: &Pipeline, spacing: f32) -> f32 {
         })
         .unwrap_or_else(|| default_layer_gap(spacing))
 }
+
+impl Pipeline {
+    /// Checks what a frame cannot run with: the lights (see [`crate::shadow::validate_lights`])
+    /// and the layer count (1 to [`MAX_LAYERS`]).
+    pub fn validate(&self) -> Result<(), String> {
+        crate::shadow::validate_lights(&self.lights)?;
+        if !(1..=MAX_LAYERS).contains(&self.layers) {
+            return Err(format!(
+                "{} layers: depth peeling takes 1 to {MAX_LAYERS}",
+                self.layers
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The most layers a frame peels.
+pub const MAX_LAYERS: u32 = 64;
 
 impl GeometryPass {
     pub fn name(&self) -> &'static str {

@@ -100,7 +100,7 @@ fn cpu_project(v: &ViewParams, c: &PointCloud, cull: bool) -> (GBuffer, u64) {
     let vis: Vec<AtomicU64> = (0..v.pixels())
         .map(|_| AtomicU64::new(project::EMPTY_KEY))
         .collect();
-    let kept = project::project(v, &c.positions, c.normals.as_deref(), cull, &vis);
+    let kept = project::project(v, &c.positions, c.normals.as_deref(), cull, None, &vis);
     let mut g = GBuffer::new(v.width, v.height);
     project::resolve(&vis, &mut g);
     (g, kept)
@@ -285,16 +285,18 @@ fn shade_matches_the_cpu() {
         let up = GpuCloud::upload(&ctx, &prepared).unwrap();
         let (g, _) = cpu_project(&v, &prepared.cloud, true);
         let pipe = Pipeline {
-            light,
+            lights: vec![light],
             ..Pipeline::default()
         };
         let (colour, depth) = r.shade(&up, &v, &g, &pipe).unwrap();
         let gap = prepared.layer_gap(&pipe);
-        let params = stipple_render::cpu::shade_params(prepared.cloud.origin, &pipe, gap);
+        let params = prepared.shade_params(&pipe, gap);
         let input = shade::ShadeInput {
             positions: &prepared.cloud.positions,
             normals: prepared.cloud.normals.as_deref(),
             albedo: prepared.albedo(&pipe),
+            objects: None,
+            lit: None,
         };
         let mut want_c = vec![[0.0f32; 3]; v.pixels()];
         let mut want_d = vec![0.0f32; v.pixels()];

@@ -14,6 +14,10 @@
 //! keys does not depend on the split, so the result is identical to the atomic version
 //! ([`project`], the shape of the GPU kernel, used with many threads).
 //!
+//! Depth peeling (Dobrev §4–5, the `peel` argument): a later layer keeps only the points
+//! farther than the previous layer's surface depth at their pixel plus d̃, so points of the
+//! same surface layer that share a pixel (Fig. 11) are not peeled as layers of their own.
+//!
 //! Deviation from the paper: points are lit after visibility is resolved (in `shade`), not
 //! before projection. The lit colour of the winning point is the same, and only visible
 //! points pay for lighting.
@@ -71,6 +75,9 @@ pub fn back_facing(v: &ViewParams, p: Vec3, n: Vec3) -> bool {
 /// Points per parallel task.
 const BATCH: usize = 1 << 15;
 
+/// Reference depths of a peel and d̃: keep only points deeper than `reference[pixel] + d̃`.
+pub type Peel<'a> = Option<(&'a [f32], f32)>;
+
 /// Projects `positions` into `vis` (length width × height, reset to [`EMPTY_KEY`] by the
 /// caller). Returns the number of points that passed culling.
 pub fn project(
@@ -78,6 +85,7 @@ pub fn project(
     positions: &[Vec3],
     normals: Option<&[Vec3]>,
     cull_backfaces: bool,
+    peel: Peel,
     vis: &[AtomicU64],
 ) -> u64 {
     assert_eq!(vis.len(), v.pixels());
@@ -86,7 +94,7 @@ pub fn project(
         .par_chunks(BATCH)
         .enumerate()
         .map(|(b, chunk)| {
-            project_range(v, chunk, normals, b * BATCH, |pix, key| {
+            project_range(v, chunk, normals, peel, b * BATCH, |pix, key| {
                 let slot = &vis[pix];
                 if key < slot.load(Ordering::Relaxed) {
                     slot.fetch_min(key, Ordering::Relaxed);
@@ -103,6 +111,7 @@ fn project_range(
     v: &ViewParams,
     positions: &[Vec3],
     normals: Option<&[Vec3]>,
+    peel: Peel,
     base: usize,
     mut write: impl FnMut(usize, u64),
 ) -> u64 {
@@ -111,6 +120,11 @@ fn project_range(
         let Some((pix, z)) = project_point(v, p) else {
             continue;
         };
+        if let Some((reference, gap)) = peel {
+            if !(z > reference[pix] + gap) {
+                continue;
+            }
+        }
         let index = base + k;
         if let Some(n) = normals {
             if back_facing(v, p, n[index]) {
@@ -130,6 +144,7 @@ pub fn project_private(
     positions: &[Vec3],
     normals: Option<&[Vec3]>,
     cull_backfaces: bool,
+    peel: Peel,
     bufs: &mut [Vec<u64>],
     g: &mut GBuffer,
 ) -> u64 {
@@ -144,7 +159,7 @@ pub fn project_private(
             buf.resize(v.pixels(), EMPTY_KEY);
             let lo = (s * per).min(positions.len());
             let hi = ((s + 1) * per).min(positions.len());
-            project_range(v, &positions[lo..hi], normals, lo, |pix, key| {
+            project_range(v, &positions[lo..hi], normals, peel, lo, |pix, key| {
                 let slot = &mut buf[pix];
                 if key < *slot {
                     *slot = key;
@@ -209,14 +224,14 @@ mod tests {
     /// Runs both strategies and checks they agree.
     fn run(v: &ViewParams, pts: &[Vec3], normals: Option<&[Vec3]>) -> GBuffer {
         let vis: Vec<AtomicU64> = (0..v.pixels()).map(|_| AtomicU64::new(EMPTY_KEY)).collect();
-        let kept = project(v, pts, normals, true, &vis);
+        let kept = project(v, pts, normals, true, None, &vis);
         let mut g = GBuffer::new(v.width, v.height);
         resolve(&vis, &mut g);
         for shares in [1, 2, 3] {
             let mut bufs = vec![Vec::new(); shares];
             let mut g2 = GBuffer::new(v.width, v.height);
             assert_eq!(
-                project_private(v, pts, normals, true, &mut bufs, &mut g2),
+                project_private(v, pts, normals, true, None, &mut bufs, &mut g2),
                 kept
             );
             assert_eq!(g2, g, "{shares} private buffers");

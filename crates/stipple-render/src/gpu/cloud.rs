@@ -17,6 +17,10 @@ pub struct Chunk {
     pub normals: Option<wgpu::Buffer>,
     /// sRGB 8-bit albedo per point packed r | g << 8 | b << 16 (colours, or intensity as grey).
     pub albedo: Option<wgpu::Buffer>,
+    /// Object index | 8-bit opacity << 8, per point (absent: object 0, opaque).
+    pub style: Option<wgpu::Buffer>,
+    /// Shadow texture counts per point (absent: no shadow texture).
+    pub lit: Option<wgpu::Buffer>,
 }
 
 pub struct GpuCloud {
@@ -27,6 +31,14 @@ pub struct GpuCloud {
     pub spacing: f32,
     pub has_normals: bool,
     pub has_albedo: bool,
+    /// Material terms by object, for a scene (None: the pipeline's material).
+    pub materials: Option<Vec<crate::cpu::shade::Terms>>,
+    /// Samples per light of the uploaded shadow texture ([0; 4]: none).
+    pub samples: [u32; 4],
+    /// The mean opacity (see [`PreparedCloud::mean_alpha`]).
+    pub mean_alpha: f32,
+    /// The [`PreparedCloud::lit_key`] of the shadow texture uploaded.
+    pub lit_key: u64,
     pub chunks: Vec<Chunk>,
     /// Bound where a chunk has no normals or albedo (never read then).
     pub dummy: wgpu::Buffer,
@@ -70,6 +82,19 @@ impl GpuCloud {
         } else {
             None
         };
+        let style: Option<Vec<u32>> = if cloud.objects.is_some() || cloud.alpha.is_some() {
+            Some(
+                (0..c.len())
+                    .map(|i| {
+                        let o = cloud.objects.as_ref().map_or(0, |o| o.index[i] as u32);
+                        let a = cloud.alpha.as_ref().map_or(255, |a| a[i] as u32);
+                        o | a << 8
+                    })
+                    .collect(),
+            )
+        } else {
+            None
+        };
         let d = &ctx.device;
         let usage = BufferUsages::STORAGE | BufferUsages::VERTEX;
         let init = |label: &str, bytes: &[u8]| {
@@ -94,20 +119,94 @@ impl GpuCloud {
                 albedo: albedo
                     .as_ref()
                     .map(|a| init("albedo", bytemuck::cast_slice(&a[base..end]))),
+                style: style
+                    .as_ref()
+                    .map(|a| init("style", bytemuck::cast_slice(&a[base..end]))),
+                lit: None,
             });
             base = end;
         }
         let dummy = init("dummy", &[0u8; 16]);
         ctx.take_errors()?;
-        Ok(GpuCloud {
+        let mut up = GpuCloud {
             key: NEXT_KEY.fetch_add(1, Ordering::Relaxed),
             len: c.len(),
             origin: c.origin,
             spacing: cloud.spacing,
             has_normals: c.normals.is_some(),
             has_albedo: albedo.is_some(),
+            materials: cloud
+                .objects
+                .as_ref()
+                .map(|_| cloud.terms(&crate::Pipeline::default())),
+            samples: [0; 4],
+            mean_alpha: cloud.mean_alpha,
+            lit_key: 0,
             chunks,
             dummy,
-        })
+        };
+        up.set_lit(ctx, cloud.lit(), cloud.lit_key)?;
+        Ok(up)
+    }
+
+    /// Uploads a shadow texture's counts (or drops them), creating the per-chunk buffers the
+    /// first time (a new key then, so bind groups are made anew).
+    pub fn set_lit(
+        &mut self,
+        ctx: &GpuContext,
+        lit: Option<&crate::LitTexture>,
+        lit_key: u64,
+    ) -> Result<(), GpuError> {
+        match lit {
+            Some(l) => {
+                self.write_counts(ctx, &l.counts)?;
+                self.samples = l.samples;
+            }
+            None => {
+                if self.chunks.iter().any(|c| c.lit.is_some()) {
+                    for c in &mut self.chunks {
+                        c.lit = None;
+                    }
+                    self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
+                }
+                self.samples = [0; 4];
+            }
+        }
+        self.lit_key = lit_key;
+        Ok(())
+    }
+
+    /// Writes per-point lit counts into the chunks' buffers (made when missing).
+    pub fn write_counts(&mut self, ctx: &GpuContext, counts: &[u32]) -> Result<(), GpuError> {
+        if counts.len() != self.len {
+            return Err(GpuError::TooLarge(format!(
+                "lit counts for {} points, the cloud has {}",
+                counts.len(),
+                self.len
+            )));
+        }
+        let mut made = false;
+        for c in &mut self.chunks {
+            let data = &counts[c.base as usize..(c.base + c.count) as usize];
+            match &c.lit {
+                Some(b) => ctx.queue.write_buffer(b, 0, bytemuck::cast_slice(data)),
+                None => {
+                    c.lit = Some(ctx.device.create_buffer_init(
+                        &wgpu::util::BufferInitDescriptor {
+                            label: Some("lit"),
+                            contents: bytemuck::cast_slice(data),
+                            usage: BufferUsages::STORAGE
+                                | BufferUsages::COPY_SRC
+                                | BufferUsages::COPY_DST,
+                        },
+                    ));
+                    made = true;
+                }
+            }
+        }
+        if made {
+            self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
+        }
+        ctx.take_errors()
     }
 }

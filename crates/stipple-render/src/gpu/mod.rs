@@ -7,8 +7,14 @@
 //!   | visibility → shade (gather per chunk, then shade)
 //!   → smooth / antialias | fill_anisotropic / depiction / edl → output
 //! ```
+//!
+//! With depth peeling the frame repeats project (with the previous layer's depth as
+//! reference) through the colour passes per layer, blending each into an accumulator
+//! (`blend_layers`); shadow textures run project and the fills from each light view, then
+//! `shadow_texture` over the points.
 
 pub mod antialias;
+pub mod blend_layers;
 pub mod cloud;
 pub mod context;
 pub mod depiction;
@@ -24,6 +30,7 @@ pub mod project_hw;
 pub mod renderer;
 pub mod shade;
 pub mod shaders;
+pub mod shadow_texture;
 pub mod smooth;
 mod util;
 pub mod visibility;

@@ -21,6 +21,10 @@ pub(crate) struct ChunkBlock {
     pub count: u32,
     pub cull: u32,
     pub slot: u32,
+    /// 1: depth peeling against the reference depth, with `gap` = d̃.
+    pub peel: u32,
+    pub gap: f32,
+    pub pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -39,7 +43,7 @@ pub(crate) struct Project {
     pub resolve: wgpu::ComputePipeline,
 }
 
-const BASE: [Slot; 5] = [UNIFORM, DYNAMIC, READ, READ, WRITE];
+const BASE: [Slot; 6] = [UNIFORM, DYNAMIC, READ, READ, WRITE, READ];
 
 impl Project {
     pub fn new(ctx: &GpuContext) -> Project {
@@ -78,7 +82,7 @@ impl Project {
     }
 
     /// The layout of the projection in use: view, chunk block (arena), positions, normals,
-    /// counters, then the visibility buffer(s).
+    /// counters, the peeling reference depth, then the visibility buffer(s).
     pub fn bgl(&self) -> &wgpu::BindGroupLayout {
         match &self.wide {
             Some((bgl, _)) => bgl,

@@ -3,6 +3,7 @@
 //! once and reused while the frame size stays the same.
 
 use super::antialias::AntialiasBlock;
+use super::blend_layers::{BlendBlock, BlendLayers};
 use super::cloud::GpuCloud;
 use super::context::{GpuContext, GpuError};
 use super::depiction::{Depiction, DepictionBlock};
@@ -13,6 +14,7 @@ use super::iterate::IterateBlock;
 use super::project::{ChunkBlock, Project, ResolveBlock, POINTS_PER_GROUP};
 use super::project_hw::{ProjectHw, Targets};
 use super::shade::{GatherBlock, Shade, ShadeBlock};
+use super::shadow_texture::MarkBlock;
 use super::smooth::SmoothBlock;
 use super::util::{self, Arena, Pass, Res};
 use super::visibility::VisibilityBlock;
@@ -76,6 +78,10 @@ struct Kit {
     fill_anisotropic: Pass,
     depiction: Depiction,
     edl: Pass,
+    /// Material terms by object (uniform array, written per frame).
+    materials: Buffer,
+    blend: BlendLayers,
+    mark: Pass,
 }
 
 struct FrameBuffers {
@@ -87,6 +93,13 @@ struct FrameBuffers {
     id: [Buffer; 2],
     attr_pos: Buffer,
     attr_normal: Buffer,
+    /// (object | opacity << 8, shadow counts) of each pixel's point.
+    attr_style: Buffer,
+    /// Depth peeling: the previous layer's surface depth, and the blend accumulator.
+    peel_ref: Buffer,
+    acc: Buffer,
+    /// Each layer's image when the pipeline keeps them (made on demand).
+    layers_read: Option<Buffer>,
     colour: [Buffer; 2],
     surface: Buffer,
     /// The anisotropic fill's second depth image; the depiction's level images and term.
@@ -117,6 +130,10 @@ impl FrameBuffers {
             id: [s("id a", 4 * n), s("id b", 4 * n)],
             attr_pos: s("pixel positions", 16 * n),
             attr_normal: s("pixel normals", 16 * n),
+            attr_style: s("pixel styles", 8 * n),
+            peel_ref: s("peel reference", 4 * n),
+            acc: s("blend accumulator", 16 * n),
+            layers_read: None,
             colour: [s("colour a", 16 * n), s("colour b", 16 * n)],
             surface: s("surface depth", 4 * n),
             surface_b: s("surface depth b", 4 * n),
@@ -166,6 +183,8 @@ struct FrameGroups {
     depiction_level: [wgpu::BindGroup; 2],
     depiction_apply: [wgpu::BindGroup; 2],
     edl: [wgpu::BindGroup; 2],
+    /// By geometry image and colour image (compose writes colour 0 through `[g][0]`).
+    blend: [[wgpu::BindGroup; 2]; 2],
 }
 
 impl FrameGroups {
@@ -199,6 +218,25 @@ impl FrameGroups {
                     Res::Buf(&kit.to_linear),
                     Res::Buf(&f.colour[0]),
                     Res::Buf(&f.surface),
+                    Res::Buf(&f.attr_style),
+                    Res::Buf(&kit.materials),
+                ],
+            )
+        };
+        let blend = |g: usize, c: usize| {
+            util::bind(
+                d,
+                "blend_layers",
+                &kit.blend.bgl,
+                &[
+                    Res::Buf(&kit.view),
+                    Res::Arena(arena, block::<BlendBlock>()),
+                    Res::Buf(&f.id[g]),
+                    Res::Buf(&f.surface),
+                    Res::Buf(&f.attr_style),
+                    Res::Buf(&f.colour[c]),
+                    Res::Buf(&f.acc),
+                    Res::Buf(&kit.counters),
                 ],
             )
         };
@@ -312,6 +350,7 @@ impl FrameGroups {
             ]
         };
         FrameGroups {
+            blend: [[blend(0, 0), blend(0, 1)], [blend(1, 0), blend(1, 1)]],
             visibility: [visibility(0), visibility(1)],
             fill_anisotropic: [fa(0), fa(1)],
             depiction_level: [level(0), level(1)],
@@ -347,6 +386,8 @@ struct CloudGroups {
     project: Vec<wgpu::BindGroup>,
     /// Per chunk, by geometry image.
     gather: Vec<[wgpu::BindGroup; 2]>,
+    /// Per chunk with shadow counts, by geometry image (the light image's filled depth).
+    mark: Vec<Option<[wgpu::BindGroup; 2]>>,
 }
 
 impl CloudGroups {
@@ -368,6 +409,7 @@ impl CloudGroups {
                     Res::Buf(&c.positions),
                     Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
                     Res::Buf(&kit.counters),
+                    Res::Buf(&f.peel_ref),
                     Res::Buf(&f.vis),
                 ];
                 if kit.project.wide.is_none() {
@@ -392,15 +434,40 @@ impl CloudGroups {
                             Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
                             Res::Buf(&f.attr_pos),
                             Res::Buf(&f.attr_normal),
+                            Res::Buf(c.style.as_ref().unwrap_or(&cloud.dummy)),
+                            Res::Buf(c.lit.as_ref().unwrap_or(&cloud.dummy)),
+                            Res::Buf(&f.attr_style),
                         ],
                     )
                 })
+            })
+            .collect();
+        let mark = cloud
+            .chunks
+            .iter()
+            .map(|c| {
+                let lit = c.lit.as_ref()?;
+                Some([0, 1].map(|g| {
+                    kit.mark.bind(
+                        d,
+                        &[
+                            Res::Buf(&kit.view),
+                            Res::Arena(arena, block::<MarkBlock>()),
+                            Res::Buf(&c.positions),
+                            Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                            Res::Buf(&f.depth[g]),
+                            Res::Buf(lit),
+                            Res::Buf(&kit.counters),
+                        ],
+                    )
+                }))
             })
             .collect();
         CloudGroups {
             key: cloud.key,
             project,
             gather,
+            mark,
         }
     }
 }
@@ -567,6 +634,8 @@ pub struct GpuRenderer {
     kit: Kit,
     arena: Arena,
     frame: Option<FrameBuffers>,
+    /// The light images' buffers (shadow textures), kept apart from the camera's.
+    shadow_frame: Option<FrameBuffers>,
     pub projection: ProjectionPath,
     /// Without timestamp queries, submit and wait after each pass to time it (benchmarks).
     pub sync_timing: bool,
@@ -680,6 +749,14 @@ impl GpuRenderer {
             fill_anisotropic: super::fill_anisotropic::new(&ctx),
             depiction: Depiction::new(&ctx),
             edl: super::edl::new(&ctx),
+            materials: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("materials"),
+                size: std::mem::size_of::<super::shade::MaterialTable>() as u64,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            blend: BlendLayers::new(&ctx),
+            mark: super::shadow_texture::new(&ctx),
         };
         ctx.take_errors()?;
         Ok(GpuRenderer {
@@ -687,6 +764,7 @@ impl GpuRenderer {
             kit,
             arena,
             frame: None,
+            shadow_frame: None,
             projection: ProjectionPath::Compute,
             sync_timing: false,
         })
@@ -779,7 +857,9 @@ fn recorder<'a>(ctx: &'a GpuContext, kit: &'a Kit, arena: &'a mut Arena, sync: b
 }
 
 impl GpuRenderer {
-    /// Renders one frame of an uploaded cloud.
+    /// Renders one frame of an uploaded cloud: one layer, or with [`Pipeline::layers`] > 1
+    /// the peeled layers blended front to back (all layers are recorded into one command
+    /// buffer; a layer after an empty one is empty and blends nothing).
     pub fn render(
         &mut self,
         cloud: &GpuCloud,
@@ -788,37 +868,103 @@ impl GpuRenderer {
     ) -> Result<Frame, GpuError> {
         self.prepare(v)?;
         let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
-        let shade_block = ShadeBlock::for_cloud(cloud, pipe);
-        let projection = self.projection;
+        let (shade_block, materials) = ShadeBlock::for_cloud(cloud, pipe);
+        self.ctx
+            .queue
+            .write_buffer(&self.kit.materials, 0, bytemuck::cast_slice(&materials[..]));
+        let layers = pipe.layers.max(1);
+        // Peeling runs on the compute rasterizer (the hardware path has no reference test).
+        let projection = if layers > 1 {
+            ProjectionPath::Compute
+        } else {
+            self.projection
+        };
         let mut f = self.frame.take().expect("prepared");
         ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
+        let n = v.width as u64 * v.height as u64;
+        if layers > 1 && pipe.keep_layers {
+            let bytes = 4 * n * layers as u64;
+            if f.layers_read.as_ref().map(|b| b.size()) != Some(bytes) {
+                f.layers_read = Some(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("layers readback"),
+                    size: bytes,
+                    usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }));
+            }
+        }
         let result = (|| {
             let kit = &self.kit;
             let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
             let mut cur = Cursor::default();
-            match (projection, &f.targets) {
-                (ProjectionPath::Hardware, Some((t, copy))) => {
-                    record_project_hw(&mut rec, kit, &f, t, copy, cloud, pipe.backface_culling)?
+            let cull = pipe.backface_culling && layers == 1;
+            let background = {
+                let lut = srgb_to_linear_table();
+                pipe.background.map(|c| lut[c as usize])
+            };
+            if layers > 1 {
+                record_blend(&mut rec, kit, &f, &cur, None, background)?;
+            }
+            for k in 0..layers {
+                cur = Cursor::default();
+                if k > 0 {
+                    rec.enc
+                        .copy_buffer_to_buffer(&f.surface, 0, &f.peel_ref, 0, 4 * n);
                 }
-                _ => record_project(&mut rec, kit, &f, cloud, pipe.backface_culling)?,
+                let peel = (k > 0).then_some(gap);
+                match (projection, &f.targets) {
+                    (ProjectionPath::Hardware, Some((t, copy))) => {
+                        record_project_hw(&mut rec, kit, &f, t, copy, cloud, cull)?
+                    }
+                    _ => record_project(&mut rec, kit, &f, cloud, cull, peel)?,
+                }
+                for pass in &pipe.geometry {
+                    record_geometry(&mut rec, kit, &f, &mut cur, pass, gap)?;
+                }
+                record_shade(&mut rec, kit, &f, &cur, cloud, shade_block)?;
+                for pass in &pipe.colour {
+                    record_colour(&mut rec, kit, &f, &mut cur, pass, v)?;
+                }
+                if k == 0 {
+                    rec.enc
+                        .copy_buffer_to_buffer(&f.surface, 0, &f.read, 4 * n, 4 * n);
+                    rec.enc
+                        .copy_buffer_to_buffer(&f.id[cur.g], 0, &f.read, 8 * n, 4 * n);
+                }
+                if layers > 1 {
+                    record_blend(&mut rec, kit, &f, &cur, Some(cloud.mean_alpha), background)?;
+                    if let Some(lr) = &f.layers_read {
+                        if pipe.keep_layers {
+                            record_output(&mut rec, kit, &f, &cur)?;
+                            rec.enc
+                                .copy_buffer_to_buffer(&f.rgba, 0, lr, 4 * n * k as u64, 4 * n);
+                        }
+                    }
+                }
             }
-            for pass in &pipe.geometry {
-                record_geometry(&mut rec, kit, &f, &mut cur, pass, gap)?;
-            }
-            record_shade(&mut rec, kit, &f, &cur, cloud, shade_block)?;
-            for pass in &pipe.colour {
-                record_colour(&mut rec, kit, &f, &mut cur, pass, v)?;
+            if layers > 1 {
+                record_compose(&mut rec, kit, &f, background)?;
+                cur.colour = 0;
             }
             record_output(&mut rec, kit, &f, &cur)?;
-            let n = v.width as u64 * v.height as u64;
             rec.enc.copy_buffer_to_buffer(&f.rgba, 0, &f.read, 0, 4 * n);
-            rec.enc
-                .copy_buffer_to_buffer(&f.surface, 0, &f.read, 4 * n, 4 * n);
-            rec.enc
-                .copy_buffer_to_buffer(&f.id[cur.g], 0, &f.read, 8 * n, 4 * n);
             let sections = finish(rec, kit)?;
             let bytes = read_back(&self.ctx, &f.read, 12 * n)?;
             let stats = stats(&self.ctx, kit, &sections)?;
+            let peeled = stats
+                .iter()
+                .filter(|s| s.name == "project")
+                .take_while(|s| s.count > 0)
+                .count() as u32;
+            let mut layer_images = Vec::new();
+            if let (true, true, Some(lr)) = (layers > 1, pipe.keep_layers, &f.layers_read) {
+                let all = read_back(&self.ctx, lr, 4 * n * layers as u64)?;
+                layer_images = all
+                    .chunks(4 * n as usize)
+                    .take(peeled as usize)
+                    .map(|c| c.to_vec())
+                    .collect();
+            }
             let n = n as usize;
             Ok(Frame {
                 width: v.width,
@@ -827,10 +973,59 @@ impl GpuRenderer {
                 depth: bytemuck::cast_slice(&bytes[4 * n..8 * n]).to_vec(),
                 id: bytemuck::cast_slice(&bytes[8 * n..12 * n]).to_vec(),
                 stats,
+                layers: layer_images,
+                layers_peeled: if layers > 1 { peeled } else { 1 },
             })
         })();
         self.frame = Some(f);
         result
+    }
+
+    /// Adds one shadow sample's marks to an uploaded cloud's shadow counts (which must exist,
+    /// see [`GpuCloud::write_counts`]): per light view, project and the light pipeline's fills,
+    /// then `shadow_texture` over every chunk. Returns the counts read back.
+    pub fn shadow_texture(
+        &mut self,
+        cloud: &GpuCloud,
+        marks: &[(ViewParams, crate::cpu::shadow_texture::MarkParams)],
+        light_pipe: &Pipeline,
+    ) -> Result<Vec<u32>, GpuError> {
+        if cloud.chunks.iter().any(|c| c.lit.is_none()) {
+            return Err(GpuError::Wgpu(
+                "shadow_texture: the cloud has no shadow counts uploaded".into(),
+            ));
+        }
+        std::mem::swap(&mut self.frame, &mut self.shadow_frame);
+        let r = (|| {
+            for (v, mp) in marks {
+                self.prepare(v)?;
+                let mut f = self.frame.take().expect("prepared");
+                ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
+                let r = (|| {
+                    let kit = &self.kit;
+                    let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+                    let mut cur = Cursor::default();
+                    record_project(&mut rec, kit, &f, cloud, false, None)?;
+                    for pass in &light_pipe.geometry {
+                        record_geometry(&mut rec, kit, &f, &mut cur, pass, mp.gap)?;
+                    }
+                    record_mark(&mut rec, kit, &f, &cur, cloud, mp)?;
+                    finish(rec, kit)?;
+                    Ok(())
+                })();
+                self.frame = Some(f);
+                r?;
+            }
+            let mut counts = Vec::with_capacity(cloud.len);
+            for c in &cloud.chunks {
+                let lit = c.lit.as_ref().expect("checked");
+                let raw = copy_out(&self.ctx, lit, 4 * c.count as u64)?;
+                counts.extend_from_slice(bytemuck::cast_slice::<u8, u32>(&raw));
+            }
+            Ok(counts)
+        })();
+        std::mem::swap(&mut self.frame, &mut self.shadow_frame);
+        r
     }
 
     /// Runs project (and resolve) only: the G-buffer of the nearest points, and points kept.
@@ -851,7 +1046,7 @@ impl GpuRenderer {
                 (ProjectionPath::Hardware, Some((t, copy))) => {
                     record_project_hw(&mut rec, kit, &f, t, copy, cloud, cull)?
                 }
-                _ => record_project(&mut rec, kit, &f, cloud, cull)?,
+                _ => record_project(&mut rec, kit, &f, cloud, cull, None)?,
             }
             let sections = finish(rec, kit)?;
             let stats = stats(&self.ctx, kit, &sections)?;
@@ -900,7 +1095,10 @@ impl GpuRenderer {
         pipe: &Pipeline,
     ) -> Result<(Vec<[f32; 3]>, Vec<f32>), GpuError> {
         self.prepare(v)?;
-        let block = ShadeBlock::for_cloud(cloud, pipe);
+        let (block, materials) = ShadeBlock::for_cloud(cloud, pipe);
+        self.ctx
+            .queue
+            .write_buffer(&self.kit.materials, 0, bytemuck::cast_slice(&materials[..]));
         let mut f = self.frame.take().expect("prepared");
         ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
         let r = (|| {
@@ -1047,6 +1245,7 @@ fn record_project(
     f: &FrameBuffers,
     cloud: &GpuCloud,
     cull: bool,
+    peel: Option<f32>,
 ) -> Result<(), GpuError> {
     let ctx = rec.ctx;
     rec.start();
@@ -1062,6 +1261,9 @@ fn record_project(
             count: c.count,
             cull: cull as u32,
             slot,
+            peel: peel.is_some() as u32,
+            gap: peel.unwrap_or(0.0),
+            pad: [0; 2],
         })?;
         chunks.push((bg, off, ctx.grid(c.count.div_ceil(POINTS_PER_GROUP))));
     }
@@ -1110,6 +1312,9 @@ fn record_project_hw(
             count: c.count,
             cull: cull as u32,
             slot: 0,
+            peel: 0,
+            gap: 0.0,
+            pad: [0; 2],
         })?;
         draws.push((off, c));
     }
@@ -1301,6 +1506,9 @@ fn record_shade(
             count: c.count,
             has_normals: c.normals.is_some() as u32,
             has_albedo: c.albedo.is_some() as u32,
+            has_style: c.style.is_some() as u32,
+            has_lit: c.lit.is_some() as u32,
+            pad: [0; 2],
         })?;
         gathers.push((&groups[cur.g], off));
     }
@@ -1445,6 +1653,107 @@ fn record_colour(
             rec.end("edl", 1, vec![], q)
         }
     }
+}
+
+/// `begin` (no `hole_alpha`: clears the accumulator) or `blend` of the current layer.
+fn record_blend(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cur: &Cursor,
+    hole_alpha: Option<f32>,
+    background: [f32; 3],
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let slot = rec.slot()?;
+    let off = rec.arena.push(&BlendBlock {
+        hole_alpha: hole_alpha.unwrap_or(0.0),
+        slot,
+        pad: [0; 2],
+        background,
+        pad2: 0,
+    })?;
+    let q = rec.queries();
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    p.set_pipeline(match hole_alpha {
+        Some(_) => &kit.blend.blend,
+        None => &kit.blend.begin,
+    });
+    p.set_bind_group(0, &f.groups().blend[cur.g][cur.colour], &[off]);
+    p.dispatch_workgroups(gx, gy, 1);
+    drop(p);
+    match hole_alpha {
+        Some(_) => rec.end("blend_layers", 1, vec![slot], q),
+        None => rec.end("blend_begin", 1, vec![], q),
+    }
+}
+
+/// The composite over the background into colour image 0.
+fn record_compose(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    background: [f32; 3],
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let off = rec.arena.push(&BlendBlock {
+        hole_alpha: 0.0,
+        slot: 0,
+        pad: [0; 2],
+        background,
+        pad2: 0,
+    })?;
+    let q = rec.queries();
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    p.set_pipeline(&kit.blend.compose);
+    p.set_bind_group(0, &f.groups().blend[0][0], &[off]);
+    p.dispatch_workgroups(gx, gy, 1);
+    drop(p);
+    rec.end("compose", 1, vec![], q)
+}
+
+/// `shadow_texture` over every chunk against the light image in `cur.g`.
+fn record_mark(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    cur: &Cursor,
+    cloud: &GpuCloud,
+    mp: &crate::cpu::shadow_texture::MarkParams,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let slot = rec.slot()?;
+    let q = rec.queries();
+    let mut work = Vec::new();
+    for (c, groups) in cloud.chunks.iter().zip(&f.cloud_groups().mark) {
+        let groups = groups
+            .as_ref()
+            .ok_or_else(|| GpuError::Wgpu("shadow_texture: a chunk has no shadow counts".into()))?;
+        let off = rec.arena.push(&MarkBlock {
+            base: c.base,
+            count: c.count,
+            gap: mp.gap,
+            slope_cap: mp.slope_cap,
+            face: mp.face,
+            shift: 8 * mp.light,
+            has_normals: c.normals.is_some() as u32,
+            slot,
+        })?;
+        work.push((&groups[cur.g], off, flat_groups(ctx, c.count as u64)));
+    }
+    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+    p.set_pipeline(&kit.mark.pipeline);
+    for (bg, off, (gx, gy)) in work {
+        p.set_bind_group(0, bg, &[off]);
+        p.dispatch_workgroups(gx, gy, 1);
+    }
+    drop(p);
+    rec.end("shadow_texture", 1, vec![slot], q)
 }
 
 fn record_output(

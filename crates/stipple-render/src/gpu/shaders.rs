@@ -2,6 +2,7 @@
 //! shared `common.wgsl` followed by the files the pass needs (WGSL has no includes).
 
 const COMMON: &str = include_str!("../shaders/common.wgsl");
+const POINT_PROJECTION: &str = include_str!("../shaders/point_projection.wgsl");
 const PROJECT: &str = include_str!("../shaders/project.wgsl");
 const PROJECT_ATOMIC64: &str = include_str!("../shaders/project_atomic64.wgsl");
 const PROJECT_ATOMIC32: &str = include_str!("../shaders/project_atomic32.wgsl");
@@ -23,6 +24,8 @@ const FILL_ANISOTROPIC: &str = include_str!("../shaders/fill_anisotropic.wgsl");
 const DEPICTION: &str = include_str!("../shaders/depiction.wgsl");
 const DEPICTION_APPLY: &str = include_str!("../shaders/depiction_apply.wgsl");
 const EDL: &str = include_str!("../shaders/edl.wgsl");
+const BLEND_LAYERS: &str = include_str!("../shaders/blend_layers.wgsl");
+const SHADOW_TEXTURE: &str = include_str!("../shaders/shadow_texture.wgsl");
 
 /// A shader module: its name and the files it is made of (after `common.wgsl`).
 #[derive(Clone, Copy, Debug)]
@@ -46,12 +49,12 @@ impl ShaderModule {
 
 pub const PROJECT64: ShaderModule = ShaderModule {
     name: "project (64-bit atomics)",
-    parts: &[PROJECT, PROJECT_ATOMIC64],
+    parts: &[PROJECT, POINT_PROJECTION, PROJECT_ATOMIC64],
     int64: true,
 };
 pub const PROJECT32: ShaderModule = ShaderModule {
     name: "project (32-bit fallback)",
-    parts: &[PROJECT, PROJECT_ATOMIC32],
+    parts: &[PROJECT, POINT_PROJECTION, PROJECT_ATOMIC32],
     int64: false,
 };
 pub const PROJECT_HW_MODULE: ShaderModule = ShaderModule {
@@ -131,6 +134,17 @@ pub const EDL_MODULE: ShaderModule = ShaderModule {
     int64: false,
 };
 
+pub const BLEND_LAYERS_MODULE: ShaderModule = ShaderModule {
+    name: "blend_layers",
+    parts: &[BLEND_LAYERS],
+    int64: false,
+};
+pub const SHADOW_TEXTURE_MODULE: ShaderModule = ShaderModule {
+    name: "shadow_texture",
+    parts: &[SHADOW_TEXTURE, POINT_PROJECTION],
+    int64: false,
+};
+
 /// Every module the GPU backend compiles (the naga validation test walks this list).
 pub const ALL: &[ShaderModule] = &[
     PROJECT64,
@@ -150,6 +164,8 @@ pub const ALL: &[ShaderModule] = &[
     DEPICTION_MODULE,
     DEPICTION_APPLY_MODULE,
     EDL_MODULE,
+    BLEND_LAYERS_MODULE,
+    SHADOW_TEXTURE_MODULE,
 ];
 
 #[cfg(test)]

@@ -7,6 +7,10 @@ struct Gather {
     count: u32,
     has_normals: u32,
     has_albedo: u32,
+    has_style: u32,
+    has_lit: u32,
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -19,6 +23,11 @@ struct Gather {
 // xyz = position, w = the albedo word (bit pattern).
 @group(0) @binding(6) var<storage, read_write> attr_pos: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> attr_normal: array<vec4<f32>>;
+// Per point: object | 8-bit opacity << 8; shadow texture counts (light l in byte l).
+@group(0) @binding(8) var<storage, read> style: array<u32>;
+@group(0) @binding(9) var<storage, read> lit: array<u32>;
+// Per pixel: (style, lit) of the pixel's point.
+@group(0) @binding(10) var<storage, read_write> attr_style: array<vec2<u32>>;
 
 @compute @workgroup_size(256)
 fn gather(
@@ -43,4 +52,12 @@ fn gather(
     if (gp.has_normals == 1u) {
         attr_normal[i] = vec4<f32>(normals[3u * l], normals[3u * l + 1u], normals[3u * l + 2u], 0.0);
     }
+    var st = vec2<u32>(0xff00u, 0u);
+    if (gp.has_style == 1u) {
+        st.x = style[l];
+    }
+    if (gp.has_lit == 1u) {
+        st.y = lit[l];
+    }
+    attr_style[i] = st;
 }

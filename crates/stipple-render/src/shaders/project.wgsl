@@ -10,6 +10,11 @@ struct Chunk {
     cull: u32,
     // Counter slot that receives the number of points kept.
     slot: u32,
+    // 1: depth peeling, keep only points deeper than peel_ref[pixel] + gap (d̃).
+    peel: u32,
+    gap: f32,
+    pad0: u32,
+    pad1: u32,
 }
 
 // Threads per workgroup, and points per thread: a workgroup projects WG × BATCH consecutive
@@ -22,6 +27,8 @@ const BATCH: u32 = 8u;
 @group(0) @binding(2) var<storage, read> positions: array<f32>;
 @group(0) @binding(3) var<storage, read> normals: array<f32>;
 @group(0) @binding(4) var<storage, read_write> counters: array<atomic<u32>>;
+// The previous layer's surface depth (depth peeling; bound but unread otherwise).
+@group(0) @binding(5) var<storage, read> peel_ref: array<f32>;
 
 var<workgroup> kept: atomic<u32>;
 
@@ -31,52 +38,6 @@ fn count_kept(li: u32) {
     if (li == 0u) {
         atomicAdd(&counters[chunk.slot], atomicLoad(&kept));
     }
-}
-
-struct Hit {
-    ok: bool,
-    pixel: u32,
-    depth: f32,
-    // The point's index in the whole cloud.
-    index: u32,
-}
-
-fn point_at(i: u32) -> vec3<f32> {
-    return vec3<f32>(positions[3u * i], positions[3u * i + 1u], positions[3u * i + 2u]);
-}
-
-// cpu::project::project_point, operation for operation.
-fn project_point(p: vec3<f32>) -> Hit {
-    var h: Hit;
-    h.ok = false;
-    let d = p - view.eye;
-    let z = dot3(d, view.forward);
-    if (!(z >= view.near && z <= view.far)) {
-        return h;
-    }
-    let x = dot3(d, view.right);
-    let y = dot3(d, view.up);
-    var nx: f32;
-    var ny: f32;
-    if (view.perspective == 1u) {
-        let iz = 1.0 / z;
-        nx = x * view.sx * iz;
-        ny = y * view.sy * iz;
-    } else {
-        nx = x * view.sx;
-        ny = y * view.sy;
-    }
-    let w = f32(view.width);
-    let hh = f32(view.height);
-    let fx = (nx + 1.0) * 0.5 * w;
-    let fy = (1.0 - ny) * 0.5 * hh;
-    if (!(fx >= 0.0 && fx < w && fy >= 0.0 && fy < hh)) {
-        return h;
-    }
-    h.ok = true;
-    h.pixel = u32(fy) * view.width + u32(fx);
-    h.depth = z;
-    return h;
 }
 
 // cpu::project::back_facing.
@@ -104,6 +65,9 @@ fn visible_point(wg: vec3<u32>, groups: vec3<u32>, li: u32, k: u32) -> Hit {
     let p = point_at(local);
     h = project_point(p);
     if (h.ok && back_facing(p, local)) {
+        h.ok = false;
+    }
+    if (h.ok && chunk.peel == 1u && !(h.depth > peel_ref[h.pixel] + chunk.gap)) {
         h.ok = false;
     }
     h.index = chunk.base + local;

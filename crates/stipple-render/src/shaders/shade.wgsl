@@ -3,22 +3,20 @@
 // surface depth capped by d̃).
 
 struct Shade {
-    // 0 headlight, 1 directional (light = direction towards the light), 2 point (position).
-    light_kind: u32,
+    light_count: u32,
     has_normals: u32,
     // 0: constant albedo, 1: per-point sRGB albedo from gather.
     has_albedo: u32,
-    shininess: i32,
-    light: vec3<f32>,
-    ambient: f32,
+    // 1: a shadow texture is bound (counts in attr_style.y).
+    has_lit: u32,
     base_colour: vec3<f32>,
-    diffuse: f32,
-    background: vec3<f32>,
-    specular: f32,
     max_correction: f32,
+    background: vec3<f32>,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    // Shadow samples per light (0: m = 1 for that light).
+    samples: vec4<u32>,
+    // xyz: direction towards the light (w = 1) or position (w = 2); w = 0: headlight.
+    lights: array<vec4<f32>, 4>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -31,6 +29,9 @@ struct Shade {
 @group(0) @binding(6) var<storage, read> to_linear: array<f32, 256>;
 @group(0) @binding(7) var<storage, read_write> colour: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> surface_depth: array<f32>;
+@group(0) @binding(9) var<storage, read> attr_style: array<vec2<u32>>;
+// Material terms by object: ambient, diffuse, specular, shininess.
+@group(0) @binding(10) var<uniform> materials: array<vec4<f32>, 256>;
 
 fn normalize3(v: vec3<f32>) -> vec3<f32> {
     return v * (1.0 / sqrt(dot3(v, v)));
@@ -75,8 +76,29 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         albedo = vec3<f32>(to_linear[bits & 0xffu], to_linear[(bits >> 8u) & 0xffu], to_linear[(bits >> 16u) & 0xffu]);
     }
     var depth = g_depth[k];
+    let st = attr_style[k];
+    let mat = materials[st.x & 0xffu];
+    // shade::lit_values
+    var m = array<f32, 4>(1.0, 1.0, 1.0, 1.0);
+    if (sp.has_lit == 1u) {
+        for (var l = 0u; l < 4u; l++) {
+            if (sp.samples[l] > 0u) {
+                m[l] = f32((st.y >> (8u * l)) & 0xffu) / f32(sp.samples[l]);
+            }
+        }
+    }
     if (sp.has_normals == 0u) {
-        colour[k] = vec4<f32>(albedo, 1.0);
+        var c = albedo;
+        if (sp.has_lit == 1u) {
+            let nl = max(sp.light_count, 1u);
+            var sum = 0.0;
+            for (var l = 0u; l < nl; l++) {
+                sum = sum + m[l];
+            }
+            let kk = mat.x + (1.0 - mat.x) * (sum / f32(nl));
+            c = albedo * kk;
+        }
+        colour[k] = vec4<f32>(c, 1.0);
         surface_depth[k] = depth;
         return;
     }
@@ -112,31 +134,33 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         hit = o + dir * (depth - shift);
     }
     let to_eye = -unit;
-    var l = to_eye;
-    if (sp.light_kind == 1u) {
-        l = sp.light;
-    } else if (sp.light_kind == 2u) {
-        let lv = sp.light - hit;
-        let len2 = dot3(lv, lv);
-        if (len2 > 0.0) {
-            l = normalize3(lv);
-        } else {
-            l = vec3<f32>(0.0);
-        }
-    }
-    // shade::phong
+    // shade::phong, over the lights
     if (dot3(n, to_eye) < 0.0) {
         n = -n;
     }
-    let nl = dot3(n, l);
-    var diff = 0.0;
-    var spec = 0.0;
-    if (nl > 0.0) {
-        let r = 2.0 * nl * n - l;
-        diff = nl;
-        spec = powi(max(dot3(r, to_eye), 0.0), sp.shininess);
+    var kk = mat.x;
+    var sp_sum = 0.0;
+    for (var li = 0u; li < sp.light_count; li++) {
+        let light = sp.lights[li];
+        var l = to_eye;
+        if (light.w == 1.0) {
+            l = light.xyz;
+        } else if (light.w == 2.0) {
+            let lv = light.xyz - hit;
+            let len2 = dot3(lv, lv);
+            if (len2 > 0.0) {
+                l = normalize3(lv);
+            } else {
+                l = vec3<f32>(0.0);
+            }
+        }
+        let nl = dot3(n, l);
+        if (nl > 0.0) {
+            let r = 2.0 * nl * n - l;
+            kk = kk + m[li] * mat.y * nl;
+            sp_sum = sp_sum + m[li] * mat.z * powi(max(dot3(r, to_eye), 0.0), i32(mat.w));
+        }
     }
-    let kk = sp.ambient + sp.diffuse * diff;
-    colour[k] = vec4<f32>(albedo * kk + sp.specular * spec, 1.0);
+    colour[k] = vec4<f32>(albedo * kk + sp_sum, 1.0);
     surface_depth[k] = depth;
 }

@@ -1,0 +1,457 @@
+//! # Shadow textures (Dobrev §6)
+//!
+//! A shadow texture stores per point whether a light reaches it: m ∈ [0, 1], the fraction of
+//! the light's sample positions that see the point. Shading then uses c = k_a + m (k_d + k_s)
+//! (see `cpu/shade.rs`).
+//!
+//! For each sample position of a light:
+//! 1. the cloud is rendered from the light ([`light_views`]: one perspective view framing the
+//!    cloud when it lies within a 60° cone of the light, else the six faces of a cube around
+//!    it, each point belonging to exactly one face): `project` with no back-face culling, then
+//!    `fill_background` and `fill_occluded` until stable (at most
+//!    [`ShadowSettings::max_fill_iterations`]), so points seen through holes of a nearer
+//!    surface are covered by it and stay unlit;
+//! 2. `shadow_texture` marks every point whose light-space depth is within
+//!    Δd = d̃ · min(1 / |⟨v, n⟩|, cap) of that filled depth at its pixel, where v is the
+//!    direction from the light to the point and n its normal ([`ShadowSettings::slope_cap`];
+//!    clouds without normals use Δd = d̃).
+//!
+//! The paper marks the nearest unmarked point per pixel, excludes marked points and repeats
+//! until no point is newly marked, because a 2011 fragment shader could output one index per
+//! pixel. Against a fixed reference depth (the paper keeps the first pass's), that loop ends
+//! with exactly the points within Δd of the reference marked. A compute pass tests every
+//! point against the reference at once, so here one pass over the points does what the loop
+//! converges to, with no readback per iteration.
+//!
+//! The cap on 1/⟨v, n⟩ (default 16, i.e. down to 3.6° of grazing) matters at a lit object's
+//! rim as seen from the light, where one light pixel spans a deep sliver of surface: a small
+//! cap leaves that sliver unlit (self-shadow acne along the terminator). A point can only be
+//! wrongly lit through a large cap if its own normal is grazing to the light, where its
+//! diffuse term is at most k_d / cap anyway.
+//!
+//! Area lights (rectangles and discs) are sampled by Monte Carlo with a deterministic
+//! low-discrepancy sequence whose first sample is the centre ([`sample_position`]), so a
+//! texture can be refined progressively: one sample first, then more towards N, each new
+//! sample adding to the counts (m = lit samples / samples taken).
+//!
+//! A texture holds up to [`MAX_LIGHTS`] lights and [`MAX_SAMPLES`] samples each: one byte of
+//! a u32 per point and light, the count of samples that lit it.
+
+use crate::params::ViewParams;
+use crate::pipeline::{AreaShape, GeometryPass, Iterations, Light, Pipeline};
+use glam::{DVec3, Vec3};
+use stipple_core::{Bounds, Camera, Projection};
+
+pub const MAX_LIGHTS: usize = 4;
+pub const MAX_SAMPLES: u32 = 255;
+
+/// Per-point lit counts for up to four lights, and the samples taken for each.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LitTexture {
+    /// Light l's count in byte l.
+    pub counts: Vec<u32>,
+    /// Samples taken per light (0: no shadow texture for that light, m = 1).
+    pub samples: [u32; 4],
+}
+
+impl LitTexture {
+    pub fn new(points: usize) -> LitTexture {
+        LitTexture {
+            counts: vec![0; points],
+            samples: [0; 4],
+        }
+    }
+
+    /// The lit value m of point `i` under light `l`.
+    pub fn value(&self, i: usize, l: usize) -> f32 {
+        crate::cpu::shade::lit_values(self.counts[i], &self.samples)[l]
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadowSettings {
+    /// Side of the (square) light image in pixels; 0 = automatic: a light pixel about twice
+    /// the point spacing at the cloud's centre (so that a surface facing the light puts about
+    /// one point in each pixel, and the depth spread of a tilted surface inside one pixel,
+    /// at most a pixel × sin θ, stays below d̃ = 2.5 spacings), within 64 to 4096.
+    pub size: u32,
+    /// The largest 1/⟨v, n⟩ (see the module notes).
+    pub slope_cap: f32,
+    /// d̃ (None: the cloud's default, 2.5 × spacing).
+    pub layer_gap: Option<f32>,
+    /// The light image's fills run until stable, at most this many iterations each.
+    pub max_fill_iterations: u32,
+}
+
+impl Default for ShadowSettings {
+    fn default() -> Self {
+        ShadowSettings {
+            size: 0,
+            slope_cap: 16.0,
+            layer_gap: None,
+            max_fill_iterations: 8,
+        }
+    }
+}
+
+impl ShadowSettings {
+    /// The passes run on the light image.
+    pub fn light_pipeline(&self, gap: f32) -> Pipeline {
+        let its = Iterations::UntilStable {
+            max: self.max_fill_iterations,
+        };
+        Pipeline {
+            backface_culling: false,
+            geometry: vec![
+                GeometryPass::FillBackground {
+                    iterations: its,
+                    radius: 1,
+                },
+                GeometryPass::FillOccluded {
+                    iterations: its,
+                    layer_gap: Some(gap),
+                    radius: 1,
+                },
+            ],
+            colour: vec![],
+            ..Pipeline::default()
+        }
+    }
+
+    pub fn validate(&self) -> Result<(), String> {
+        if self.size != 0 && !(16..=8192).contains(&self.size) {
+            return Err(format!(
+                "shadow map size {}: must be 16 to 8192 (or 0 for automatic)",
+                self.size
+            ));
+        }
+        if !(self.slope_cap >= 1.0 && self.slope_cap.is_finite()) {
+            return Err(format!("slope cap {}: must be at least 1", self.slope_cap));
+        }
+        if let Some(g) = self.layer_gap {
+            if !(g > 0.0 && g.is_finite()) {
+                return Err(format!("layer gap {g}: must be a positive distance"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How many shadow samples a light takes (0: it casts no shadows: headlights and
+/// directional lights).
+pub fn light_samples(light: &Light) -> u32 {
+    match light {
+        Light::Point(_) => 1,
+        Light::Area(a) => a.samples,
+        Light::Headlight | Light::Directional(_) => 0,
+    }
+}
+
+/// The R2 low-discrepancy sequence (Roberts 2018), shifted so that sample 0 is (0.5, 0.5).
+fn r2(k: u32) -> (f64, f64) {
+    const A1: f64 = 0.754_877_666_246_692_8;
+    const A2: f64 = 0.569_840_290_998_053_3;
+    ((0.5 + A1 * k as f64).fract(), (0.5 + A2 * k as f64).fract())
+}
+
+/// Two unit vectors spanning the plane perpendicular to `n`.
+fn plane_basis(n: DVec3) -> (DVec3, DVec3) {
+    let n = n.normalize_or_zero();
+    let helper = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+    let u = n.cross(helper).normalize();
+    (u, n.cross(u))
+}
+
+/// World position of sample `k` of a light (its position for a point light; sample 0 of an
+/// area light is its centre). None for lights without a position.
+pub fn sample_position(light: &Light, k: u32) -> Option<DVec3> {
+    match light {
+        Light::Point(p) => Some(DVec3::from(*p)),
+        Light::Area(a) => {
+            let (s, t) = r2(k);
+            let (u, w) = plane_basis(DVec3::from(a.facing));
+            let c = DVec3::from(a.centre);
+            Some(match a.shape {
+                AreaShape::Rectangle { width, height } => {
+                    c + u * ((s - 0.5) * width) + w * ((t - 0.5) * height)
+                }
+                AreaShape::Disc { radius } => {
+                    // Shirley–Chiu concentric map of the square onto the disc.
+                    let (x, y) = (2.0 * s - 1.0, 2.0 * t - 1.0);
+                    let (r, phi) = if x == 0.0 && y == 0.0 {
+                        (0.0, 0.0)
+                    } else if x.abs() > y.abs() {
+                        (x, std::f64::consts::FRAC_PI_4 * (y / x))
+                    } else {
+                        (
+                            y,
+                            std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (x / y),
+                        )
+                    };
+                    c + (u * phi.cos() + w * phi.sin()) * (r * radius)
+                }
+            })
+        }
+        Light::Headlight | Light::Directional(_) => None,
+    }
+}
+
+/// One rendering from a light position.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightView {
+    pub view: ViewParams,
+    /// 0–5: a cube face (+x, −x, +y, −y, +z, −z), which marks only the points whose
+    /// direction from the light has that dominant axis; [`ALL_FACES`]: one view sees all.
+    pub face: u32,
+}
+
+pub const ALL_FACES: u32 = 6;
+
+/// The cube face of direction `d` (as the shader computes it).
+#[inline]
+pub fn dominant_face(d: Vec3) -> u32 {
+    let a = d.abs();
+    if a.x >= a.y && a.x >= a.z {
+        if d.x >= 0.0 {
+            0
+        } else {
+            1
+        }
+    } else if a.y >= a.z {
+        if d.y >= 0.0 {
+            2
+        } else {
+            3
+        }
+    } else if d.z >= 0.0 {
+        4
+    } else {
+        5
+    }
+}
+
+/// The views that see a cloud (local bounds `bounds`, origin `origin`, median spacing
+/// `spacing`) from world position `light`.
+pub fn light_views(
+    bounds: &Bounds,
+    origin: DVec3,
+    spacing: f32,
+    light: DVec3,
+    settings: &ShadowSettings,
+) -> Vec<LightView> {
+    let lo = origin + bounds.min.as_dvec3();
+    let hi = origin + bounds.max.as_dvec3();
+    let centre = (lo + hi) * 0.5;
+    let diag = (hi - lo).length().max(1e-9);
+    let corners: Vec<DVec3> = (0..8)
+        .map(|i| {
+            DVec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+        .collect();
+    let to_centre = centre - light;
+    let dist = to_centre.length();
+    let far = corners
+        .iter()
+        .map(|c| (*c - light).length())
+        .fold(0.0, f64::max)
+        * 1.01
+        + 1e-9;
+    let spacing = (spacing as f64).max(diag * 1e-6);
+    let side = |extent: f64| -> u32 {
+        if settings.size > 0 {
+            settings.size
+        } else {
+            (extent / (2.0 * spacing)).ceil().clamp(64.0, 4096.0) as u32
+        }
+    };
+    let up_for = |f: DVec3| {
+        if f.normalize().cross(DVec3::Y).length() > 0.1 {
+            DVec3::Y
+        } else {
+            DVec3::Z
+        }
+    };
+    if dist > 1e-9 {
+        let f = to_centre / dist;
+        let half_angle = corners
+            .iter()
+            .map(|c| {
+                let d = (*c - light).normalize_or_zero();
+                d.dot(f).clamp(-1.0, 1.0).acos()
+            })
+            .fold(0.0, f64::max);
+        if half_angle < 60f64.to_radians() {
+            let near = corners
+                .iter()
+                .map(|c| (*c - light).dot(f))
+                .fold(f64::INFINITY, f64::min)
+                * 0.5;
+            let fov = (2.0 * half_angle * 1.05).max(1f64.to_radians());
+            let s = side(2.0 * dist * (fov / 2.0).tan());
+            let cam = Camera {
+                eye: light,
+                target: centre,
+                up: up_for(f),
+                projection: Projection::Perspective {
+                    fov_deg: fov.to_degrees(),
+                },
+                width: s,
+                height: s,
+                near: near.max(diag * 1e-6),
+                far,
+            };
+            return vec![LightView {
+                view: ViewParams::new(&cam, origin),
+                face: ALL_FACES,
+            }];
+        }
+    }
+    // A cube around the light; faces overlap slightly, and each point is marked only by the
+    // face of its dominant axis.
+    let fov = 2.0 * 1.02f64.atan();
+    let s = side(2.0 * dist.max(0.25 * diag) * 1.02);
+    let axes = [
+        (DVec3::X, DVec3::Y),
+        (-DVec3::X, DVec3::Y),
+        (DVec3::Y, DVec3::Z),
+        (-DVec3::Y, DVec3::Z),
+        (DVec3::Z, DVec3::Y),
+        (-DVec3::Z, DVec3::Y),
+    ];
+    axes.iter()
+        .enumerate()
+        .map(|(face, &(f, up))| {
+            let cam = Camera {
+                eye: light,
+                target: light + f,
+                up,
+                projection: Projection::Perspective {
+                    fov_deg: fov.to_degrees(),
+                },
+                width: s,
+                height: s,
+                near: diag * 1e-5,
+                far,
+            };
+            LightView {
+                view: ViewParams::new(&cam, origin),
+                face: face as u32,
+            }
+        })
+        .collect()
+}
+
+/// The lights of a pipeline checked for shadow texturing: at most [`MAX_LIGHTS`], area
+/// lights with 1 to [`MAX_SAMPLES`] samples and a positive size.
+pub fn validate_lights(lights: &[Light]) -> Result<(), String> {
+    if lights.is_empty() || lights.len() > MAX_LIGHTS {
+        return Err(format!(
+            "{} lights: 1 to {MAX_LIGHTS} are supported",
+            lights.len()
+        ));
+    }
+    for (i, l) in lights.iter().enumerate() {
+        let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+        match l {
+            Light::Point(p) if !finite(p) => {
+                return Err(format!("light {}: position is not finite", i + 1))
+            }
+            Light::Directional(d) if !finite(d) || DVec3::from(*d).length() == 0.0 => {
+                return Err(format!("light {}: direction must be non-zero", i + 1))
+            }
+            Light::Area(a) => {
+                if !(1..=MAX_SAMPLES).contains(&a.samples) {
+                    return Err(format!(
+                        "light {}: {} samples (1 to {MAX_SAMPLES})",
+                        i + 1,
+                        a.samples
+                    ));
+                }
+                if !finite(&a.centre) || !finite(&a.facing) || DVec3::from(a.facing).length() == 0.0
+                {
+                    return Err(format!(
+                        "light {}: centre and facing direction must be finite and non-zero",
+                        i + 1
+                    ));
+                }
+                let ok = match a.shape {
+                    AreaShape::Rectangle { width, height } => width > 0.0 && height > 0.0,
+                    AreaShape::Disc { radius } => radius > 0.0,
+                };
+                if !ok {
+                    return Err(format!("light {}: its size must be positive", i + 1));
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::pipeline::AreaLight;
+
+    #[test]
+    fn area_samples_start_at_the_centre_and_stay_on_the_light() {
+        for shape in [
+            AreaShape::Rectangle {
+                width: 2.0,
+                height: 1.0,
+            },
+            AreaShape::Disc { radius: 0.5 },
+        ] {
+            let l = Light::Area(AreaLight {
+                centre: [1.0, 5.0, 2.0],
+                facing: [0.0, -1.0, 0.0],
+                shape,
+                samples: 30,
+            });
+            assert_eq!(sample_position(&l, 0), Some(DVec3::new(1.0, 5.0, 2.0)));
+            let mut xs = Vec::new();
+            for k in 0..30 {
+                let p = sample_position(&l, k).unwrap() - DVec3::new(1.0, 5.0, 2.0);
+                assert!(p.y.abs() < 1e-12, "in the light's plane");
+                match shape {
+                    AreaShape::Rectangle { .. } => {
+                        assert!(p.x.abs() <= 1.0 + 1e-12 && p.z.abs() <= 1.0 + 1e-12)
+                    }
+                    AreaShape::Disc { radius } => assert!(p.length() <= radius + 1e-12),
+                }
+                xs.push(p);
+            }
+            // Spread: the samples are distinct and cover both sides of the centre.
+            assert!(xs.iter().any(|p| p.x > 0.2) && xs.iter().any(|p| p.x < -0.2));
+        }
+    }
+
+    #[test]
+    fn a_distant_light_gets_one_view_a_light_inside_gets_a_cube() {
+        let b = Bounds {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        let s = ShadowSettings::default();
+        let v = light_views(&b, DVec3::ZERO, 0.01, DVec3::new(0.0, 10.0, 0.0), &s);
+        assert_eq!(v.len(), 1);
+        assert_eq!(v[0].face, ALL_FACES);
+        let v = light_views(&b, DVec3::ZERO, 0.01, DVec3::new(0.2, 0.1, 0.0), &s);
+        assert_eq!(v.len(), 6);
+        // Every direction falls in the view of its own face.
+        let mut rng = stipple_core::rng::Rng::new(1);
+        for _ in 0..1000 {
+            let p = Vec3::new(rng.f32(), rng.f32(), rng.f32()) * 2.0 - 1.0;
+            let d = p - Vec3::from(v[0].view.eye);
+            let face = dominant_face(d) as usize;
+            assert!(
+                crate::cpu::project::project_point(&v[face].view, p).is_some(),
+                "{p} in face {face}"
+            );
+        }
+    }
+}
