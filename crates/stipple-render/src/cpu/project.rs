@@ -121,7 +121,7 @@ fn project_range(
             continue;
         };
         if let Some((reference, gap)) = peel {
-            if !(z > reference[pix] + gap) {
+            if z <= reference[pix] + gap {
                 continue;
             }
         }
