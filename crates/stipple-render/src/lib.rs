@@ -402,21 +402,30 @@ impl Renderer {
             }
         }
         let total = todo.len() as u32;
-        let light_pipe = settings.light_pipeline(gap);
         for (done, &(l, k)) in todo.iter().enumerate() {
             let pos = shadow::sample_position(&lights[l], k).expect("lights with samples");
             let views =
                 shadow::light_views(&bounds, cloud.cloud.origin, cloud.spacing, pos, settings);
-            let params = |face| cpu::shadow_texture::MarkParams {
-                gap,
-                slope_cap: settings.slope_cap,
-                face,
-                light: l as u32,
+            let centre = cloud.cloud.origin + bounds.center().as_dvec3();
+            let params = |view: &shadow::LightView| {
+                let v = &view.view;
+                let z = (centre - cloud.cloud.origin - glam::Vec3::from(v.eye).as_dvec3())
+                    .dot(glam::Vec3::from(v.forward).as_dvec3())
+                    .max(v.near as f64) as f32;
+                cpu::shadow_texture::MarkParams {
+                    gap,
+                    fill_gap: cpu::shadow_texture::light_gap(v, gap, z),
+                    slope_cap: settings.slope_cap,
+                    face: view.face,
+                    light: l as u32,
+                }
             };
             match &mut self.inner {
                 Inner::Cpu(r) => {
                     for view in &views {
                         let mut stats = Vec::new();
+                        let p = params(view);
+                        let light_pipe = settings.light_pipeline(p.fill_gap);
                         r.geometry(cloud, &light_pipe, &view.view, None, &mut stats);
                         let g = r.gbuffer().expect("made by geometry");
                         cpu::shadow_texture::mark(
@@ -424,7 +433,7 @@ impl Renderer {
                             &g.depth,
                             &cloud.cloud.positions,
                             cloud.cloud.normals.as_deref(),
-                            &params(view.face),
+                            &p,
                             &mut lit.counts,
                         );
                     }
@@ -434,8 +443,8 @@ impl Renderer {
                     up.write_counts(renderer.context(), &lit.counts)?;
                     // The GPU copy now holds counts the cloud does not: rewrite it next frame.
                     up.lit_key = 0;
-                    let marks: Vec<_> = views.iter().map(|v| (v.view, params(v.face))).collect();
-                    lit.counts = renderer.shadow_texture(up, &marks, &light_pipe)?;
+                    let marks: Vec<_> = views.iter().map(|v| (v.view, params(v))).collect();
+                    lit.counts = renderer.shadow_texture(up, &marks, settings)?;
                 }
             }
             lit.samples[l] = k + 1;

@@ -3,8 +3,9 @@
 //! How it works: after the cloud has been projected from the light and the light image's
 //! holes filled (`fill_background`, `fill_occluded`: the reference depth), every point is
 //! projected again; a point is lit by this sample when its light-space depth is at most the
-//! reference depth at its pixel plus Δd = d̃ · min(1 / |⟨v, n⟩|, cap) (v: the unit direction
-//! from the light to the point, n: its normal; d̃ alone without normals), and then its count
+//! reference depth at its pixel plus Δd = d̃' · min(1 / |⟨v, n⟩|, cap) (v: the unit direction
+//! from the light to the point, n: its normal; d̃' alone without normals; d̃' is d̃ widened to
+//! at least two light pixels, see [`light_gap`]), and then its count
 //! for this light goes up by one. With a cube of views, a point is tested only by the face of
 //! its dominant direction, so it is counted once. See `shadow.rs` for the whole algorithm.
 
@@ -17,6 +18,8 @@ use rayon::prelude::*;
 pub struct MarkParams {
     /// d̃.
     pub gap: f32,
+    /// The fills' d̃ on the light image (see [`light_gap`]).
+    pub fill_gap: f32,
     /// The largest 1/⟨v, n⟩.
     pub slope_cap: f32,
     /// The cube face this view marks ([`ALL_FACES`] for a single view).
@@ -25,7 +28,20 @@ pub struct MarkParams {
     pub light: u32,
 }
 
-/// Δd for a point at `d` from the light (local direction, not normalised) with normal `n`.
+/// The layer gap on a light image at view depth `z`: d̃, but at least two light pixels.
+///
+/// Why: the reference depth of a pixel is its nearest point, and after a fill it may be a
+/// neighbour's, up to two pixel widths away across the surface; on a surface tilted by θ
+/// that is up to 2 · pixel · tan θ nearer than the pixel's own points. The paper's
+/// Δd = d̃ / cos θ covers it only while the light pixel is below d̃ / 2; a light image of
+/// any resolution stays free of acne with the gap widened to two pixels.
+#[inline]
+pub fn light_gap(v: &ViewParams, gap: f32, z: f32) -> f32 {
+    gap.max(2.0 * v.footprint(z))
+}
+
+/// Δd for a point at `d` from the light (local direction, not normalised) with normal `n`,
+/// for the layer gap `gap`.
 #[inline]
 pub fn offset(d: Vec3, n: Option<Vec3>, gap: f32, cap: f32) -> f32 {
     match n {
@@ -66,7 +82,8 @@ pub fn mark(
             let Some((pix, z)) = crate::cpu::project::project_point(v, q) else {
                 return 0;
             };
-            let dd = offset(d, normals.map(|n| n[i]), p.gap, p.slope_cap);
+            let gap = light_gap(v, p.gap, z);
+            let dd = offset(d, normals.map(|n| n[i]), gap, p.slope_cap);
             if z <= reference[pix] + dd {
                 *c += add;
                 1
@@ -104,6 +121,7 @@ mod tests {
         let mut counts = vec![0u32; 3];
         let params = MarkParams {
             gap: 0.1,
+            fill_gap: 0.1,
             slope_cap: 16.0,
             face: ALL_FACES,
             light: 1,

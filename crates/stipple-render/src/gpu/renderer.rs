@@ -988,7 +988,7 @@ impl GpuRenderer {
         &mut self,
         cloud: &GpuCloud,
         marks: &[(ViewParams, crate::cpu::shadow_texture::MarkParams)],
-        light_pipe: &Pipeline,
+        settings: &crate::shadow::ShadowSettings,
     ) -> Result<Vec<u32>, GpuError> {
         if cloud.chunks.iter().any(|c| c.lit.is_none()) {
             return Err(GpuError::Wgpu(
@@ -1006,8 +1006,8 @@ impl GpuRenderer {
                     let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
                     let mut cur = Cursor::default();
                     record_project(&mut rec, kit, &f, cloud, false, None)?;
-                    for pass in &light_pipe.geometry {
-                        record_geometry(&mut rec, kit, &f, &mut cur, pass, mp.gap)?;
+                    for pass in &settings.light_pipeline(mp.fill_gap).geometry {
+                        record_geometry(&mut rec, kit, &f, &mut cur, pass, mp.fill_gap)?;
                     }
                     record_mark(&mut rec, kit, &f, &cur, cloud, mp)?;
                     finish(rec, kit)?;

@@ -1,7 +1,7 @@
 // shadow_texture (Dobrev §6): count, per point, the light samples that reach it. CPU twin:
 // cpu/shadow_texture.rs. `reference` is the light image's depth after the hole fills; a
 // point is lit when its light-space depth is at most reference + Δd at its pixel, with
-// Δd = d̃ · min(1 / |⟨v, n⟩|, cap) (d̃ without normals). A cube face marks only the points
+// Δd = d̃' · min(1 / |⟨v, n⟩|, cap) (d̃' without normals), d̃' = max(d̃, two light pixels). A cube face marks only the points
 // whose dominant direction from the light is its own.
 
 struct Mark {
@@ -39,17 +39,18 @@ fn dominant_face(d: vec3<f32>) -> u32 {
     return select(5u, 4u, d.z >= 0.0);
 }
 
-// cpu::shadow_texture::offset
-fn offset(d: vec3<f32>, local: u32) -> f32 {
+// cpu::shadow_texture::light_gap and offset
+fn offset(d: vec3<f32>, local: u32, z: f32) -> f32 {
+    let gap = max(mp.gap, 2.0 * (2.0 / (f32(view.height) * view.sy) * z));
     if (mp.has_normals == 0u) {
-        return mp.gap;
+        return gap;
     }
     let n = vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
     let c = abs(dot3(d * (1.0 / sqrt(dot3(d, d))), n));
     if (c * mp.slope_cap > 1.0) {
-        return mp.gap * (1.0 / c);
+        return gap * (1.0 / c);
     }
-    return mp.gap * mp.slope_cap;
+    return gap * mp.slope_cap;
 }
 
 @compute @workgroup_size(256)
@@ -64,7 +65,7 @@ fn mark(
         let d = q - view.eye;
         if (mp.face == 6u || dominant_face(d) == mp.face) {
             let h = project_point(q);
-            if (h.ok && h.depth <= reference[h.pixel] + offset(d, local)) {
+            if (h.ok && h.depth <= reference[h.pixel] + offset(d, local, h.depth)) {
                 lit[local] = lit[local] + (1u << mp.shift);
                 atomicAdd(&marked, 1u);
             }
