@@ -8,8 +8,8 @@ use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::gpu::GpuOptions;
 use stipple_render::shadow::ShadowSettings;
 use stipple_render::{
-    AreaLight, AreaShape, Backend, GeometryPass, Iterations, Light, LitTexture, Pipeline,
-    PreparedCloud, Renderer,
+    AreaLight, AreaShape, Backend, GeometryPass, Light, LitTexture, Pipeline, PreparedCloud,
+    Renderer,
 };
 
 fn backends() -> Vec<Renderer> {
@@ -54,7 +54,10 @@ fn sphere(n: usize, centre: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
     (p, nn)
 }
 
-fn cloud(parts: &[(Vec<Vec3>, Vec<Vec3>, [u8; 3], f32)]) -> PointCloud {
+/// Positions, normals, colour and opacity of one part of a test cloud.
+type Part = (Vec<Vec3>, Vec<Vec3>, [u8; 3], f32);
+
+fn cloud(parts: &[Part]) -> PointCloud {
     let mut c = PointCloud::default();
     let (mut p, mut n, mut col, mut a) = (vec![], vec![], vec![], vec![]);
     for (pp, nn, cc, aa) in parts {
