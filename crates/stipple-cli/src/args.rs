@@ -94,11 +94,17 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+/// The image size when neither the command line nor a scene gives one.
+pub const DEFAULT_SIZE: (u32, u32) = (1024, 1024);
+
+/// The background when neither the command line nor a scene gives one.
+pub const DEFAULT_BACKGROUND: [u8; 3] = [24, 26, 31];
+
 #[derive(clap::Args, Clone)]
 pub struct CameraArgs {
-    /// Image size in pixels.
-    #[arg(long, default_value = "1024x1024", value_parser = parse_size, value_name = "WxH")]
-    pub size: (u32, u32),
+    /// Image size in pixels [default: 1024x1024, or a scene file's camera size].
+    #[arg(long, value_parser = parse_size, value_name = "WxH")]
+    pub size: Option<(u32, u32)>,
     /// Eye position x,y,z (world coordinates). Default: framing the whole cloud.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<DVec3>,
@@ -126,7 +132,7 @@ impl CameraArgs {
 
     /// The camera for a scene with these world bounds (a LOD tree's root box).
     pub fn build_for_bounds(&self, lo: DVec3, hi: DVec3) -> Result<Camera> {
-        let (w, h) = self.size;
+        let (w, h) = self.size.unwrap_or(DEFAULT_SIZE);
         let mut cam = Camera::framing(lo, hi, w, h, self.fov);
         let framed_dir = cam.eye - cam.target;
         if let Some(t) = self.target {
@@ -160,8 +166,23 @@ fn parse_light(s: &str) -> std::result::Result<Light, String> {
     if let Some(v) = s.strip_prefix("point:") {
         return Ok(Light::Point(parse_vec3(v)?.to_array()));
     }
+    if let Some(v) = s.strip_prefix("disc:") {
+        let err = || format!("`{s}`: expected disc:x,y,z,radius");
+        let (xyz, r) = v.rsplit_once(',').ok_or_else(err)?;
+        let r: f64 = r.trim().parse().map_err(|_| err())?;
+        if !(r > 0.0 && r.is_finite()) {
+            return Err(format!("`{s}`: the radius must be positive"));
+        }
+        return Ok(Light::Area(stipple_render::AreaLight {
+            centre: parse_vec3(xyz)?.to_array(),
+            // Resolved to face the cloud's centre (see `aim_area_lights`).
+            facing: [0.0; 3],
+            shape: stipple_render::AreaShape::Disc { radius: r },
+            samples: 16,
+        }));
+    }
     Err(format!(
-        "`{s}`: expected headlight, dir:x,y,z or point:x,y,z"
+        "`{s}`: expected headlight, dir:x,y,z, point:x,y,z or disc:x,y,z,radius"
     ))
 }
 
@@ -391,12 +412,13 @@ pub struct PipelineArgs {
     /// Show colours unlit even where normals exist.
     #[arg(long)]
     pub no_lighting: bool,
-    /// The light: headlight, dir:x,y,z (towards the light) or point:x,y,z.
+    /// The light: headlight, dir:x,y,z (towards the light), point:x,y,z, or disc:x,y,z,r (an
+    /// area light of radius r facing the cloud, for soft shadows with --shadows).
     #[arg(long, default_value = "headlight", value_parser = parse_light, allow_hyphen_values = true)]
     pub light: Light,
-    /// Background colour: r,g,b or #rrggbb.
-    #[arg(long, default_value = "24,26,31", value_parser = parse_colour)]
-    pub background: [u8; 3],
+    /// Background colour: r,g,b or #rrggbb [default: 24,26,31, or a scene's].
+    #[arg(long, value_parser = parse_colour)]
+    pub background: Option<[u8; 3]>,
     #[command(flatten)]
     pub raw: RawArgs,
 }
@@ -405,7 +427,8 @@ impl PipelineArgs {
     /// The pipeline for a cloud with (or without) normals: see `--pipeline`.
     pub fn build_for(&self, has_normals: bool) -> Result<Pipeline> {
         if self.raw.is_raw(has_normals) {
-            self.raw.build(self.background)
+            self.raw
+                .build(self.background.unwrap_or(DEFAULT_BACKGROUND))
         } else {
             self.build()
         }
@@ -428,7 +451,7 @@ impl PipelineArgs {
             backface_culling: !self.no_backface_culling,
             lighting: !self.no_lighting,
             lights: vec![self.light],
-            background: self.background,
+            background: self.background.unwrap_or(DEFAULT_BACKGROUND),
             geometry: vec![],
             colour: vec![],
             ..Pipeline::default()
@@ -463,6 +486,38 @@ impl PipelineArgs {
         }
         Ok(p)
     }
+}
+
+/// Depth peeling, transparency and shadows, shared by `render` and `bench`.
+#[derive(clap::Args, Clone, Default)]
+#[command(next_help_heading = "Transparency and shadows (Dobrev et al. §4-6)")]
+pub struct LookArgs {
+    /// Depth peeling: peel up to N surface layers and blend them front to back with each
+    /// point's opacity (1 = the nearest surface only) [default: 1, or a scene's `layers`].
+    #[arg(long, value_name = "N")]
+    pub layers: Option<u32>,
+    /// Give every point of a single cloud this opacity (0..1): see-through with --layers.
+    #[arg(long, value_name = "ALPHA")]
+    pub opacity: Option<f32>,
+    /// Compute shadow textures for the lights that cast them (point and area lights, e.g.
+    /// --light point:x,y,z or disc:x,y,z,r). Scene files have shadows on unless they say
+    /// `shadows = false`.
+    #[arg(long)]
+    pub shadows: bool,
+    /// No shadows, even where a scene asks for them.
+    #[arg(long, conflicts_with = "shadows")]
+    pub no_shadows: bool,
+    /// At most N Monte Carlo samples per area light (default: the light's own count: 16 for
+    /// --light disc:..., a scene's `samples`). 1 = a hard shadow from the light's centre.
+    #[arg(long, value_name = "N")]
+    pub shadow_samples: Option<u32>,
+    /// Side of the light images in pixels (default: about two point spacings per pixel).
+    #[arg(long, value_name = "PX")]
+    pub shadow_size: Option<u32>,
+    /// Reuse shadow textures: load them from FILE when they were computed for the same clouds,
+    /// placement and lights (the whole scene may have moved), else compute and save them there.
+    #[arg(long, value_name = "FILE.stshadow")]
+    pub shadow_cache: Option<PathBuf>,
 }
 
 /// Where the passes run, shared by `render` and `bench`.

@@ -4,8 +4,11 @@ mod args;
 mod bench;
 mod eval;
 mod lod;
+mod look;
+mod scene;
+mod shadow_cache;
 
-use args::{BackendArgs, CameraArgs, PipelineArgs, SourceArgs};
+use args::{BackendArgs, CameraArgs, LookArgs, PipelineArgs, SourceArgs};
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -104,6 +107,12 @@ struct RenderArgs {
     #[command(flatten)]
     backend: BackendArgs,
     #[command(flatten)]
+    look: LookArgs,
+    /// With --layers: also write each peeled layer's own image, PREFIX-1.png (nearest),
+    /// PREFIX-2.png, ...
+    #[arg(long, value_name = "PREFIX")]
+    layer_images: Option<PathBuf>,
+    #[command(flatten)]
     lod: lod::LodArgs,
     /// Print the time each pass took.
     #[arg(long)]
@@ -197,12 +206,20 @@ fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
 
 fn render(a: RenderArgs) -> Result<()> {
     let tree = a.source.input.as_deref().filter(|p| lod::is_tree(p));
-    let (cloud, label, camera) = match tree {
-        Some(p) => lod::load_cut(p, &a.camera, &a.lod)?,
-        None => {
+    let scene_file = a.source.input.as_deref().filter(|p| scene::is_scene(p));
+    let (mut cloud, label, camera, scene) = match (tree, scene_file) {
+        (Some(p), _) => {
+            let (cloud, label, camera) = lod::load_cut(p, &a.camera, &a.lod)?;
+            (cloud, label, camera, None)
+        }
+        (None, Some(p)) => {
+            let (cloud, s, camera) = look::load_scene(p, &a.camera)?;
+            (cloud, s.label.clone(), camera, Some(s))
+        }
+        (None, None) => {
             let (cloud, label) = a.source.load()?;
             let camera = a.camera.build(&cloud.cloud)?;
-            (cloud, label, camera)
+            (cloud, label, camera, None)
         }
     };
     let output = match &a.output {
@@ -233,8 +250,33 @@ fn render(a: RenderArgs) -> Result<()> {
     {
         check_output(o, &inputs)?;
     }
-    let pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
+    let layer_paths = |n: usize| -> Vec<PathBuf> {
+        let prefix = a.layer_images.as_ref().expect("asked for");
+        (1..=n)
+            .map(|k| PathBuf::from(format!("{}-{k}.png", prefix.display())))
+            .collect()
+    };
+    if a.layer_images.is_some() {
+        for o in layer_paths(stipple_render::pipeline::MAX_LAYERS as usize) {
+            check_output(&o, &inputs)?;
+        }
+    }
+    let mut pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
     let mut renderer = a.backend.open()?;
+    let shadow_line = look::apply(
+        &mut cloud,
+        &mut pipe,
+        scene.as_ref(),
+        &a.look,
+        a.pipeline.background.is_some(),
+        &mut renderer,
+    )?;
+    if a.layer_images.is_some() {
+        if pipe.layers == 1 {
+            return Err("--layer-images needs --layers N (N > 1)".into());
+        }
+        pipe.keep_layers = true;
+    }
     let t0 = Instant::now();
     let frame = renderer
         .render(&cloud, &camera, &pipe)
@@ -248,6 +290,24 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(c) = &a.camera_out {
         std::fs::write(c, camera.to_json()).map_err(|e| format!("{}: {e}", c.display()))?;
+    }
+    let layer_files = if a.layer_images.is_some() {
+        layer_paths(frame.layers.len())
+    } else {
+        vec![]
+    };
+    for (p, img) in layer_files.iter().zip(&frame.layers) {
+        stipple_io::image::write_png(p, frame.width, frame.height, img)
+            .map_err(|e| e.to_string())?;
+    }
+    if let Some(line) = &shadow_line {
+        println!("{line}");
+    }
+    if pipe.layers > 1 {
+        println!(
+            "peeled {} of at most {} layers (each through the image-space filters), blended              front to back",
+            frame.layers_peeled, pipe.layers
+        );
     }
     if a.stats {
         for s in &frame.stats {
@@ -283,6 +343,9 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(c) = &a.camera_out {
         println!("wrote {}", c.display());
+    }
+    for p in &layer_files {
+        println!("wrote {}", p.display());
     }
     Ok(())
 }

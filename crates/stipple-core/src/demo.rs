@@ -139,6 +139,28 @@ fn shade(base: [u8; 3], rng: &mut Rng, amount: f32) -> [u8; 3] {
     base.map(|v| (v as f32 * k).clamp(0.0, 255.0) as u8)
 }
 
+/// A torus around the Y axis (major radius 1, tube radius `tube`) of one colour.
+pub fn torus(n: usize, tube: f32, colour: [u8; 3], seed: u64) -> PointCloud {
+    let mut rng = Rng::new(seed);
+    let mut b = Builder::default();
+    for _ in 0..n {
+        let (p, nn) = torus_point(&mut rng, 1.0, tube);
+        b.push(p, nn, colour, 1.0);
+    }
+    b.finish(false)
+}
+
+/// A unit square in the XZ plane centred at the origin, facing +Y, of one colour.
+pub fn plane(n: usize, colour: [u8; 3], seed: u64) -> PointCloud {
+    let mut rng = Rng::new(seed);
+    let mut b = Builder::default();
+    for _ in 0..n {
+        let p = Vec3::new(rng.f32() - 0.5, 0.0, rng.f32() - 0.5);
+        b.push(p, Vec3::Y, colour, 1.0);
+    }
+    b.finish(false)
+}
+
 /// Generates `scene` with (about) `n` points; the same seed gives the same cloud.
 pub fn generate(scene: DemoScene, n: usize, seed: u64) -> PointCloud {
     let mut rng = Rng::new(seed);

@@ -149,6 +149,14 @@ impl PreparedCloud {
         }
     }
 
+    /// Gives every point the same opacity.
+    pub fn set_opacity(&mut self, opacity: f32) {
+        let a = alpha8(opacity);
+        self.alpha = Some(vec![a; self.cloud.len()]);
+        self.mean_alpha = a as f32 / 255.0;
+        self.key = next_key();
+    }
+
     /// Gives the points objects with their own materials. Errors when the table does not
     /// match the cloud.
     pub fn with_objects(mut self, objects: ObjectTable) -> Result<PreparedCloud, RenderError> {

@@ -1,0 +1,239 @@
+//! Depth peeling, transparency and shadow textures on the command line: what `--layers`,
+//! `--opacity`, `--shadows` and a scene's lights and render settings turn into.
+
+use crate::args::{CameraArgs, LookArgs};
+use crate::scene::{self, LoadedScene};
+use crate::shadow_cache;
+use crate::Result;
+use glam::{DAffine3, DVec3};
+use std::path::PathBuf;
+use std::time::Instant;
+use stipple_core::Camera;
+use stipple_render::shadow::{self, ShadowSettings};
+use stipple_render::{Light, Pipeline, PreparedCloud, Renderer};
+
+/// The camera arguments with a scene's camera filling what the command line left out.
+pub fn scene_camera(args: &CameraArgs, s: &LoadedScene) -> CameraArgs {
+    let mut a = args.clone();
+    let v = |x: Option<[f64; 3]>| x.map(DVec3::from);
+    a.eye = a.eye.or(v(s.camera.eye));
+    a.target = a.target.or(v(s.camera.target));
+    a.up = a.up.or(v(s.camera.up));
+    if let (Some(f), false) = (s.camera.fov, args_fov_given(args)) {
+        a.fov = f;
+    }
+    a.size = a.size.or(s.camera.size.map(|[w, h]| (w, h)));
+    a
+}
+
+/// `--fov` has a default; a scene's fov applies when the command line kept it.
+fn args_fov_given(a: &CameraArgs) -> bool {
+    a.fov != 45.0
+}
+
+/// Area lights given without a facing direction face the cloud's centre.
+pub fn aim_area_lights(lights: &mut [Light], cloud: &PreparedCloud) {
+    let (lo, hi) = cloud.cloud.world_bounds();
+    let centre = (lo + hi) * 0.5;
+    for l in lights {
+        if let Light::Area(a) = l {
+            if a.facing == [0.0; 3] {
+                let f = centre - DVec3::from(a.centre);
+                a.facing = if f.length() > 0.0 { f } else { -DVec3::Y }.to_array();
+            }
+        }
+    }
+}
+
+/// Applies the look: the scene's lights and background, layers, opacity, and the shadow
+/// texture (computed, refined or loaded from the cache). Returns a line describing the
+/// shadows, if any were made.
+pub fn apply(
+    cloud: &mut PreparedCloud,
+    pipe: &mut Pipeline,
+    scene: Option<&LoadedScene>,
+    look: &LookArgs,
+    background_given: bool,
+    renderer: &mut Renderer,
+) -> Result<Option<String>> {
+    if let Some(s) = scene {
+        if !s.lights.is_empty() {
+            pipe.lights = s.lights.clone();
+        }
+        if let (Some(b), false) = (s.render.background, background_given) {
+            pipe.background = b;
+        }
+    }
+    aim_area_lights(&mut pipe.lights, cloud);
+    shadow::validate_lights(&pipe.lights).map_err(|e| format!("--light: {e}"))?;
+    pipe.layers = look
+        .layers
+        .or(scene.and_then(|s| s.render.layers))
+        .unwrap_or(1);
+    if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&pipe.layers) {
+        return Err(format!(
+            "--layers {}: 1 to {}",
+            pipe.layers,
+            stipple_render::pipeline::MAX_LAYERS
+        ));
+    }
+    if let Some(o) = look.opacity {
+        if !(0.0..=1.0).contains(&o) {
+            return Err(format!("--opacity {o}: must lie in 0..1"));
+        }
+        cloud.set_opacity(o);
+        if pipe.layers == 1 {
+            eprintln!(
+                "stipple: note: --opacity shows only with depth peeling: add --layers N (the \
+                 number of surfaces a ray crosses, e.g. 2 for a closed surface)"
+            );
+        }
+    }
+    let wanted = match scene {
+        Some(s) => !look.no_shadows && (look.shadows || s.render.shadows.unwrap_or(true)),
+        None => look.shadows,
+    };
+    if !wanted {
+        return Ok(None);
+    }
+    if pipe.lights.iter().all(|l| shadow::light_samples(l) == 0) {
+        if scene.is_some() && !look.shadows {
+            return Ok(None);
+        }
+        return Err(
+            "--shadows: no light casts shadows; give --light point:x,y,z or disc:x,y,z,r (a \
+             headlight or a directional light has no position)"
+                .into(),
+        );
+    }
+    if cloud.cloud.normals.is_none() || !pipe.lighting {
+        eprintln!(
+            "stipple: note: the cloud has no normals (or lighting is off): shadowed points are \
+             drawn at the ambient level, lit ones unchanged"
+        );
+    }
+    let settings = ShadowSettings {
+        size: look
+            .shadow_size
+            .or(scene.and_then(|s| s.render.shadow_size))
+            .unwrap_or(0),
+        ..ShadowSettings::default()
+    };
+    settings
+        .validate()
+        .map_err(|e| format!("--shadow-size: {e}"))?;
+    let max_samples = look.shadow_samples.unwrap_or(shadow::MAX_SAMPLES);
+    if !(1..=shadow::MAX_SAMPLES).contains(&max_samples) {
+        return Err(format!(
+            "--shadow-samples {max_samples}: 1 to {}",
+            shadow::MAX_SAMPLES
+        ));
+    }
+    let cache: Option<PathBuf> = look
+        .shadow_cache
+        .clone()
+        .or_else(|| scene.and_then(|s| s.render.shadow_cache.as_ref().map(|p| s.dir.join(p))));
+    if let Some(c) = &cache {
+        if stipple_io::extension(c) != "stshadow" {
+            return Err(format!(
+                "{}: a shadow cache must be a .stshadow file",
+                c.display()
+            ));
+        }
+    }
+    let key = match scene {
+        Some(s) => s.relative_key(&pipe.lights, &settings),
+        None => {
+            let (lo, hi) = cloud.cloud.world_bounds();
+            let unit = (hi - lo).length().max(1e-9);
+            scene::relative_key(
+                &[(scene::content_hash(&cloud.cloud), DAffine3::IDENTITY)],
+                unit,
+                &pipe.lights,
+                &settings,
+            )
+        }
+    };
+    let wanted_samples: Vec<u32> = pipe
+        .lights
+        .iter()
+        .map(|l| shadow::light_samples(l).min(max_samples))
+        .collect();
+    let mut start = None;
+    let mut note = String::new();
+    if let Some(c) = cache.as_ref().filter(|c| c.exists()) {
+        match shadow_cache::read(c, cloud.cloud.len()) {
+            Ok(hit) if hit.key == key => {
+                let done = wanted_samples
+                    .iter()
+                    .enumerate()
+                    .all(|(l, &w)| hit.lit.samples[l] >= w);
+                if done {
+                    let line = format!("shadows loaded from {}", c.display());
+                    cloud.set_lit(Some(hit.lit)).map_err(|e| e.to_string())?;
+                    return Ok(Some(line));
+                }
+                note = format!(", refining the {} cached", c.display());
+                start = Some(hit.lit);
+            }
+            Ok(_) => {
+                note = format!(
+                    " ({} was made for other clouds, placement or lights)",
+                    c.display()
+                )
+            }
+            Err(e) => note = format!(" (cache not used: {e})"),
+        }
+    }
+    let total: u32 = wanted_samples
+        .iter()
+        .enumerate()
+        .map(|(l, &w)| {
+            w.saturating_sub(
+                start
+                    .as_ref()
+                    .map_or(0, |s: &stipple_render::LitTexture| s.samples[l]),
+            )
+        })
+        .sum();
+    let bar = indicatif::ProgressBar::new(total as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "shadows {bar:30} {pos}/{len} light samples, {elapsed} (ETA {eta})",
+        )
+        .expect("template"),
+    );
+    let t0 = Instant::now();
+    let lit = renderer
+        .shadow_texture(
+            cloud,
+            &pipe.lights,
+            &settings,
+            start,
+            max_samples,
+            &mut |done, _| bar.set_position(done as u64),
+        )
+        .map_err(|e| e.to_string())?;
+    bar.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    let mut line = format!(
+        "shadows: {total} light samples in {:.0} ms{note}",
+        secs * 1e3
+    );
+    if let Some(c) = &cache {
+        shadow_cache::write(c, key, &lit)?;
+        line.push_str(&format!(", saved to {}", c.display()));
+    }
+    cloud.set_lit(Some(lit)).map_err(|e| e.to_string())?;
+    Ok(Some(line))
+}
+
+/// A scene file's merged cloud, its settings and the camera.
+pub fn load_scene(
+    path: &std::path::Path,
+    camera: &CameraArgs,
+) -> Result<(PreparedCloud, LoadedScene, Camera)> {
+    let (cloud, s) = scene::load(path)?;
+    let cam = scene_camera(camera, &s).build(&cloud.cloud)?;
+    Ok((cloud, s, cam))
+}

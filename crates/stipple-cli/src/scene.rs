@@ -1,0 +1,655 @@
+//! Scene files (TOML or JSON): several clouds, each with a transform, an optional colour, an
+//! opacity and a material; lights; the camera; render settings. The format is documented in
+//! `docs/scenes.md`, with examples in `examples/`.
+
+use crate::Result;
+use glam::{DAffine3, DMat3, DVec3};
+use serde::Deserialize;
+use std::hash::{Hash, Hasher};
+use std::path::{Path, PathBuf};
+use stipple_core::demo::{self, DemoScene};
+use stipple_core::PointCloud;
+use stipple_render::{
+    AreaLight, AreaShape, Light, Material, ObjectTable, PreparedCloud, MAX_OBJECTS,
+};
+
+#[derive(Deserialize, Debug, Default)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    #[serde(default)]
+    pub camera: CameraSpec,
+    #[serde(default)]
+    pub render: RenderSpec,
+    #[serde(default, rename = "cloud")]
+    pub clouds: Vec<CloudSpec>,
+    #[serde(default, rename = "light")]
+    pub lights: Vec<LightSpec>,
+}
+
+#[derive(Deserialize, Debug, Default, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    pub eye: Option<[f64; 3]>,
+    pub target: Option<[f64; 3]>,
+    pub up: Option<[f64; 3]>,
+    pub fov: Option<f64>,
+    pub size: Option<[u32; 2]>,
+}
+
+#[derive(Deserialize, Debug, Default, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSpec {
+    pub layers: Option<u32>,
+    pub background: Option<[u8; 3]>,
+    /// Compute shadow textures for the lights that cast them (default true).
+    pub shadows: Option<bool>,
+    pub shadow_size: Option<u32>,
+    /// A shadow cache file, relative to the scene file.
+    pub shadow_cache: Option<PathBuf>,
+}
+
+#[derive(Deserialize, Debug, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct CloudSpec {
+    /// A cloud file, relative to the scene file.
+    pub file: Option<PathBuf>,
+    /// Or a generated shape: sphere, torus, plane, nested-tori, plane-objects.
+    pub demo: Option<String>,
+    pub points: Option<usize>,
+    pub seed: Option<u64>,
+    /// The tube radius of a `torus` demo (major radius 1).
+    pub tube: Option<f32>,
+    #[serde(default)]
+    pub translate: [f64; 3],
+    /// Rotations about X, then Y, then Z, in degrees.
+    #[serde(default)]
+    pub rotate: [f64; 3],
+    /// Uniform scale.
+    pub scale: Option<f64>,
+    pub colour: Option<[u8; 3]>,
+    pub opacity: Option<f32>,
+    #[serde(default)]
+    pub material: MaterialSpec,
+}
+
+#[derive(Deserialize, Debug, Default, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    pub ambient: Option<f32>,
+    pub diffuse: Option<f32>,
+    pub specular: Option<f32>,
+    pub shininess: Option<f32>,
+}
+
+#[derive(Deserialize, Debug, Clone)]
+#[serde(deny_unknown_fields)]
+pub struct LightSpec {
+    /// point, area, directional or headlight.
+    #[serde(rename = "type")]
+    pub kind: String,
+    pub position: Option<[f64; 3]>,
+    pub direction: Option<[f64; 3]>,
+    /// Area lights: the direction the light faces (default: towards the scene's centre).
+    pub facing: Option<[f64; 3]>,
+    /// Area lights: rectangle or disc.
+    pub shape: Option<String>,
+    /// Rectangle: [width, height].
+    pub size: Option<[f64; 2]>,
+    /// Disc: radius.
+    pub radius: Option<f64>,
+    /// Area lights: Monte Carlo samples (default 16, at most 255).
+    pub samples: Option<u32>,
+}
+
+/// A scene's settings once its clouds are loaded and merged (the cloud is returned apart).
+pub struct LoadedScene {
+    pub lights: Vec<Light>,
+    pub camera: CameraSpec,
+    pub render: RenderSpec,
+    /// Where the scene file is (relative paths in it are resolved against it).
+    pub dir: PathBuf,
+    /// Identifies the clouds and their placement relative to each other and to the lights:
+    /// unchanged when the whole scene moves rigidly (see [`LoadedScene::relative_key`]).
+    objects: Vec<(u64, DAffine3)>,
+    /// Size of the first object (the unit the placement key is quantised in).
+    unit: f64,
+    pub label: String,
+}
+
+/// Whether a path names a scene file.
+pub fn is_scene(p: &Path) -> bool {
+    matches!(stipple_io::extension(p).as_str(), "toml" | "json")
+}
+
+fn parse(path: &Path) -> Result<SceneFile> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let parsed = if stipple_io::extension(path) == "json" {
+        serde_json::from_str(&text).map_err(|e| e.to_string())
+    } else {
+        toml::from_str(&text).map_err(|e| e.to_string())
+    };
+    parsed.map_err(|e| format!("{}: {}", path.display(), e.trim_end()))
+}
+
+/// The transform of a cloud spec: world = translate + R (scale · p), R = Rz · Ry · Rx.
+fn transform(c: &CloudSpec) -> DAffine3 {
+    let [rx, ry, rz] = c.rotate.map(f64::to_radians);
+    let r = DMat3::from_rotation_z(rz) * DMat3::from_rotation_y(ry) * DMat3::from_rotation_x(rx);
+    DAffine3::from_mat3_translation(r * c.scale.unwrap_or(1.0), DVec3::from(c.translate))
+}
+
+/// Loads a scene file: reads or generates every cloud, applies transforms, colours and
+/// opacities, and merges them into one cloud with an object table.
+pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
+    let spec = parse(path)?;
+    let dir = path
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| PathBuf::from("."));
+    let err = |what: String| format!("{}: {what}", path.display());
+    if spec.clouds.is_empty() {
+        return Err(err("the scene lists no [[cloud]]".into()));
+    }
+    if spec.clouds.len() > MAX_OBJECTS {
+        return Err(err(format!(
+            "{} clouds; a scene holds at most {MAX_OBJECTS}",
+            spec.clouds.len()
+        )));
+    }
+    let mut parts = Vec::new();
+    let mut materials = Vec::new();
+    let mut objects = Vec::new();
+    for (k, c) in spec.clouds.iter().enumerate() {
+        let what = |m: String| err(format!("cloud {}: {m}", k + 1));
+        let (cloud, name) = source(c, &dir).map_err(what)?;
+        if cloud.is_empty() {
+            return Err(what(format!("{name} has no points")));
+        }
+        let scale = c.scale.unwrap_or(1.0);
+        if !(scale > 0.0 && scale.is_finite())
+            || !c.translate.iter().chain(&c.rotate).all(|v| v.is_finite())
+        {
+            return Err(what(
+                "translate, rotate and scale must be finite, and scale positive".into(),
+            ));
+        }
+        let opacity = c.opacity.unwrap_or(1.0);
+        if !(0.0..=1.0).contains(&opacity) {
+            return Err(what(format!("opacity {opacity}: must lie in 0..1")));
+        }
+        let m = material(&c.material).map_err(what)?;
+        let t = transform(c);
+        objects.push((content_hash(&cloud), t));
+        parts.push(place(cloud, &t, c.colour, opacity, &m));
+        materials.push(m);
+    }
+    let unit = {
+        let (lo, hi) = parts[0].world_bounds();
+        (hi - lo).length().max(1e-9)
+    };
+    let with_normals = parts.iter().filter(|p| p.normals.is_some()).count();
+    if with_normals != 0 && with_normals != parts.len() {
+        eprintln!(
+            "stipple: note: {}: only {with_normals} of {} clouds have normals; the scene is \
+             rendered without normals (unlit, raw pipeline)",
+            path.display(),
+            parts.len()
+        );
+        for p in &mut parts {
+            p.normals = None;
+        }
+    }
+    let mut index = Vec::new();
+    let mut merged = PointCloud::default();
+    for (k, p) in parts.iter().enumerate() {
+        index.extend(std::iter::repeat_n(k as u8, p.len()));
+        if k == 0 {
+            merged = p.clone();
+        } else {
+            merged.append(p);
+        }
+    }
+    merged.faces.clear();
+    let cloud = PreparedCloud::new(merged)
+        .with_objects(ObjectTable { index, materials })
+        .map_err(|e| err(e.to_string()))?;
+    let centre = {
+        let (lo, hi) = cloud.cloud.world_bounds();
+        (lo + hi) * 0.5
+    };
+    let lights = spec
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| light(l, centre).map_err(|m| err(format!("light {}: {m}", i + 1))))
+        .collect::<Result<Vec<_>>>()?;
+    if lights.len() > stipple_render::shadow::MAX_LIGHTS {
+        return Err(err(format!(
+            "{} lights; a scene holds at most {}",
+            lights.len(),
+            stipple_render::shadow::MAX_LIGHTS
+        )));
+    }
+    if let Some(l) = spec.render.layers {
+        if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&l) {
+            return Err(err(format!(
+                "layers = {l}: 1 to {}",
+                stipple_render::pipeline::MAX_LAYERS
+            )));
+        }
+    }
+    Ok((
+        cloud,
+        LoadedScene {
+            label: format!("scene {} ({} clouds)", path.display(), spec.clouds.len()),
+            lights,
+            camera: spec.camera,
+            render: spec.render,
+            dir,
+            objects,
+            unit,
+        },
+    ))
+}
+
+fn source(c: &CloudSpec, dir: &Path) -> std::result::Result<(PointCloud, String), String> {
+    match (&c.file, &c.demo) {
+        (Some(f), None) => {
+            let p = if f.is_absolute() {
+                f.clone()
+            } else {
+                dir.join(f)
+            };
+            Ok((
+                crate::args::read_with_progress(&p)?,
+                p.display().to_string(),
+            ))
+        }
+        (None, Some(d)) => {
+            let n = c.points.unwrap_or(200_000);
+            if n == 0 {
+                return Err("points must be at least 1".into());
+            }
+            let seed = c.seed.unwrap_or(1);
+            let grey = [200, 200, 200];
+            let cloud = match d.as_str() {
+                "torus" => {
+                    let tube = c.tube.unwrap_or(0.35);
+                    if !(tube > 0.0 && tube < 1.0) {
+                        return Err(format!("tube {tube}: must lie strictly between 0 and 1"));
+                    }
+                    demo::torus(n, tube, [214, 170, 60], seed)
+                }
+                "plane" => demo::plane(n, grey, seed),
+                other => match DemoScene::from_name(other) {
+                    Some(s) => demo::generate(s, n, seed),
+                    None => {
+                        return Err(format!(
+                            "unknown demo `{other}` (sphere, torus, plane, nested-tori, \
+                             plane-objects)"
+                        ))
+                    }
+                },
+            };
+            Ok((cloud, format!("demo `{d}`")))
+        }
+        _ => Err("give exactly one of `file` and `demo`".into()),
+    }
+}
+
+fn material(m: &MaterialSpec) -> std::result::Result<Material, String> {
+    let d = Material::default();
+    let out = Material {
+        ambient: m.ambient.unwrap_or(d.ambient),
+        diffuse: m.diffuse.unwrap_or(d.diffuse),
+        specular: m.specular.unwrap_or(d.specular),
+        shininess: m.shininess.unwrap_or(d.shininess),
+        base_colour: d.base_colour,
+    };
+    for (name, v) in [
+        ("ambient", out.ambient),
+        ("diffuse", out.diffuse),
+        ("specular", out.specular),
+    ] {
+        if !(0.0..=4.0).contains(&v) {
+            return Err(format!("material {name} {v}: must lie in 0..4"));
+        }
+    }
+    if !(0.0..=1024.0).contains(&out.shininess) {
+        return Err(format!(
+            "material shininess {}: must lie in 0..1024",
+            out.shininess
+        ));
+    }
+    Ok(out)
+}
+
+/// A hash of a cloud's positions and normals as read (before placement).
+pub fn content_hash(c: &PointCloud) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    c.len().hash(&mut h);
+    c.origin.to_array().map(f64::to_bits).hash(&mut h);
+    let mut crc = crc32fast::Hasher::new();
+    crc.update(bytemuck::cast_slice(&c.positions));
+    if let Some(n) = &c.normals {
+        crc.update(bytemuck::cast_slice(n));
+    }
+    crc.finalize().hash(&mut h);
+    h.finish()
+}
+
+/// Applies a transform (and colour, opacity) to a cloud; clouds without colours get their
+/// grey (intensity) or the material's colour baked in, so every object keeps its own look.
+fn place(
+    mut c: PointCloud,
+    t: &DAffine3,
+    colour: Option<[u8; 3]>,
+    opacity: f32,
+    m: &Material,
+) -> PointCloud {
+    let (lo, hi) = c.world_bounds();
+    let centre = (lo + hi) * 0.5;
+    let new_origin = t.transform_point3(centre).round();
+    let origin = c.origin;
+    for p in &mut c.positions {
+        let w = origin + p.as_dvec3();
+        *p = (t.transform_point3(w) - new_origin).as_vec3();
+    }
+    c.origin = new_origin;
+    let r = t.matrix3;
+    if let Some(n) = &mut c.normals {
+        for v in n {
+            *v = (r * v.as_dvec3()).normalize_or_zero().as_vec3();
+        }
+    }
+    if let Some(col) = colour {
+        c.colors = Some(vec![col; c.len()]);
+    } else if c.colors.is_none() {
+        let grey = c.intensity.as_ref().map(|i| {
+            let mut s: Vec<u16> = i.clone();
+            let k = (s.len() * 99 / 100).min(s.len() - 1);
+            let p99 = *s.select_nth_unstable(k).1 as f32;
+            let scale = if p99 > 0.0 { 1.0 / p99 } else { 1.0 };
+            i.iter()
+                .map(|&t| stipple_render::cpu::shade::intensity_grey(t, scale))
+                .collect::<Vec<u8>>()
+        });
+        c.colors = Some(match grey {
+            Some(g) => g.into_iter().map(|v| [v; 3]).collect(),
+            None => vec![
+                m.base_colour
+                    .map(stipple_render::cpu::shade::linear_to_srgb8);
+                c.len()
+            ],
+        });
+    }
+    if opacity < 1.0 || c.opacity.is_some() {
+        let o = c.opacity.take().unwrap_or_else(|| vec![1.0; c.len()]);
+        c.opacity = Some(o.into_iter().map(|a| a * opacity).collect());
+    }
+    c
+}
+
+fn vec3(v: Option<[f64; 3]>, what: &str) -> std::result::Result<[f64; 3], String> {
+    let v = v.ok_or_else(|| format!("needs `{what}`"))?;
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(v)
+    } else {
+        Err(format!("`{what}` must be finite"))
+    }
+}
+
+fn light(l: &LightSpec, centre: DVec3) -> std::result::Result<Light, String> {
+    match l.kind.as_str() {
+        "headlight" => Ok(Light::Headlight),
+        "directional" => Ok(Light::Directional(vec3(l.direction, "direction")?)),
+        "point" => Ok(Light::Point(vec3(l.position, "position")?)),
+        "area" => {
+            let c = vec3(l.position, "position")?;
+            let facing = match l.facing {
+                Some(f) => f,
+                None => (centre - DVec3::from(c)).to_array(),
+            };
+            let shape = match l.shape.as_deref().unwrap_or("disc") {
+                "rectangle" => {
+                    let [width, height] = l.size.ok_or("a rectangle needs `size = [w, h]`")?;
+                    AreaShape::Rectangle { width, height }
+                }
+                "disc" => AreaShape::Disc {
+                    radius: l.radius.ok_or("a disc needs `radius`")?,
+                },
+                s => return Err(format!("unknown shape `{s}` (rectangle, disc)")),
+            };
+            let a = Light::Area(AreaLight {
+                centre: c,
+                facing,
+                shape,
+                samples: l.samples.unwrap_or(16),
+            });
+            stipple_render::shadow::validate_lights(&[a])?;
+            Ok(a)
+        }
+        k => Err(format!(
+            "unknown light type `{k}` (point, area, directional, headlight)"
+        )),
+    }
+}
+
+/// Quantises a length in units of `unit` (a millionth of it).
+fn q(x: f64, unit: f64) -> i64 {
+    (x / unit * 1e6).round() as i64
+}
+
+impl LoadedScene {
+    /// A key for the shadow texture of this scene under `lights` and `settings`: the clouds'
+    /// contents, each cloud's placement relative to the first and the lights relative to the
+    /// first cloud, quantised to a millionth of its size. Moving or turning the whole scene
+    /// (clouds and lights together) keeps the key; moving a light or one cloud changes it.
+    pub fn relative_key(
+        &self,
+        lights: &[Light],
+        settings: &stipple_render::shadow::ShadowSettings,
+    ) -> u64 {
+        relative_key(&self.objects, self.unit, lights, settings)
+    }
+}
+
+/// See [`LoadedScene::relative_key`]; `objects` are (content hash, placement) pairs.
+pub fn relative_key(
+    objects: &[(u64, DAffine3)],
+    unit: f64,
+    lights: &[Light],
+    settings: &stipple_render::shadow::ShadowSettings,
+) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    let inv = objects[0].1.inverse();
+    for (content, t) in objects {
+        content.hash(&mut h);
+        let rel = inv * *t;
+        for v in rel.matrix3.to_cols_array() {
+            ((v * 1e6).round() as i64).hash(&mut h);
+        }
+        for v in rel.translation.to_array() {
+            q(v, unit).hash(&mut h);
+        }
+    }
+    let point = |p: [f64; 3], h: &mut std::collections::hash_map::DefaultHasher| {
+        for v in inv.transform_point3(DVec3::from(p)).to_array() {
+            q(v, unit).hash(h);
+        }
+    };
+    let dir = |d: [f64; 3], h: &mut std::collections::hash_map::DefaultHasher| {
+        for v in inv
+            .transform_vector3(DVec3::from(d))
+            .normalize_or_zero()
+            .to_array()
+        {
+            ((v * 1e6).round() as i64).hash(h);
+        }
+    };
+    for l in lights {
+        match l {
+            Light::Headlight => 0u8.hash(&mut h),
+            Light::Directional(d) => {
+                1u8.hash(&mut h);
+                dir(*d, &mut h);
+            }
+            Light::Point(p) => {
+                2u8.hash(&mut h);
+                point(*p, &mut h);
+            }
+            Light::Area(a) => {
+                3u8.hash(&mut h);
+                point(a.centre, &mut h);
+                dir(a.facing, &mut h);
+                match a.shape {
+                    AreaShape::Rectangle { width, height } => {
+                        (q(width, unit), q(height, unit)).hash(&mut h)
+                    }
+                    AreaShape::Disc { radius } => q(radius, unit).hash(&mut h),
+                }
+                // Not the sample count: samples come in a fixed sequence, so a texture
+                // with fewer samples is refined rather than recomputed.
+            }
+        }
+    }
+    (
+        settings.size,
+        settings.slope_cap.to_bits(),
+        settings.layer_gap.map(f32::to_bits),
+        settings.background_fill_iterations,
+        settings.occluded_fill_iterations,
+    )
+        .hash(&mut h);
+    h.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    fn tmp(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("stipple-scene-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn a_scene_merges_placed_clouds_with_their_objects() {
+        let d = tmp("merge");
+        let p = write(
+            &d,
+            "s.toml",
+            r#"
+[[cloud]]
+demo = "sphere"
+points = 1000
+translate = [10, 0, 0]
+scale = 2
+colour = [255, 0, 0]
+opacity = 0.5
+material = { ambient = 0.1, diffuse = 0.9 }
+
+[[cloud]]
+demo = "plane"
+points = 500
+rotate = [90, 0, 0]
+
+[[light]]
+type = "area"
+position = [0, 5, 0]
+shape = "rectangle"
+size = [1, 2]
+samples = 8
+"#,
+        );
+        let (c, s) = load(&p).unwrap();
+        let c = &c;
+        assert_eq!(c.cloud.len(), 1500);
+        let o = c.objects.as_ref().unwrap();
+        assert_eq!(o.index.iter().filter(|&&i| i == 0).count(), 1000);
+        assert_eq!(o.materials[0].ambient, 0.1);
+        assert_eq!(o.materials[1].ambient, Material::default().ambient);
+        // The sphere: radius 2 around (10, 0, 0), red, α 0.5.
+        for i in 0..1000 {
+            let w = c.cloud.world(i);
+            assert!(((w - DVec3::new(10.0, 0.0, 0.0)).length() - 2.0).abs() < 1e-4);
+            assert_eq!(c.cloud.colors.as_ref().unwrap()[i], [255, 0, 0]);
+            assert_eq!(c.alpha.as_ref().unwrap()[i], 128);
+        }
+        // The plane turned about X by 90°: y = 0 → z = 0, its normal +Y → +Z.
+        for i in 1000..1500 {
+            assert!(c.cloud.world(i).z.abs() < 1e-6);
+            assert!((c.cloud.normals.as_ref().unwrap()[i] - Vec3::Z).length() < 1e-5);
+            assert_eq!(c.alpha.as_ref().unwrap()[i], 255);
+        }
+        assert!(matches!(s.lights[0], Light::Area(a) if a.samples == 8));
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn bad_scenes_are_clear_errors() {
+        let d = tmp("bad");
+        for (text, want) in [
+            ("", "lists no [[cloud]]"),
+            ("[[cloud]]\ndemo = \"cube\"\n", "unknown demo `cube`"),
+            ("[[cloud]]\nfile = \"a.ply\"\ndemo = \"sphere\"\n", "exactly one of"),
+            ("[[cloud]]\ndemo = \"sphere\"\nopacity = 2\n", "opacity 2"),
+            ("[[cloud]]\ndemo = \"sphere\"\ncolor = [1, 2, 3]\n", "unknown field `color`"),
+            ("[[cloud]]\nfile = \"missing.ply\"\n", "missing.ply"),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\n[[light]]\ntype = \"spot\"\n",
+                "unknown light type `spot`",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\n[[light]]\ntype = \"area\"\nposition = [0, 1, 0]\nradius = 0.1\nsamples = 999\n",
+                "999 samples",
+            ),
+            ("[[cloud]]\ndemo = \"sphere\"\n[render]\nlayers = 0\n", "layers = 0"),
+        ] {
+            let p = write(&d, "bad.toml", text);
+            let e = load(&p).err().unwrap_or_else(|| panic!("{text:?} loaded"));
+            assert!(e.contains("bad.toml") && e.contains(want), "{text:?}: {e}");
+        }
+        std::fs::remove_dir_all(d).unwrap();
+    }
+
+    #[test]
+    fn the_key_follows_relative_placement_only() {
+        let s = stipple_render::shadow::ShadowSettings::default();
+        let a = DAffine3::from_translation(DVec3::new(1.0, 2.0, 3.0));
+        let b = DAffine3::from_rotation_y(0.3) * DAffine3::from_translation(DVec3::X);
+        let light = |p: DVec3| Light::Point(p.to_array());
+        let base = relative_key(&[(7, a), (9, b)], 2.0, &[light(DVec3::Y * 5.0)], &s);
+        // The whole scene moved and turned together: same key.
+        let m = DAffine3::from_rotation_z(1.1)
+            * DAffine3::from_translation(DVec3::new(40.0, -3.0, 8.0));
+        let moved = relative_key(
+            &[(7, m * a), (9, m * b)],
+            2.0,
+            &[light(m.transform_point3(DVec3::Y * 5.0))],
+            &s,
+        );
+        assert_eq!(base, moved);
+        // The light moved: another key; one cloud moved or changed: another key.
+        assert_ne!(
+            base,
+            relative_key(&[(7, a), (9, b)], 2.0, &[light(DVec3::Y * 5.1)], &s)
+        );
+        assert_ne!(
+            base,
+            relative_key(&[(7, a), (9, m * b)], 2.0, &[light(DVec3::Y * 5.0)], &s)
+        );
+        assert_ne!(
+            base,
+            relative_key(&[(8, a), (9, b)], 2.0, &[light(DVec3::Y * 5.0)], &s)
+        );
+    }
+}

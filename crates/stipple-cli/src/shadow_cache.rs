@@ -1,0 +1,151 @@
+//! Shadow texture sidecar files (`.stshadow`): a computed shadow texture saved with the key
+//! of what it was computed for (clouds, their placement and the lights, see
+//! `scene::relative_key`), reloaded instead of recomputed while the key matches.
+//!
+//! Layout (little-endian): magic `STSHADOW`, u32 version (1), u32 reserved (0), u64 key,
+//! u64 point count, 4 × u32 samples per light, then one u32 of packed counts per point
+//! (light l in byte l), then the CRC-32 of everything before it.
+
+use std::io::Write;
+use std::path::Path;
+use stipple_render::LitTexture;
+
+const MAGIC: &[u8; 8] = b"STSHADOW";
+const VERSION: u32 = 1;
+const HEADER: usize = 8 + 4 + 4 + 8 + 8 + 16;
+
+/// What a cache file holds.
+pub struct Cached {
+    pub key: u64,
+    pub lit: LitTexture,
+}
+
+/// Writes a cache file (atomically). Refuses to replace a file that is not a shadow cache.
+pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), String> {
+    if let Ok(mut f) = std::fs::File::open(path) {
+        let mut magic = [0u8; 8];
+        use std::io::Read;
+        if f.read_exact(&mut magic).is_err() || &magic != MAGIC {
+            return Err(format!(
+                "{}: exists and is not a stipple shadow cache; refusing to overwrite it",
+                path.display()
+            ));
+        }
+    }
+    let mut buf = Vec::with_capacity(HEADER + 4 * lit.counts.len() + 4);
+    buf.extend_from_slice(MAGIC);
+    buf.extend_from_slice(&VERSION.to_le_bytes());
+    buf.extend_from_slice(&0u32.to_le_bytes());
+    buf.extend_from_slice(&key.to_le_bytes());
+    buf.extend_from_slice(&(lit.counts.len() as u64).to_le_bytes());
+    for s in lit.samples {
+        buf.extend_from_slice(&s.to_le_bytes());
+    }
+    for c in &lit.counts {
+        buf.extend_from_slice(&c.to_le_bytes());
+    }
+    let crc = crc32fast::hash(&buf);
+    buf.extend_from_slice(&crc.to_le_bytes());
+    stipple_io::write_atomically(path, |tmp| {
+        let w = || -> std::io::Result<()> {
+            let mut f = std::fs::File::create(tmp)?;
+            f.write_all(&buf)?;
+            f.sync_all()
+        };
+        w().map_err(|e| stipple_io::IoError::io(tmp, e))
+    })
+    .map_err(|e| e.to_string())
+}
+
+/// Reads a cache file made for a cloud of `points` points. Every inconsistency is an error
+/// naming the file; nothing is allocated from an unchecked count.
+pub fn read(path: &Path, points: usize) -> Result<Cached, String> {
+    let bad = |m: &str| format!("{}: {m}", path.display());
+    let len = std::fs::metadata(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?
+        .len();
+    let want = (HEADER + 4 * points + 4) as u64;
+    if len < HEADER as u64 {
+        return Err(bad("too short to be a shadow cache"));
+    }
+    if len != want {
+        return Err(bad(&format!(
+            "has {len} bytes, but a shadow cache for {points} points has {want} (made for \
+             another cloud, or cut short)"
+        )));
+    }
+    let buf = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    if &buf[..8] != MAGIC {
+        return Err(bad("not a stipple shadow cache"));
+    }
+    let u32_at = |o: usize| u32::from_le_bytes(buf[o..o + 4].try_into().unwrap());
+    let u64_at = |o: usize| u64::from_le_bytes(buf[o..o + 8].try_into().unwrap());
+    if u32_at(8) != VERSION {
+        return Err(bad(&format!(
+            "version {} (this stipple reads 1)",
+            u32_at(8)
+        )));
+    }
+    let n = buf.len() - 4;
+    if crc32fast::hash(&buf[..n]) != u32_at(n) {
+        return Err(bad("checksum mismatch (the file is damaged)"));
+    }
+    if u64_at(24) != points as u64 {
+        return Err(bad(&format!(
+            "made for {} points, the cloud has {points}",
+            u64_at(24)
+        )));
+    }
+    let samples = [u32_at(32), u32_at(36), u32_at(40), u32_at(44)];
+    if samples
+        .iter()
+        .any(|&s| s > stipple_render::shadow::MAX_SAMPLES)
+    {
+        return Err(bad("sample counts out of range"));
+    }
+    let counts = buf[HEADER..n]
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+        .collect();
+    Ok(Cached {
+        key: u64_at(16),
+        lit: LitTexture { counts, samples },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_damage() {
+        let dir = std::env::temp_dir().join(format!("stipple-cache-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("a.stshadow");
+        let lit = LitTexture {
+            counts: (0..1000u32)
+                .map(|i| i.wrapping_mul(2_654_435_761))
+                .collect(),
+            samples: [30, 1, 0, 255],
+        };
+        write(&p, 42, &lit).unwrap();
+        let back = read(&p, 1000).unwrap();
+        assert_eq!(back.key, 42);
+        assert_eq!(back.lit, lit);
+        // Another cloud size, a flipped byte, a cut file: errors naming the file.
+        assert!(read(&p, 999).unwrap_err().contains("a.stshadow"));
+        let mut bytes = std::fs::read(&p).unwrap();
+        bytes[HEADER + 17] ^= 1;
+        std::fs::write(&p, &bytes).unwrap();
+        assert!(read(&p, 1000).unwrap_err().contains("checksum"));
+        bytes.truncate(100);
+        std::fs::write(&p, &bytes).unwrap();
+        assert!(read(&p, 1000).unwrap_err().contains("bytes"));
+        // A file that is not a cache is never overwritten.
+        let other = dir.join("notes.stshadow");
+        std::fs::write(&other, b"my notes").unwrap();
+        assert!(write(&other, 1, &lit).unwrap_err().contains("refusing"));
+        assert_eq!(std::fs::read(&other).unwrap(), b"my notes");
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+}
