@@ -1,6 +1,6 @@
 //! End-to-end parity: `stipple render` on `--backend gpu` and `--backend cpu` writes the same
-//! image and depth (colour within 1/255, depth within 1e-5 relative) for the demo scenes and
-//! files from `../shared/data/`.
+//! image and depth (colour within 1/255, depth within 1e-5 relative) for the demo scenes, a
+//! peeled transparent scene, a scene with shadow textures, and files from `../shared/data/`.
 //!
 //! Tolerance: per-pass parity (stipple-render/tests/parity.rs) is exact for ids; a whole
 //! frame of a real cloud also holds points that fall within rounding distance of a pixel edge,
@@ -85,6 +85,52 @@ fn gpu_and_cpu_render_the_same_frames() {
         a.extend(size);
         compare(&dir, scene, &a);
     }
+    // Depth peeling and transparency: Fig. 17's tori through six layers.
+    let mut a = vec![
+        "--demo",
+        "nested-tori",
+        "--points",
+        "150000",
+        "--layers",
+        "6",
+    ];
+    a.extend(size);
+    compare(&dir, "nested-tori-6-layers", &a);
+    // A scene with shadow textures from a point light and an area light, and materials.
+    let scene = dir.join("shadows.toml");
+    std::fs::write(
+        &scene,
+        r#"
+[camera]
+eye = [2.5, 2.5, 3.5]
+target = [0.0, 0.3, 0.0]
+[[cloud]]
+demo = "plane"
+points = 200000
+scale = 4
+colour = [200, 200, 190]
+[[cloud]]
+demo = "sphere"
+points = 60000
+scale = 0.5
+translate = [0.0, 0.8, 0.0]
+colour = [200, 60, 50]
+material = { specular = 0.5, shininess = 40 }
+[[light]]
+type = "point"
+position = [1.0, 4.0, 1.0]
+[[light]]
+type = "area"
+position = [-2.0, 3.0, 1.0]
+radius = 0.5
+samples = 4
+"#,
+    )
+    .unwrap();
+    let s = scene.to_string_lossy().into_owned();
+    let mut a = vec![s.as_str()];
+    a.extend(size);
+    compare(&dir, "scene-shadows", &a);
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     for file in ["stanford/bunny/bun_zipper.ply", "lidar/autzen_trim.laz"] {
         let p = data.join(file);

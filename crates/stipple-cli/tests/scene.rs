@@ -1,0 +1,279 @@
+//! Scene files, depth peeling, transparency and shadow caches through the `stipple` binary.
+
+mod common;
+use common::{stipple, tempdir, text};
+use std::path::Path;
+
+const SCENE: &str = r#"
+[camera]
+eye = [2.5, 2.5, 3.5]
+target = [0.0, 0.3, 0.0]
+size = [200, 150]
+
+[render]
+shadow_cache = "s.stshadow"
+
+[[cloud]]
+demo = "plane"
+points = 120000
+scale = 4
+translate = [TX, 0.0, 0.0]
+colour = [200, 200, 190]
+
+[[cloud]]
+demo = "sphere"
+points = 40000
+scale = 0.5
+translate = [TX, 0.8, 0.0]
+colour = [200, 60, 50]
+
+[[light]]
+type = "area"
+position = [LX, 4.0, 1.0]
+radius = 0.3
+samples = 4
+"#;
+
+fn scene(dir: &Path, tx: f64, lx: f64) {
+    let s = SCENE
+        .replace("TX", &format!("{tx:.1}"))
+        .replace("LX", &format!("{lx:.1}"));
+    std::fs::write(dir.join("s.toml"), s).unwrap();
+}
+
+fn ok(dir: &Path, args: &[&str]) -> String {
+    let o = stipple(dir, args);
+    let t = text(&o);
+    assert!(o.status.success(), "{args:?}: {t}");
+    t
+}
+
+#[test]
+fn shadow_textures_are_cached_and_reused_until_light_and_clouds_move_apart() {
+    let dir = tempdir("scene-cache");
+    scene(&dir, 0.0, 1.0);
+    let args = ["render", "s.toml", "-o", "a.png", "--backend", "cpu"];
+    let t = ok(&dir, &args);
+    assert!(
+        t.contains("4 light samples") && t.contains("saved to"),
+        "{t}"
+    );
+    let first = std::fs::read(dir.join("s.stshadow")).unwrap();
+    // Unchanged: loaded, not recomputed.
+    let t = ok(&dir, &args);
+    assert!(t.contains("shadows loaded from"), "{t}");
+    let a = std::fs::read(dir.join("a.png")).unwrap();
+    // The whole scene (clouds and light) moved by 3: still the same shadows.
+    scene(&dir, 3.0, 4.0);
+    let t = ok(&dir, &args);
+    assert!(t.contains("shadows loaded from"), "moved together: {t}");
+    // The light moved relative to the clouds: recomputed, and the cache replaced.
+    scene(&dir, 3.0, 2.0);
+    let t = ok(&dir, &args);
+    assert!(
+        t.contains("light samples") && t.contains("made for other"),
+        "light moved: {t}"
+    );
+    assert_ne!(std::fs::read(dir.join("s.stshadow")).unwrap(), first);
+    // More samples than cached: refined, not recomputed from scratch.
+    scene(&dir, 0.0, 1.0);
+    ok(&dir, &args);
+    let t = ok(
+        &dir,
+        &[
+            "render",
+            "s.toml",
+            "-o",
+            "b.png",
+            "--backend",
+            "cpu",
+            "--shadow-samples",
+            "2",
+        ],
+    );
+    assert!(
+        t.contains("shadows loaded"),
+        "fewer samples than cached: {t}"
+    );
+    // --no-shadows: the plane under the sphere is lit.
+    ok(
+        &dir,
+        &[
+            "render",
+            "s.toml",
+            "-o",
+            "c.png",
+            "--backend",
+            "cpu",
+            "--no-shadows",
+        ],
+    );
+    let c = std::fs::read(dir.join("c.png")).unwrap();
+    assert_ne!(a, c);
+    // A cache path holding something else is never overwritten.
+    std::fs::write(dir.join("notes.stshadow"), b"mine").unwrap();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "s.toml",
+            "-o",
+            "d.png",
+            "--backend",
+            "cpu",
+            "--shadow-cache",
+            "notes.stshadow",
+        ],
+    );
+    assert!(!o.status.success());
+    assert!(text(&o).contains("refusing to overwrite"), "{}", text(&o));
+    assert_eq!(std::fs::read(dir.join("notes.stshadow")).unwrap(), b"mine");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn layers_are_peeled_and_written() {
+    let dir = tempdir("scene-layers");
+    let t = ok(
+        &dir,
+        &[
+            "render",
+            "--demo",
+            "torus",
+            "--points",
+            "200000",
+            "--size",
+            "160x120",
+            "--layers",
+            "4",
+            "--opacity",
+            "0.5",
+            "--layer-images",
+            "layer",
+            "-o",
+            "t.png",
+            "--backend",
+            "cpu",
+        ],
+    );
+    // A torus seen from the side has up to four surfaces along a ray.
+    assert!(t.contains("peeled 4 of at most 4 layers"), "{t}");
+    for k in 1..=4 {
+        assert!(dir.join(format!("layer-{k}.png")).exists(), "{t}");
+    }
+    assert!(!dir.join("layer-5.png").exists());
+    // The nested tori scene of Fig. 17 from `stipple gen`: a PLY with opacities.
+    ok(
+        &dir,
+        &["gen", "nested-tori", "-o", "tori.ply", "--points", "120000"],
+    );
+    let t = ok(
+        &dir,
+        &[
+            "render",
+            "tori.ply",
+            "--layers",
+            "6",
+            "--size",
+            "160x120",
+            "--backend",
+            "cpu",
+        ],
+    );
+    assert!(t.contains("peeled 6 of at most 6 layers"), "{t}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn bad_look_options_are_clear_errors() {
+    let dir = tempdir("scene-errors");
+    for (args, want) in [
+        (vec!["--layer-images", "x"], "--layer-images needs --layers"),
+        (vec!["--layers", "0"], "--layers 0"),
+        (vec!["--opacity", "1.5"], "--opacity 1.5"),
+        (vec!["--shadows"], "no light casts shadows"),
+        (
+            vec![
+                "--shadows",
+                "--light",
+                "point:0,5,0",
+                "--shadow-samples",
+                "0",
+            ],
+            "--shadow-samples 0",
+        ),
+        (vec!["--light", "disc:0,5,0,-1"], "radius must be positive"),
+        (
+            vec![
+                "--shadows",
+                "--light",
+                "point:0,5,0",
+                "--shadow-cache",
+                "x.txt",
+            ],
+            "must be a .stshadow",
+        ),
+    ] {
+        let mut a = vec![
+            "render", "--demo", "sphere", "--points", "2000", "--size", "64x64",
+        ];
+        a.extend(args.iter().copied());
+        let o = stipple(&dir, &a);
+        let t = text(&o);
+        assert!(!o.status.success() && t.contains(want), "{args:?}: {t}");
+        assert!(!t.contains("panicked"), "{t}");
+    }
+    std::fs::write(
+        dir.join("bad.toml"),
+        "[[cloud]]\ndemo = \"sphere\"\nscale = -1\n",
+    )
+    .unwrap();
+    let o = stipple(&dir, &["render", "bad.toml"]);
+    assert!(
+        text(&o).contains("bad.toml") && text(&o).contains("scale"),
+        "{}",
+        text(&o)
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn the_example_scenes_load() {
+    // The examples in the repository parse and name existing demos (rendered small).
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    let dir = tempdir("scene-examples");
+    for name in ["nested-tori.toml", "shadows.toml"] {
+        let p = root.join(name);
+        let text = std::fs::read_to_string(&p).unwrap();
+        // Fewer points and no cache: a quick run of the same scene.
+        let small = text
+            .lines()
+            .map(|l| {
+                if l.starts_with("points") {
+                    "points = 20000".to_string()
+                } else if l.starts_with("shadow_cache") || l.starts_with("size") {
+                    String::new()
+                } else {
+                    l.to_string()
+                }
+            })
+            .collect::<Vec<_>>()
+            .join("\n");
+        std::fs::write(dir.join(name), small).unwrap();
+        let t = ok(
+            &dir,
+            &[
+                "render",
+                name,
+                "--size",
+                "96x72",
+                "--backend",
+                "cpu",
+                "--shadow-samples",
+                "2",
+            ],
+        );
+        assert!(t.contains("wrote"), "{t}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
