@@ -14,8 +14,9 @@ use stipple_render::{Backend, PreparedCloud, Renderer};
 
 #[derive(clap::Args, Clone)]
 pub struct SourceArgs {
-    /// Cloud file (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv). Without one, a
-    /// demo scene is rendered.
+    /// Cloud file (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv), scene file
+    /// (.toml, .json: see docs/scenes.md) or, for render and bench, a .stlod tree. Without
+    /// one, a demo scene is rendered.
     pub input: Option<PathBuf>,
     /// Demo scene when no input is given: plane-objects, sphere, torus, nested-tori.
     #[arg(long, value_parser = crate::parse_scene, default_value = "plane-objects")]

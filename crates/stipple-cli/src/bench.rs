@@ -1,7 +1,7 @@
 //! `stipple bench`: whole-frame timings, ms per pass (median over frames) and projection
 //! throughput. Timing thresholds live here and in BENCHMARKS.md, never in tests.
 
-use crate::args::{BackendArgs, CameraArgs, PipelineArgs, SourceArgs};
+use crate::args::{BackendArgs, CameraArgs, LookArgs, PipelineArgs, SourceArgs};
 use crate::Result;
 use std::time::Instant;
 use stipple_render::gpu::ProjectionPath;
@@ -24,7 +24,18 @@ pub struct BenchArgs {
     #[command(flatten)]
     backend: BackendArgs,
     #[command(flatten)]
+    look: LookArgs,
+    #[command(flatten)]
     lod: crate::lod::LodArgs,
+    /// Reproduce the rows of Dobrev et al. Table 3 for this cloud: frames per second with
+    /// local illumination, transparency with 3 and 6 peeled layers, and shadows computed every
+    /// frame with 1, 5 and 10 samples of an area light, at 512² and 1024² (the sizes can be
+    /// changed with --table-sizes).
+    #[arg(long)]
+    table3: bool,
+    /// Square image sizes for --table3.
+    #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024])]
+    table_sizes: Vec<u32>,
 }
 
 pub fn median(v: &mut [f64]) -> f64 {
@@ -83,10 +94,37 @@ pub fn run(a: BenchArgs) -> Result<()> {
         return crate::lod::bench(p, &a.camera, &a.pipeline, &a.lod, &mut r, a.frames);
     }
     let t0 = Instant::now();
-    let (cloud, label) = a.source.load()?;
+    let scene_file = a
+        .source
+        .input
+        .as_deref()
+        .filter(|p| crate::scene::is_scene(p));
+    let (mut cloud, label, camera, scene) = match scene_file {
+        Some(p) => {
+            let (cloud, s, camera) = crate::look::load_scene(p, &a.camera)?;
+            (cloud, s.label.clone(), camera, Some(s))
+        }
+        None => {
+            let (cloud, label) = a.source.load()?;
+            let camera = a.camera.build(&cloud.cloud)?;
+            (cloud, label, camera, None)
+        }
+    };
     let load_s = t0.elapsed().as_secs_f64();
-    let camera = a.camera.build(&cloud.cloud)?;
-    let pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
+    if a.table3 {
+        return table3(&a, cloud, &label, &mut r);
+    }
+    let mut pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
+    if let Some(line) = crate::look::apply(
+        &mut cloud,
+        &mut pipe,
+        scene.as_ref(),
+        &a.look,
+        a.pipeline.background.is_some(),
+        &mut r,
+    )? {
+        println!("  {line}");
+    }
     let (mut per_pass, mut totals) =
         time_frames(&mut r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
     let n = cloud.cloud.len();
@@ -135,6 +173,104 @@ pub fn run(a: BenchArgs) -> Result<()> {
             n as f64 / m / 1e3,
             m / project_ms
         );
+    }
+    Ok(())
+}
+
+/// The rows of Dobrev Table 3.
+const ROWS: [(&str, u32, u32); 6] = [
+    ("Local illumination", 1, 0),
+    ("Transparency (3 layers)", 3, 0),
+    ("Transparency (6 layers)", 6, 0),
+    ("Shadows (1 sample)", 1, 1),
+    ("Shadows (5 samples)", 1, 5),
+    ("Shadows (10 samples)", 1, 10),
+];
+
+/// Dobrev Table 3 for one cloud: fps per row and image size. Transparency uses the cloud's
+/// opacities (0.5 where it has none); shadows come from a disc light above the viewer
+/// (radius a tenth of the cloud's diagonal) and are recomputed every frame, as in the paper.
+fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer) -> Result<()> {
+    if let Some(g) = r.gpu_mut() {
+        g.sync_timing = false;
+    }
+    if cloud.alpha.is_none() {
+        cloud.set_opacity(0.5);
+    }
+    let base = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
+    let (lo, hi) = cloud.cloud.world_bounds();
+    let diag = (hi - lo).length();
+    let centre = (lo + hi) * 0.5;
+    let mut cols: Vec<Vec<f64>> = Vec::new();
+    for &size in &a.table_sizes {
+        let mut cam_args = a.camera.clone();
+        cam_args.size = Some((size, size));
+        let camera = cam_args.build(&cloud.cloud)?;
+        let b = camera.basis();
+        let eye = camera.eye;
+        let light = stipple_render::Light::Area(stipple_render::AreaLight {
+            centre: (eye + b.up * (0.6 * diag) - b.right * (0.3 * diag)).to_array(),
+            facing: (centre - eye).to_array(),
+            shape: stipple_render::AreaShape::Disc { radius: 0.1 * diag },
+            samples: 10,
+        });
+        let mut col = Vec::new();
+        for (name, layers, samples) in ROWS {
+            let mut pipe = base.clone();
+            pipe.layers = layers;
+            if samples > 0 {
+                pipe.lights = vec![light];
+            }
+            let settings = stipple_render::shadow::ShadowSettings::default();
+            let mut frame = |cloud: &mut PreparedCloud| -> Result<f64> {
+                let t = Instant::now();
+                if samples > 0 {
+                    let lit = r
+                        .shadow_texture(
+                            cloud,
+                            &pipe.lights,
+                            &settings,
+                            None,
+                            samples,
+                            &mut |_, _| {},
+                        )
+                        .map_err(|e| e.to_string())?;
+                    cloud.set_lit(Some(lit)).map_err(|e| e.to_string())?;
+                }
+                r.render(cloud, &camera, &pipe).map_err(|e| e.to_string())?;
+                Ok(t.elapsed().as_secs_f64() * 1e3)
+            };
+            for _ in 0..a.warmup.min(1) {
+                frame(&mut cloud)?;
+            }
+            let mut ms = Vec::new();
+            for _ in 0..a.frames {
+                ms.push(frame(&mut cloud)?);
+            }
+            cloud.set_lit(None).map_err(|e| e.to_string())?;
+            let m = median(&mut ms);
+            eprintln!("  {size}² {name}: {m:.1} ms");
+            col.push(1e3 / m);
+        }
+        cols.push(col);
+    }
+    println!(
+        "Dobrev Table 3 rows: {label}, {} points, {}, median of {} frames, fps",
+        cloud.cloud.len(),
+        r.describe(),
+        a.frames
+    );
+    print!("  {:<26}", "Resolution");
+    for s in &a.table_sizes {
+        print!(" {:>9}", format!("{s}²"));
+    }
+    println!();
+    for (k, (name, _, _)) in ROWS.iter().enumerate() {
+        print!("  {name:<26}");
+        for c in &cols {
+            print!(" {:>9.2}", c[k]);
+        }
+        println!();
     }
     Ok(())
 }

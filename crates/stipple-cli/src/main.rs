@@ -38,6 +38,10 @@ Examples:
   stipple eval bun_zipper.ply                       raw rendering of a mesh's vertices vs the mesh
   stipple build-lod tiles/*.laz -o area.stlod       a multi-resolution tree for clouds beyond memory
   stipple render area.stlod --point-budget 5M       draw a view-dependent cut of the tree
+  stipple render scene.toml                         a scene file: clouds, lights, camera (docs/scenes.md)
+  stipple render tori.ply --layers 6                depth peeling: six layers blended by opacity
+  stipple render scan.ply --shadows --light disc:0,2,1,0.2   soft shadows from an area light
+  stipple bench dragon.ply.gz --table3              Dobrev Table 3: illumination, transparency, shadows
 
 The rendering pipeline (Dobrev et al. 2010, §3): points are projected (nearest wins),
 holes are filled in image space (background fill, then occluded-pixel fill with the layer
@@ -47,6 +51,11 @@ off or iterated; see `stipple render --help`.
 Clouds without normals (most LAS/LAZ) use the raw pipeline instead (Pintus et al. 2011):
 screen-space visibility removes points that should be hidden, an anisotropic fill closes the
 gaps, and multi-level shape depiction shades from depth alone. `--pipeline` chooses.
+
+Transparency and shadows (Dobrev et al. 2010, §4-6): `--layers N` peels the N nearest
+surface layers (each through the filters above) and blends them front to back with each
+point's opacity; `--shadows` computes a per-point shadow texture from point or area lights
+(soft shadows by Monte Carlo sampling), which scene files can cache.
 
 Clouds larger than memory: `build-lod` builds a kd-tree whose inner nodes hold filtered
 samples (Pintus et al. 2011, §7); `render` and `bench` then draw a cut of it chosen by
@@ -61,7 +70,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Cmd {
-    /// Render a cloud (or a demo scene) to PNG, with optional depth (.npy) and camera (.json).
+    /// Render a cloud, a scene file (.toml/.json) or a demo scene to PNG, with optional depth
+    /// (.npy), camera (.json) and per-layer images.
     Render(RenderArgs),
     /// Print point count, bounds, attributes and point spacing of cloud files.
     Info {

@@ -166,7 +166,8 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
             return Err(what(format!("{name} has no points")));
         }
         let scale = c.scale.unwrap_or(1.0);
-        if !(scale > 0.0 && scale.is_finite())
+        if scale <= 0.0
+            || !scale.is_finite()
             || !c.translate.iter().chain(&c.rotate).all(|v| v.is_finite())
         {
             return Err(what(

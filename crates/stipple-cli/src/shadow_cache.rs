@@ -15,6 +15,7 @@ const VERSION: u32 = 1;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8 + 16;
 
 /// What a cache file holds.
+#[derive(Debug)]
 pub struct Cached {
     pub key: u64,
     pub lit: LitTexture,
