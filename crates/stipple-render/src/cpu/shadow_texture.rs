@@ -110,14 +110,19 @@ mod tests {
 
     #[test]
     fn marks_the_nearest_layer_only() {
-        // Looking down +z at a 4 × 4 image; two points per pixel 0.05 apart (one surface) and
-        // one 1.0 behind (another surface).
-        let v = ViewParams::axis_aligned(4, 4, false, 0.5);
+        // Looking down +z at a 64 × 64 image of pixels 1/16 wide (so d̃' = max(0.1, 2/16)
+        // = 0.125); two points in one pixel 0.05 apart (one surface) and one 1.0 behind
+        // (another surface).
+        let v = ViewParams::axis_aligned(64, 64, false, 0.5);
         let p = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
-        let pts = [p(0.5, 0.5, 2.0), p(0.6, 0.6, 2.05), p(0.55, 0.5, 3.0)];
-        let mut reference = vec![f32::INFINITY; 16];
+        let pts = [p(0.53, 0.53, 2.0), p(0.54, 0.54, 2.05), p(0.55, 0.53, 3.0)];
+        let mut reference = vec![f32::INFINITY; 64 * 64];
         let (pix, _) = crate::cpu::project::project_point(&v, pts[0]).unwrap();
+        for q in &pts {
+            assert_eq!(crate::cpu::project::project_point(&v, *q).unwrap().0, pix);
+        }
         reference[pix] = 2.0;
+        assert_eq!(light_gap(&v, 0.1, 2.0), 0.125);
         let mut counts = vec![0u32; 3];
         let params = MarkParams {
             gap: 0.1,
