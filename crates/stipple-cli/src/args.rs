@@ -98,6 +98,9 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 /// The image size when neither the command line nor a scene gives one.
 pub const DEFAULT_SIZE: (u32, u32) = (1024, 1024);
 
+/// The vertical field of view when neither the command line nor a scene gives one.
+pub const DEFAULT_FOV: f64 = 45.0;
+
 /// The background when neither the command line nor a scene gives one.
 pub const DEFAULT_BACKGROUND: [u8; 3] = [24, 26, 31];
 
@@ -115,9 +118,9 @@ pub struct CameraArgs {
     /// Up vector x,y,z. Default: +Y, or +Z for flat (LiDAR-like) clouds.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<DVec3>,
-    /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = 45.0)]
-    pub fov: f64,
+    /// Vertical field of view in degrees [default: 45, or a scene's].
+    #[arg(long)]
+    pub fov: Option<f64>,
     /// Orthographic projection with this view height (world units) instead of perspective.
     #[arg(long, value_name = "HEIGHT")]
     pub ortho: Option<f64>,
@@ -134,7 +137,7 @@ impl CameraArgs {
     /// The camera for a scene with these world bounds (a LOD tree's root box).
     pub fn build_for_bounds(&self, lo: DVec3, hi: DVec3) -> Result<Camera> {
         let (w, h) = self.size.unwrap_or(DEFAULT_SIZE);
-        let mut cam = Camera::framing(lo, hi, w, h, self.fov);
+        let mut cam = Camera::framing(lo, hi, w, h, self.fov.unwrap_or(DEFAULT_FOV));
         let framed_dir = cam.eye - cam.target;
         if let Some(t) = self.target {
             cam.target = t;

@@ -19,16 +19,9 @@ pub fn scene_camera(args: &CameraArgs, s: &LoadedScene) -> CameraArgs {
     a.eye = a.eye.or(v(s.camera.eye));
     a.target = a.target.or(v(s.camera.target));
     a.up = a.up.or(v(s.camera.up));
-    if let (Some(f), false) = (s.camera.fov, args_fov_given(args)) {
-        a.fov = f;
-    }
+    a.fov = a.fov.or(s.camera.fov);
     a.size = a.size.or(s.camera.size.map(|[w, h]| (w, h)));
     a
-}
-
-/// `--fov` has a default; a scene's fov applies when the command line kept it.
-fn args_fov_given(a: &CameraArgs) -> bool {
-    a.fov != 45.0
 }
 
 /// Area lights given without a facing direction face the cloud's centre.

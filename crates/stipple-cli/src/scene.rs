@@ -367,10 +367,7 @@ fn place(
         c.colors = Some(vec![col; c.len()]);
     } else if c.colors.is_none() {
         let grey = c.intensity.as_ref().map(|i| {
-            let mut s: Vec<u16> = i.clone();
-            let k = (s.len() * 99 / 100).min(s.len() - 1);
-            let p99 = *s.select_nth_unstable(k).1 as f32;
-            let scale = if p99 > 0.0 { 1.0 / p99 } else { 1.0 };
+            let scale = stipple_render::intensity_scale(i).unwrap_or(1.0);
             i.iter()
                 .map(|&t| stipple_render::cpu::shade::intensity_grey(t, scale))
                 .collect::<Vec<u8>>()

@@ -75,6 +75,22 @@ pub fn alpha8(opacity: f32) -> u8 {
     (opacity.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// The scale that maps LiDAR intensities to [0, 1]: 1 / their 99th percentile (None when
+/// that is 0).
+pub fn intensity_scale(v: &[u16]) -> Option<f32> {
+    let mut hist = vec![0u64; 65536];
+    for &i in v {
+        hist[i as usize] += 1;
+    }
+    let target = (v.len() as f64 * 0.99) as u64;
+    let mut acc = 0;
+    let p99 = hist.iter().position(|&c| {
+        acc += c;
+        acc >= target
+    })?;
+    (p99 > 0).then(|| 1.0 / p99 as f32)
+}
+
 /// A cloud with what every frame needs computed once: the point spacing (for d̃), the
 /// intensity scale, opacities, and (for scenes) objects and shadow textures.
 pub struct PreparedCloud {
@@ -113,19 +129,7 @@ impl PreparedCloud {
     /// Prepares a cloud whose point spacing is already known (a LOD cut knows it from its
     /// nodes; estimating it would cost a neighbour search per frame).
     pub fn with_spacing(cloud: PointCloud, spacing: f32) -> PreparedCloud {
-        let intensity_scale = cloud.intensity.as_ref().and_then(|v| {
-            let mut hist = vec![0u64; 65536];
-            for &i in v {
-                hist[i as usize] += 1;
-            }
-            let target = (v.len() as f64 * 0.99) as u64;
-            let mut acc = 0;
-            let p99 = hist.iter().position(|&c| {
-                acc += c;
-                acc >= target
-            })?;
-            (p99 > 0).then(|| 1.0 / p99 as f32)
-        });
+        let intensity_scale = cloud.intensity.as_deref().and_then(intensity_scale);
         let alpha: Option<Vec<u8>> = cloud
             .opacity
             .as_ref()
@@ -410,14 +414,25 @@ impl Renderer {
             }
         }
         let total = todo.len() as u32;
+        if total == 0 {
+            return Ok(lit);
+        }
+        // On the GPU the counts stay on the device from the first sample to the last: one
+        // upload before, one readback after.
+        if let Inner::Gpu { renderer, uploaded } = &mut self.inner {
+            let up = upload(renderer, uploaded, cloud)?;
+            up.write_counts(renderer.context(), &lit.counts)?;
+            // The GPU copy now holds counts the cloud does not: rewrite it next frame.
+            up.lit_key = 0;
+        }
+        let centre = bounds.center().as_dvec3();
         for (done, &(l, k)) in todo.iter().enumerate() {
             let pos = shadow::sample_position(&lights[l], k).expect("lights with samples");
             let views =
                 shadow::light_views(&bounds, cloud.cloud.origin, cloud.spacing, pos, settings);
-            let centre = cloud.cloud.origin + bounds.center().as_dvec3();
             let params = |view: &shadow::LightView| {
                 let v = &view.view;
-                let z = (centre - cloud.cloud.origin - glam::Vec3::from(v.eye).as_dvec3())
+                let z = (centre - glam::Vec3::from(v.eye).as_dvec3())
                     .dot(glam::Vec3::from(v.forward).as_dvec3())
                     .max(v.near as f64) as f32;
                 cpu::shadow_texture::MarkParams {
@@ -447,16 +462,17 @@ impl Renderer {
                     }
                 }
                 Inner::Gpu { renderer, uploaded } => {
-                    let up = upload(renderer, uploaded, cloud)?;
-                    up.write_counts(renderer.context(), &lit.counts)?;
-                    // The GPU copy now holds counts the cloud does not: rewrite it next frame.
-                    up.lit_key = 0;
+                    let up = &uploaded.as_ref().expect("uploaded above").1;
                     let marks: Vec<_> = views.iter().map(|v| (v.view, params(v))).collect();
-                    lit.counts = renderer.shadow_texture(up, &marks, settings)?;
+                    renderer.shadow_views(up, &marks, settings)?;
                 }
             }
             lit.samples[l] = k + 1;
             progress(done as u32 + 1, total);
+        }
+        if let Inner::Gpu { renderer, uploaded } = &mut self.inner {
+            let up = &uploaded.as_ref().expect("uploaded above").1;
+            lit.counts = renderer.read_counts(up)?;
         }
         Ok(lit)
     }

@@ -981,15 +981,16 @@ impl GpuRenderer {
         result
     }
 
-    /// Adds one shadow sample's marks to an uploaded cloud's shadow counts (which must exist,
-    /// see [`GpuCloud::write_counts`]): per light view, project and the light pipeline's fills,
-    /// then `shadow_texture` over every chunk. Returns the counts read back.
-    pub fn shadow_texture(
+    /// Adds one shadow sample's marks to an uploaded cloud's shadow counts on the device
+    /// (which must exist, see [`GpuCloud::write_counts`]): per light view, project and the
+    /// light pipeline's fills, then `shadow_texture` over every chunk. Nothing is read back
+    /// ([`GpuRenderer::read_counts`] does).
+    pub fn shadow_views(
         &mut self,
         cloud: &GpuCloud,
         marks: &[(ViewParams, crate::cpu::shadow_texture::MarkParams)],
         settings: &crate::shadow::ShadowSettings,
-    ) -> Result<Vec<u32>, GpuError> {
+    ) -> Result<(), GpuError> {
         if cloud.chunks.iter().any(|c| c.lit.is_none()) {
             return Err(GpuError::Wgpu(
                 "shadow_texture: the cloud has no shadow counts uploaded".into(),
@@ -1016,16 +1017,23 @@ impl GpuRenderer {
                 self.frame = Some(f);
                 r?;
             }
-            let mut counts = Vec::with_capacity(cloud.len);
-            for c in &cloud.chunks {
-                let lit = c.lit.as_ref().expect("checked");
-                let raw = copy_out(&self.ctx, lit, 4 * c.count as u64)?;
-                counts.extend_from_slice(bytemuck::cast_slice::<u8, u32>(&raw));
-            }
-            Ok(counts)
+            Ok(())
         })();
         std::mem::swap(&mut self.frame, &mut self.shadow_frame);
         r
+    }
+
+    /// Reads an uploaded cloud's shadow counts back.
+    pub fn read_counts(&self, cloud: &GpuCloud) -> Result<Vec<u32>, GpuError> {
+        let mut counts = Vec::with_capacity(cloud.len);
+        for c in &cloud.chunks {
+            let lit = c.lit.as_ref().ok_or_else(|| {
+                GpuError::Wgpu("read_counts: the cloud has no shadow counts uploaded".into())
+            })?;
+            let raw = copy_out(&self.ctx, lit, 4 * c.count as u64)?;
+            counts.extend_from_slice(bytemuck::cast_slice::<u8, u32>(&raw));
+        }
+        Ok(counts)
     }
 
     /// Runs project (and resolve) only: the G-buffer of the nearest points, and points kept.
