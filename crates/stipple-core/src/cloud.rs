@@ -113,6 +113,8 @@ pub struct PointCloud {
     pub classification: Option<Vec<u8>>,
     /// Per-point opacity in [0, 1].
     pub opacity: Option<Vec<f32>>,
+    /// Splat radius per point, world units (PLY `radius`; see [`crate::normals`]).
+    pub radius: Option<Vec<f32>>,
     /// Triangles from the source file (kept for ground-truth rendering and later conversions).
     pub faces: Vec<[u32; 3]>,
 }
@@ -187,6 +189,7 @@ impl PointCloud {
         check("intensity", self.intensity.as_ref().map(Vec::len))?;
         check("classification", self.classification.as_ref().map(Vec::len))?;
         check("opacity", self.opacity.as_ref().map(Vec::len))?;
+        check("radius", self.radius.as_ref().map(Vec::len))?;
         for (face, tri) in self.faces.iter().enumerate() {
             if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
                 return Err(CloudError::BadFace {
@@ -216,6 +219,9 @@ impl PointCloud {
         }
         if self.opacity.is_some() {
             a.push("opacity");
+        }
+        if self.radius.is_some() {
+            a.push("radius");
         }
         a
     }
@@ -263,6 +269,11 @@ impl PointCloud {
         merge(&mut self.intensity, &other.intensity, n0, n1, 0);
         merge(&mut self.classification, &other.classification, n0, n1, 0);
         merge(&mut self.opacity, &other.opacity, n0, n1, 1.0);
+        // Radii are only meaningful where every point has one.
+        match (self.radius.as_mut(), &other.radius) {
+            (Some(a), Some(b)) => a.extend_from_slice(b),
+            _ => self.radius = None,
+        }
         self.faces
             .extend(other.faces.iter().map(|f| f.map(|v| v + n0 as u32)));
     }

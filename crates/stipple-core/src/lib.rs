@@ -4,6 +4,7 @@
 pub mod camera;
 pub mod cloud;
 pub mod demo;
+pub mod normals;
 pub mod rng;
 
 pub use camera::{Camera, Projection};

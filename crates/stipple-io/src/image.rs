@@ -61,9 +61,19 @@ pub fn read_png(path: &Path) -> Result<(u32, u32, Vec<u8>), IoError> {
 
 /// Encodes a float32 (H, W) array in the NumPy .npy v1.0 format.
 pub fn npy_bytes(width: u32, height: u32, data: &[f32]) -> Vec<u8> {
-    assert_eq!(data.len(), width as usize * height as usize);
-    let dict =
-        format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({height}, {width}), }}");
+    npy_bytes_shaped(&[height as usize, width as usize], data)
+}
+
+/// Encodes a float32 C-order array of any shape in the NumPy .npy v1.0 format.
+pub fn npy_bytes_shaped(shape: &[usize], data: &[f32]) -> Vec<u8> {
+    assert_eq!(data.len(), shape.iter().product::<usize>());
+    let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+    let dims = if dims.len() == 1 {
+        format!("{},", dims[0])
+    } else {
+        dims.join(", ")
+    };
+    let dict = format!("{{'descr': '<f4', 'fortran_order': False, 'shape': ({dims}), }}");
     // Magic (6) + version (2) + header length (2) + dict + padding + '\n', multiple of 64.
     let unpadded = 10 + dict.len() + 1;
     let pad = (64 - unpadded % 64) % 64;
@@ -89,8 +99,27 @@ pub fn write_npy(path: &Path, width: u32, height: u32, data: &[f32]) -> Result<(
     })
 }
 
+/// Writes a float32 (H, W, 3) .npy file (per-pixel vectors such as normals).
+pub fn write_npy3(path: &Path, width: u32, height: u32, data: &[[f32; 3]]) -> Result<(), IoError> {
+    let flat: Vec<f32> = data.iter().flatten().copied().collect();
+    let bytes = npy_bytes_shaped(&[height as usize, width as usize, 3], &flat);
+    write_atomically(path, |tmp| {
+        let mut f = std::fs::File::create(tmp).map_err(|e| IoError::io(tmp, e))?;
+        f.write_all(&bytes).map_err(|e| IoError::io(tmp, e))
+    })
+}
+
 /// Reads a float32 (H, W) .npy file written by [`write_npy`] (or NumPy): (width, height, data).
 pub fn read_npy(path: &Path) -> Result<(u32, u32, Vec<f32>), IoError> {
+    let (dims, data) = read_npy_shaped(path)?;
+    let [h, w] = dims[..] else {
+        return Err(IoError::invalid(path, "npy: expected a 2-D array"));
+    };
+    Ok((w as u32, h as u32, data))
+}
+
+/// Reads a little-endian float32 C-order .npy file of any shape: (shape, data).
+pub fn read_npy_shaped(path: &Path) -> Result<(Vec<usize>, Vec<f32>), IoError> {
     let b = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
     let bad = |m: &str| IoError::invalid(path, format!("npy: {m}"));
     if b.len() < 10 || &b[..6] != b"\x93NUMPY" {
@@ -109,21 +138,22 @@ pub fn read_npy(path: &Path) -> Result<(u32, u32, Vec<f32>), IoError> {
         .nth(1)
         .and_then(|s| s.split(')').next())
         .ok_or_else(|| bad("no shape"))?;
-    let dims: Vec<u32> = shape
+    let dims: Vec<usize> = shape
         .split(',')
         .filter(|s| !s.trim().is_empty())
         .map(|s| s.trim().parse().map_err(|_| bad("bad shape")))
         .collect::<Result<_, _>>()?;
-    let [h, w] = dims[..] else {
-        return Err(bad("expected a 2-D array"));
-    };
     let body = &b[10 + hl..];
-    if body.len() != w as usize * h as usize * 4 {
+    let n = dims
+        .iter()
+        .try_fold(4usize, |a, &d| a.checked_mul(d))
+        .ok_or_else(|| bad("shape too large"))?;
+    if body.len() != n {
         return Err(bad("data length does not match the shape"));
     }
     let data = body
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect();
-    Ok((w, h, data))
+    Ok((dims, data))
 }

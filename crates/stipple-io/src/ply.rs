@@ -227,6 +227,7 @@ struct VertexMap {
     rgb: [Option<usize>; 3],
     alpha: Option<usize>,
     intensity: Option<usize>,
+    radius: Option<usize>,
 }
 
 impl VertexMap {
@@ -245,6 +246,7 @@ impl VertexMap {
                 "blue" | "b" | "diffuse_blue" => &mut m.rgb[2],
                 "alpha" | "a" | "diffuse_alpha" => &mut m.alpha,
                 "intensity" | "scalar_intensity" => &mut m.intensity,
+                "radius" | "scalar_radius" => &mut m.radius,
                 _ => continue,
             };
             if matches!(p, Property::List { .. }) {
@@ -459,6 +461,7 @@ fn read_elements(
     let mut normals: Option<Vec<Vec3>> = None;
     let mut colors: Option<Vec<[u8; 3]>> = None;
     let mut alpha: Option<Vec<f32>> = None;
+    let mut radius: Option<Vec<f32>> = None;
     let mut intensity_raw: Option<(Vec<f64>, Scalar)> = None;
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut seen_vertex = false;
@@ -478,6 +481,9 @@ fn read_elements(
             }
             if m.alpha.is_some() {
                 alpha = Some(Vec::with_capacity(cap));
+            }
+            if m.radius.is_some() {
+                radius = Some(Vec::with_capacity(cap));
             }
             if let Some(k) = m.intensity {
                 intensity_raw = Some((Vec::with_capacity(cap), scalar_ty(el, k)));
@@ -512,6 +518,15 @@ fn read_elements(
                 if let Some((v, _)) = intensity_raw.as_mut() {
                     v.push(vals[m.intensity.unwrap()]);
                 }
+                if let Some(r) = radius.as_mut() {
+                    let v = vals[m.radius.unwrap()] as f32;
+                    if !(v.is_finite() && v > 0.0) {
+                        return Err(format!(
+                            "vertex {i} has radius {v}; a splat radius must be positive"
+                        ));
+                    }
+                    r.push(v);
+                }
             }
         } else if el.name == "face" {
             let lk = el
@@ -545,6 +560,7 @@ fn read_elements(
     cloud.normals = normals.filter(|n| n.iter().any(|v| *v != Vec3::ZERO));
     cloud.colors = colors;
     cloud.opacity = alpha;
+    cloud.radius = radius;
     cloud.intensity = intensity_raw.map(|(v, ty)| {
         let max = v.iter().cloned().fold(0.0, f64::max);
         let scale = if matches!(ty, Scalar::F32 | Scalar::F64) && max <= 1.0 {
@@ -614,6 +630,9 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
     if c.intensity.is_some() {
         writeln!(w, "property ushort intensity")?;
     }
+    if c.radius.is_some() {
+        writeln!(w, "property float radius")?;
+    }
     if !c.faces.is_empty() {
         writeln!(w, "element face {}", c.faces.len())?;
         writeln!(w, "property list uchar int vertex_indices")?;
@@ -638,6 +657,7 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
             .as_ref()
             .map(|v| (v[i] * 255.0).round().clamp(0.0, 255.0) as u8);
         let it = c.intensity.as_ref().map(|v| v[i]);
+        let rad = c.radius.as_ref().map(|v| v[i]);
         if enc == Encoding::Ascii {
             if double {
                 write!(w, "{} {} {}", p.x, p.y, p.z)?;
@@ -656,6 +676,9 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
             }
             if let Some(it) = it {
                 write!(w, " {it}")?;
+            }
+            if let Some(r) = rad {
+                write!(w, " {r}")?;
             }
             writeln!(w)?;
         } else {
@@ -682,6 +705,9 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
             }
             if let Some(it) = it {
                 put!(it);
+            }
+            if let Some(r) = rad {
+                put!(r);
             }
         }
     }
