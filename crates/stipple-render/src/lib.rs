@@ -13,11 +13,13 @@ pub mod gbuffer;
 pub mod gpu;
 pub mod masks;
 pub mod params;
+pub mod passes;
 pub mod pipeline;
 pub mod shadow;
 
 pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
 pub use params::ViewParams;
+pub use passes::splat::{SplatMode, SplatSettings};
 pub use pipeline::{
     AreaLight, AreaShape, ColourPass, GeometryPass, Iterations, Kernel, Light, Material, Pipeline,
 };
@@ -228,7 +230,11 @@ impl PreparedCloud {
 
     /// The pipeline with its automatic settings resolved for this cloud and view.
     pub fn resolve(&self, pipe: &Pipeline, v: &ViewParams) -> Pipeline {
-        pipe.resolved(v, self.spacing, self.centre_depth(v))
+        let mut p = pipe.resolved(v, self.spacing, self.centre_depth(v));
+        if let Some(s) = &mut p.splat {
+            s.epsilon = Some(self.splat_epsilon(s));
+        }
+        p
     }
 
     /// View depth of the centre of the cloud's bounds.
@@ -253,6 +259,88 @@ impl PreparedCloud {
     pub fn layer_gap(&self, pipe: &Pipeline) -> f32 {
         pipeline::layer_gap(pipe, self.spacing)
     }
+
+    /// Splat radii, unscaled: the cloud's own (PLY `radius`, or from
+    /// [`PreparedCloud::prepare_surface`]), else [`FALLBACK_RADIUS`] × the point spacing for
+    /// every point.
+    pub fn splat_radii(&self) -> std::borrow::Cow<'_, [f32]> {
+        match &self.cloud.radius {
+            Some(r) => std::borrow::Cow::Borrowed(r),
+            None => std::borrow::Cow::Owned(vec![
+                FALLBACK_RADIUS
+                    * self.spacing.max(f32::MIN_POSITIVE);
+                self.cloud.len()
+            ]),
+        }
+    }
+
+    /// The ε of the splat pass's ε-z test: the pipeline's own, else the median scaled radius.
+    pub fn splat_epsilon(&self, s: &SplatSettings) -> f32 {
+        s.epsilon.unwrap_or_else(|| {
+            let r = self.splat_radii();
+            let mut v: Vec<f32> = r.iter().step_by((r.len() / 4096).max(1)).copied().collect();
+            let m = v.len() / 2;
+            let median = if v.is_empty() {
+                0.0
+            } else {
+                *v.select_nth_unstable_by(m, f32::total_cmp).1
+            };
+            passes::splat::epsilon(median * s.scale)
+        })
+    }
+
+    /// Makes the cloud ready for lit and splat rendering: estimates normals where it has
+    /// none (`estimate`), re-orients given normals whose signs are inconsistent, and
+    /// computes splat radii where it has none (see `stipple_core::normals`). Does nothing
+    /// that is already there; the GPU copy is refreshed on the next frame.
+    pub fn prepare_surface(
+        &mut self,
+        k: usize,
+        estimate: bool,
+    ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        let c = &mut self.cloud;
+        let need_normals = c.normals.is_none() && estimate;
+        let mut report = SurfaceReport::default();
+        if !need_normals && c.normals.is_none() && c.radius.is_some() {
+            return Ok(report);
+        }
+        let need_radii = c.radius.is_none();
+        let t0 = std::time::Instant::now();
+        let e = stipple_core::normals::estimate(&c.positions, c.normals.as_deref(), k, 1.0)?;
+        if need_normals {
+            c.normals = Some(e.normals);
+            report.estimated = true;
+        } else if c.normals.is_some() && e.flipped > 0 {
+            c.normals = Some(e.normals);
+            report.reoriented = e.flipped;
+        }
+        report.inconsistency = e.inconsistency;
+        if need_radii {
+            c.radius = Some(e.radii);
+            report.radii = true;
+        }
+        report.seconds = t0.elapsed().as_secs_f64();
+        self.key = next_key();
+        Ok(report)
+    }
+}
+
+/// Splat radius in point spacings for clouds without radii (about what
+/// `stipple_core::normals` gives a regular sampling).
+pub const FALLBACK_RADIUS: f32 = 2.0;
+
+/// What [`PreparedCloud::prepare_surface`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SurfaceReport {
+    /// Normals were estimated (the cloud had none).
+    pub estimated: bool,
+    /// Given normals turned round (their signs were inconsistent).
+    pub reoriented: usize,
+    /// The given normals' share of inconsistent neighbour pairs.
+    pub inconsistency: f32,
+    /// Splat radii were computed.
+    pub radii: bool,
+    pub seconds: f64,
 }
 
 /// A rendered frame.
@@ -271,6 +359,90 @@ pub struct Frame {
     /// [`Pipeline::keep_layers`]) each layer's own image, sRGB 8-bit RGBA, front first.
     pub layers: Vec<Vec<u8>>,
     pub layers_peeled: u32,
+    /// Per-pixel unit normals where the frame blended them (splat blend mode); otherwise
+    /// [`Frame::normal_image`] derives them from the points shown.
+    pub normals: Option<Vec<[f32; 3]>>,
+}
+
+impl Frame {
+    /// World-space unit normals of the visible surface, facing the eye, row 0 at the top,
+    /// NaN on background: the blended normal where the frame has one, else the normal of the
+    /// point the pixel shows, else (no normals, or a pixel a fill made) the normal of the
+    /// depth image's surface from its neighbouring pixels.
+    pub fn normal_image(&self, cloud: &PreparedCloud, camera: &Camera) -> Vec<[f32; 3]> {
+        use glam::Vec3;
+        let v = ViewParams::new(camera, cloud.cloud.origin);
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (right, up, fwd) = (Vec3::from(v.right), Vec3::from(v.up), Vec3::from(v.forward));
+        let view_to_world = |n: Vec3| right * n.x + up * n.y + fwd * n.z;
+        let pos = |i: usize, j: usize| -> Option<Vec3> {
+            let d = self.depth[j * w + i];
+            d.is_finite()
+                .then(|| v.view_position(i as u32, j as u32, d))
+        };
+        let nan = [f32::NAN; 3];
+        let mut out = vec![nan; w * h];
+        for j in 0..h {
+            for i in 0..w {
+                let k = j * w + i;
+                if !self.depth[k].is_finite() {
+                    continue;
+                }
+                let (_, dir) = v.pixel_ray(i as u32, j as u32);
+                let face = |n: Vec3| {
+                    let n = n.normalize_or_zero();
+                    if n.dot(dir) > 0.0 {
+                        -n
+                    } else {
+                        n
+                    }
+                };
+                if let Some(b) = &self.normals {
+                    let n = Vec3::from(b[k]);
+                    if n != Vec3::ZERO {
+                        out[k] = face(n).to_array();
+                        continue;
+                    }
+                }
+                let id = self.id[k];
+                if let (true, Some(ns)) = (is_point(id), &cloud.cloud.normals) {
+                    let n = ns[id as usize];
+                    if n != Vec3::ZERO {
+                        out[k] = face(n).to_array();
+                        continue;
+                    }
+                }
+                // From the depth image: the smaller one-sided difference on each axis.
+                let Some(c) = pos(i, j) else { continue };
+                let pick = |a: Option<Vec3>, b: Option<Vec3>| -> Option<Vec3> {
+                    match (a.map(|a| c - a), b.map(|b| b - c)) {
+                        (Some(x), Some(y)) => Some(if x.length_squared() < y.length_squared() {
+                            x
+                        } else {
+                            y
+                        }),
+                        (x, y) => x.or(y),
+                    }
+                };
+                let dx = pick(
+                    (i > 0).then(|| pos(i - 1, j)).flatten(),
+                    (i + 1 < w).then(|| pos(i + 1, j)).flatten(),
+                );
+                // Rows grow downwards; view y grows upwards.
+                let dy = pick(
+                    (j + 1 < h).then(|| pos(i, j + 1)).flatten(),
+                    (j > 0).then(|| pos(i, j - 1)).flatten(),
+                );
+                if let (Some(dx), Some(dy)) = (dx, dy) {
+                    let n = dx.cross(dy);
+                    if n != Vec3::ZERO {
+                        out[k] = face(view_to_world(n.normalize())).to_array();
+                    }
+                }
+            }
+        }
+        out
+    }
 }
 
 /// A long-lived renderer on one backend. The GPU one keeps the last cloud uploaded, so
@@ -371,6 +543,9 @@ impl Renderer {
             Inner::Cpu(r) => Ok(r.render(cloud, &v, pipe)),
             Inner::Gpu { renderer, uploaded } => {
                 let up = upload(renderer, uploaded, cloud)?;
+                if pipe.splat.is_some() {
+                    renderer.set_splat_radii(up, &cloud.splat_radii())?;
+                }
                 Ok(renderer.render(up, &v, pipe)?)
             }
         }

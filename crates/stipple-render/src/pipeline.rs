@@ -199,6 +199,9 @@ pub struct Pipeline {
     pub layers: u32,
     /// Keep every layer's own image in the frame ([`crate::Frame::layers`]).
     pub keep_layers: bool,
+    /// Draw the points as surface splats (Zhang & Pajarola, see [`crate::passes::splat`])
+    /// instead of projecting them to one pixel each.
+    pub splat: Option<crate::SplatSettings>,
 }
 
 impl Default for Pipeline {
@@ -233,6 +236,7 @@ impl Default for Pipeline {
             background: [24, 26, 31],
             layers: 1,
             keep_layers: false,
+            splat: None,
         }
     }
 }
@@ -325,6 +329,18 @@ impl Pipeline {
         }
     }
 
+    /// Surface splats (Zhang & Pajarola §3–5): splat → shade → smooth → antialias. The
+    /// image-space fills are not needed (splats leave no holes) and nothing is culled (the
+    /// ε-z test hides what is behind, whatever the normals' signs).
+    pub fn splats(s: crate::SplatSettings) -> Pipeline {
+        Pipeline {
+            backface_culling: false,
+            geometry: vec![],
+            splat: Some(s),
+            ..Pipeline::default()
+        }
+    }
+
     /// Only projection and shading: the raw points (Dobrev Fig. 1).
     pub fn points_only() -> Pipeline {
         Pipeline {
@@ -406,6 +422,23 @@ impl Pipeline {
     /// and the layer count (1 to [`MAX_LAYERS`]).
     pub fn validate(&self) -> Result<(), String> {
         crate::shadow::validate_lights(&self.lights)?;
+        if let Some(s) = &self.splat {
+            if self.layers > 1 {
+                return Err(
+                    "depth peeling of splats (transparent splats) is not implemented \
+                            yet: use --layers 1 with the splat pipeline"
+                        .into(),
+                );
+            }
+            if !(s.scale.is_finite() && s.scale > 0.0) {
+                return Err(format!("splat scale {}: it must be positive", s.scale));
+            }
+            if let Some(e) = s.epsilon {
+                if !(e.is_finite() && e >= 0.0) {
+                    return Err(format!("splat epsilon {e}: it must be 0 or more"));
+                }
+            }
+        }
         if !(1..=MAX_LAYERS).contains(&self.layers) {
             return Err(format!(
                 "{} layers: depth peeling takes 1 to {MAX_LAYERS}",

@@ -297,6 +297,7 @@ fn shade_matches_the_cpu() {
             albedo: prepared.albedo(&pipe),
             objects: None,
             lit: None,
+            pixel: None,
         };
         let mut want_c = vec![[0.0f32; 3]; v.pixels()];
         let mut want_d = vec![0.0f32; v.pixels()];

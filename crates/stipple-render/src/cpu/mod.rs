@@ -40,6 +40,9 @@ pub struct CpuRenderer {
     /// Depth peeling: the previous layer's surface depth, and the blend accumulator.
     peel_ref: Vec<f32>,
     acc: Vec<[f32; 4]>,
+    /// The splat pass's blended normals and albedo (blend mode).
+    blended: crate::passes::splat::cpu::Blended,
+    blended_valid: bool,
 }
 
 fn timed<T>(stats: &mut Vec<PassStat>, name: &'static str, f: impl FnOnce() -> (T, u32, u64)) -> T {
@@ -98,6 +101,9 @@ impl CpuRenderer {
                 stats,
                 layers: vec![],
                 layers_peeled: 1,
+                normals: self
+                    .blended_valid
+                    .then(|| self.blended.normal.iter().map(|n| n.to_array()).collect()),
             };
         }
         // Back faces are kept: the back of a closed surface is a layer of its own.
@@ -154,6 +160,7 @@ impl CpuRenderer {
             stats,
             layers,
             layers_peeled: peeled,
+            normals: None,
         }
     }
 
@@ -210,6 +217,9 @@ impl CpuRenderer {
             albedo: cloud.albedo(pipe),
             objects: cloud.objects.as_ref().map(|o| &o.index[..]),
             lit: cloud.lit().map(|l| &l.counts[..]),
+            pixel: self
+                .blended_valid
+                .then(|| (&self.blended.normal[..], &self.blended.albedo[..])),
         };
         let (ca, cb) = (&mut self.colour.0, &mut self.colour.1);
         let sd = &mut self.surface_depth;
@@ -316,6 +326,26 @@ impl CpuRenderer {
         }
         let vis = &self.vis;
 
+        self.blended_valid = false;
+        if let Some(sp) = &pipe.splat {
+            let radii: Vec<f32> = cloud.splat_radii().iter().map(|r| r * sp.scale).collect();
+            let input = crate::passes::splat::cpu::SplatInput {
+                positions: &c.positions,
+                normals: c.normals.as_deref(),
+                radii: &radii,
+                epsilon: cloud.splat_epsilon(sp),
+            };
+            let blend = sp.mode == crate::SplatMode::Blend;
+            let lut = shade::srgb_to_linear_table();
+            let albedo = blend.then(|| (cloud.albedo(pipe), &lut));
+            let blended = blend.then_some(&mut self.blended);
+            let kept = timed(stats, "splat", || {
+                let k = crate::passes::splat::cpu::splat(v, &input, sp.mode, albedo, ga, blended);
+                (k, 1, k)
+            });
+            self.blended_valid = blend;
+            return kept;
+        }
         let bufs = &mut self.private;
         let kept = timed(stats, "project", || {
             use rayon::prelude::*;

@@ -76,6 +76,9 @@ pub struct ShadeInput<'a> {
     pub objects: Option<&'a [u8]>,
     /// Lit sample counts per point, light l in byte l (None: no shadow textures).
     pub lit: Option<&'a [u32]>,
+    /// Per-pixel normal and linear albedo that replace the point's (splat blending: the
+    /// depth is the blended one and is not corrected).
+    pub pixel: Option<(&'a [Vec3], &'a [[f32; 3]])>,
 }
 
 /// The lit values m of a point's packed counts under `samples` per light.
@@ -199,10 +202,11 @@ pub fn shade(
                     continue;
                 }
                 let id = id as usize;
-                let albedo = match input.albedo {
-                    Albedo::Colours(c) => c[id].map(|x| lut[x as usize]),
-                    Albedo::Intensity(t, s) => [lut[intensity_grey(t[id], s) as usize]; 3],
-                    Albedo::Constant(c) => c,
+                let albedo = match (input.pixel, input.albedo) {
+                    (Some((_, a)), _) => a[k],
+                    (None, Albedo::Colours(c)) => c[id].map(|x| lut[x as usize]),
+                    (None, Albedo::Intensity(t, s)) => [lut[intensity_grey(t[id], s) as usize]; 3],
+                    (None, Albedo::Constant(c)) => c,
                 };
                 let mut depth = g.depth[k];
                 let t = &p.materials[input.objects.map_or(0, |o| o[id] as usize)];
@@ -222,12 +226,12 @@ pub fn shade(
                     drow[i] = depth;
                     continue;
                 };
-                let n = normals[id];
+                let n = input.pixel.map_or(normals[id], |(pn, _)| pn[k]);
                 let (o, dir) = v.pixel_ray(i as u32, j as u32);
                 let unit = dir.normalize();
                 let q = input.positions[id];
                 let nd = n.dot(dir);
-                if n.dot(unit).abs() >= 0.2 {
+                if input.pixel.is_none() && n.dot(unit).abs() >= 0.2 {
                     // View depth of the ray/tangent-plane hit, relative to the eye plane.
                     let t = n.dot(q - o) / nd;
                     let t = if v.perspective == 1 {

@@ -20,6 +20,8 @@ pub enum GpuError {
     TooLarge(String),
     #[error("GPU error: {0}")]
     Wgpu(String),
+    #[error("not implemented on the GPU backend: {0}")]
+    Unsupported(String),
 }
 
 /// Features that change how stipple runs on an adapter.

@@ -32,7 +32,7 @@ pub mod shade;
 pub mod shaders;
 pub mod shadow_texture;
 pub mod smooth;
-mod util;
+pub(crate) mod util;
 pub mod visibility;
 
 pub use cloud::GpuCloud;

@@ -637,6 +637,8 @@ pub struct GpuRenderer {
     /// The light images' buffers (shadow textures), kept apart from the camera's.
     shadow_frame: Option<FrameBuffers>,
     pub projection: ProjectionPath,
+    /// The splat pass (owns its pipelines, scratch and radii).
+    splat: crate::passes::splat::gpu::SplatGpu,
     /// Without timestamp queries, submit and wait after each pass to time it (benchmarks).
     pub sync_timing: bool,
 }
@@ -758,6 +760,7 @@ impl GpuRenderer {
             blend: BlendLayers::new(&ctx),
             mark: super::shadow_texture::new(&ctx),
         };
+        let splat = crate::passes::splat::gpu::SplatGpu::new(&ctx);
         ctx.take_errors()?;
         Ok(GpuRenderer {
             ctx,
@@ -766,12 +769,19 @@ impl GpuRenderer {
             frame: None,
             shadow_frame: None,
             projection: ProjectionPath::Compute,
+            splat,
             sync_timing: false,
         })
     }
 
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
+    }
+
+    /// Uploads an uploaded cloud's splat radii (unscaled) for the splat pass, unless they
+    /// are there already.
+    pub fn set_splat_radii(&mut self, cloud: &GpuCloud, radii: &[f32]) -> Result<(), GpuError> {
+        self.splat.set_radii(&self.ctx, cloud, radii)
     }
 
     fn prepare(&mut self, v: &ViewParams) -> Result<(), GpuError> {
@@ -893,7 +903,9 @@ impl GpuRenderer {
                 }));
             }
         }
+        let splat = pipe.splat;
         let result = (|| {
+            let splat_gpu = &mut self.splat;
             let kit = &self.kit;
             let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
             let mut cur = Cursor::default();
@@ -912,8 +924,11 @@ impl GpuRenderer {
                         .copy_buffer_to_buffer(&f.surface, 0, &f.peel_ref, 0, 4 * n);
                 }
                 let peel = (k > 0).then_some(gap);
-                match (projection, &f.targets) {
-                    (ProjectionPath::Hardware, Some((t, copy))) => {
+                match (splat, projection, &f.targets) {
+                    (Some(sp), _, _) => {
+                        record_splat(&mut rec, splat_gpu, &kit.view, &f, cloud, sp)?
+                    }
+                    (None, ProjectionPath::Hardware, Some((t, copy))) => {
                         record_project_hw(&mut rec, kit, &f, t, copy, cloud, cull)?
                     }
                     _ => record_project(&mut rec, kit, &f, cloud, cull, peel)?,
@@ -975,6 +990,7 @@ impl GpuRenderer {
                 stats,
                 layers: layer_images,
                 layers_peeled: if layers > 1 { peeled } else { 1 },
+                normals: None,
             })
         })();
         self.frame = Some(f);
@@ -1297,6 +1313,53 @@ fn record_project(
     pass.dispatch_workgroups(gx, gy, 1);
     drop(pass);
     rec.end("project", 1, vec![slot], q)
+}
+
+fn record_splat(
+    rec: &mut Rec<'_>,
+    splat: &mut crate::passes::splat::gpu::SplatGpu,
+    view: &Buffer,
+    f: &FrameBuffers,
+    cloud: &GpuCloud,
+    s: crate::SplatSettings,
+) -> Result<(), GpuError> {
+    if s.mode != crate::SplatMode::Voronoi {
+        return Err(GpuError::Unsupported(
+            "splat blending runs on the CPU backend only for now (--backend cpu, or \
+             --splat voronoi on the GPU)"
+                .into(),
+        ));
+    }
+    rec.start();
+    let q = rec.queries();
+    let timer = rec.timer;
+    let mut begin = |enc: &mut CommandEncoder| {
+        let timestamp_writes = match (timer, q) {
+            (Some(t), Some((b, e))) => Some(wgpu::ComputePassTimestampWrites {
+                query_set: &t.set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+            _ => None,
+        };
+        enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("splat"),
+            timestamp_writes,
+        })
+        .forget_lifetime()
+    };
+    splat.record(
+        rec.ctx,
+        &mut rec.enc,
+        rec.arena,
+        view,
+        cloud,
+        (f.width, f.height),
+        (s.epsilon.unwrap_or(0.0), s.scale),
+        (&f.depth[0], &f.id[0]),
+        &mut begin,
+    )?;
+    rec.end("splat", 1, vec![], q)
 }
 
 fn record_project_hw(

@@ -26,6 +26,7 @@ const DEPICTION_APPLY: &str = include_str!("../shaders/depiction_apply.wgsl");
 const EDL: &str = include_str!("../shaders/edl.wgsl");
 const BLEND_LAYERS: &str = include_str!("../shaders/blend_layers.wgsl");
 const SHADOW_TEXTURE: &str = include_str!("../shaders/shadow_texture.wgsl");
+const SPLAT: &str = include_str!("../passes/splat/splat.wgsl");
 
 /// A shader module: its name and the files it is made of (after `common.wgsl`).
 #[derive(Clone, Copy, Debug)]
@@ -145,6 +146,12 @@ pub const SHADOW_TEXTURE_MODULE: ShaderModule = ShaderModule {
     int64: false,
 };
 
+pub const SPLAT_MODULE: ShaderModule = ShaderModule {
+    name: "splat",
+    parts: &[SPLAT],
+    int64: false,
+};
+
 /// Every module the GPU backend compiles (the naga validation test walks this list).
 pub const ALL: &[ShaderModule] = &[
     PROJECT64,
@@ -166,6 +173,7 @@ pub const ALL: &[ShaderModule] = &[
     EDL_MODULE,
     BLEND_LAYERS_MODULE,
     SHADOW_TEXTURE_MODULE,
+    SPLAT_MODULE,
 ];
 
 #[cfg(test)]

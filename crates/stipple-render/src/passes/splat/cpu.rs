@@ -1,0 +1,331 @@
+//! splat on the CPU (twin of `gpu.rs` / `splat.wgsl`): splats are binned into 32×32-pixel
+//! tiles (a counting sort; each tile's list is sorted by point index, so results do not
+//! depend on thread timing), and each tile runs the visibility and selection loops of the
+//! module docs over its own list on one thread.
+
+use super::{footprint, fragment, splat_normal, weight, SplatMode};
+use crate::cpu::shade::{intensity_grey, Albedo};
+use crate::gbuffer::{GBuffer, BACKGROUND};
+use crate::params::ViewParams;
+use glam::Vec3;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU32, Ordering};
+
+const TILE: u32 = 32;
+
+/// The splats of a cloud.
+pub struct SplatInput<'a> {
+    pub positions: &'a [Vec3],
+    pub normals: Option<&'a [Vec3]>,
+    /// Radius per point, already scaled.
+    pub radii: &'a [f32],
+    /// ε of the ε-z test.
+    pub epsilon: f32,
+}
+
+/// Per-pixel surface of the blend mode: unit normal facing the eye and linear albedo.
+#[derive(Clone, Debug, Default)]
+pub struct Blended {
+    pub normal: Vec<Vec3>,
+    pub albedo: Vec<[f32; 3]>,
+}
+
+struct TileOut {
+    depth: Vec<f32>,
+    id: Vec<u32>,
+    normal: Vec<Vec3>,
+    albedo: Vec<[f32; 3]>,
+}
+
+/// Rasterizes the splats into `g` (depth and point id per pixel). In blend mode `blended`
+/// receives the blended normal and albedo (`albedo` gives a point's linear albedo).
+/// Returns the splats with a footprint on screen.
+pub fn splat(
+    v: &ViewParams,
+    s: &SplatInput,
+    mode: SplatMode,
+    albedo: Option<(Albedo, &[f32; 256])>,
+    g: &mut GBuffer,
+    blended: Option<&mut Blended>,
+) -> u64 {
+    let (w, h) = (v.width, v.height);
+    let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
+    let n = s.positions.len();
+    let feet: Vec<Option<[u32; 4]>> = (0..n)
+        .into_par_iter()
+        .map(|i| footprint(v, s.positions[i], s.radii[i]))
+        .collect();
+    let drawn = feet.par_iter().filter(|f| f.is_some()).count() as u64;
+    // Counting sort of (tile, splat).
+    let counts: Vec<AtomicU32> = (0..tw * th).map(|_| AtomicU32::new(0)).collect();
+    let tiles_of = |f: &[u32; 4]| {
+        let (x0, x1) = (f[0] / TILE, f[2] / TILE);
+        let (y0, y1) = (f[1] / TILE, f[3] / TILE);
+        (y0..=y1).flat_map(move |y| (x0..=x1).map(move |x| (y * tw + x) as usize))
+    };
+    feet.par_iter().flatten().for_each(|f| {
+        for t in tiles_of(f) {
+            counts[t].fetch_add(1, Ordering::Relaxed);
+        }
+    });
+    let mut start = vec![0usize; (tw * th) as usize + 1];
+    for t in 0..(tw * th) as usize {
+        start[t + 1] = start[t] + counts[t].load(Ordering::Relaxed) as usize;
+    }
+    let cursor: Vec<AtomicU32> = start[..start.len() - 1]
+        .iter()
+        .map(|&s| AtomicU32::new(s as u32))
+        .collect();
+    let list: Vec<AtomicU32> = (0..start[start.len() - 1])
+        .map(|_| AtomicU32::new(0))
+        .collect();
+    feet.par_iter().enumerate().for_each(|(i, f)| {
+        if let Some(f) = f {
+            for t in tiles_of(f) {
+                let at = cursor[t].fetch_add(1, Ordering::Relaxed);
+                list[at as usize].store(i as u32, Ordering::Relaxed);
+            }
+        }
+    });
+    let blend = mode == SplatMode::Blend;
+    let lut_albedo = |id: usize| -> [f32; 3] {
+        match albedo {
+            Some((Albedo::Colours(c), lut)) => c[id].map(|x| lut[x as usize]),
+            Some((Albedo::Intensity(t, sc), lut)) => [lut[intensity_grey(t[id], sc) as usize]; 3],
+            Some((Albedo::Constant(c), _)) => c,
+            None => [1.0; 3],
+        }
+    };
+    let outs: Vec<TileOut> = (0..(tw * th) as usize)
+        .into_par_iter()
+        .map(|t| {
+            let mut ids: Vec<u32> = list[start[t]..start[t + 1]]
+                .iter()
+                .map(|a| a.load(Ordering::Relaxed))
+                .collect();
+            ids.sort_unstable();
+            let (tx, ty) = (t as u32 % tw, t as u32 / tw);
+            let (px0, py0) = (tx * TILE, ty * TILE);
+            let (px1, py1) = ((px0 + TILE).min(w) - 1, (py0 + TILE).min(h) - 1);
+            let tile_w = (px1 - px0 + 1) as usize;
+            let m = tile_w * (py1 - py0 + 1) as usize;
+            let mut zmin = vec![f32::INFINITY; m];
+            // Calls `f(local pixel, depth, (d/r)², splat)` for every fragment in the tile.
+            let each = |f: &mut dyn FnMut(usize, f32, f32, usize)| {
+                for &sid in &ids {
+                    let sid = sid as usize;
+                    let fp = feet[sid].expect("listed splats have footprints");
+                    let p = s.positions[sid];
+                    let nrm = splat_normal(v, p, s.normals.map(|n| n[sid]));
+                    let r2 = s.radii[sid] * s.radii[sid];
+                    for y in fp[1].max(py0)..=fp[3].min(py1) {
+                        for x in fp[0].max(px0)..=fp[2].min(px1) {
+                            if let Some((d, q)) = fragment(v, x, y, p, nrm, r2) {
+                                f((y - py0) as usize * tile_w + (x - px0) as usize, d, q, sid);
+                            }
+                        }
+                    }
+                }
+            };
+            each(&mut |k, d, _, _| {
+                if d < zmin[k] {
+                    zmin[k] = d;
+                }
+            });
+            let mut out = TileOut {
+                depth: vec![f32::INFINITY; m],
+                id: vec![BACKGROUND; m],
+                normal: Vec::new(),
+                albedo: Vec::new(),
+            };
+            if !blend {
+                let mut best = vec![f32::INFINITY; m];
+                each(&mut |k, d, q, sid| {
+                    if d <= zmin[k] + s.epsilon && q < best[k] {
+                        best[k] = q;
+                        out.depth[k] = d;
+                        out.id[k] = sid as u32;
+                    }
+                });
+                return out;
+            }
+            let mut acc_w = vec![0.0f32; m];
+            let mut acc_d = vec![0.0f32; m];
+            let mut acc_n = vec![Vec3::ZERO; m];
+            let mut acc_c = vec![[0.0f32; 3]; m];
+            let mut top = vec![0.0f32; m];
+            each(&mut |k, d, q, sid| {
+                if d > zmin[k] + s.epsilon {
+                    return;
+                }
+                let wt = weight(q);
+                let (x, y) = ((k % tile_w) as u32 + px0, (k / tile_w) as u32 + py0);
+                let (_, dir) = v.pixel_ray(x, y);
+                let p = s.positions[sid];
+                let mut nrm = splat_normal(v, p, s.normals.map(|n| n[sid]));
+                if nrm.dot(dir) > 0.0 {
+                    nrm = -nrm;
+                }
+                let c = lut_albedo(sid);
+                acc_w[k] += wt;
+                acc_d[k] += wt * d;
+                acc_n[k] += wt * nrm;
+                for (a, c) in acc_c[k].iter_mut().zip(c) {
+                    *a += wt * c;
+                }
+                if wt > top[k] {
+                    top[k] = wt;
+                    out.id[k] = sid as u32;
+                }
+            });
+            out.normal = vec![Vec3::ZERO; m];
+            out.albedo = vec![[0.0; 3]; m];
+            for k in 0..m {
+                if acc_w[k] > 0.0 {
+                    out.depth[k] = acc_d[k] / acc_w[k];
+                    out.normal[k] = acc_n[k].normalize_or_zero();
+                    out.albedo[k] = acc_c[k].map(|c| c / acc_w[k]);
+                }
+            }
+            out
+        })
+        .collect();
+    let npx = (w * h) as usize;
+    let mut blended = blended;
+    if let Some(b) = blended.as_deref_mut() {
+        b.normal.clear();
+        b.normal.resize(npx, Vec3::ZERO);
+        b.albedo.clear();
+        b.albedo.resize(npx, [0.0; 3]);
+    }
+    for (t, o) in outs.iter().enumerate() {
+        let (tx, ty) = (t as u32 % tw, t as u32 / tw);
+        let (px0, py0) = (tx * TILE, ty * TILE);
+        let tile_w = ((px0 + TILE).min(w) - px0) as usize;
+        let rows = o.depth.len() / tile_w;
+        for r in 0..rows {
+            let dst = (py0 as usize + r) * w as usize + px0 as usize;
+            let src = r * tile_w;
+            g.depth[dst..dst + tile_w].copy_from_slice(&o.depth[src..src + tile_w]);
+            g.id[dst..dst + tile_w].copy_from_slice(&o.id[src..src + tile_w]);
+            if let (Some(b), true) = (blended.as_deref_mut(), blend) {
+                b.normal[dst..dst + tile_w].copy_from_slice(&o.normal[src..src + tile_w]);
+                b.albedo[dst..dst + tile_w].copy_from_slice(&o.albedo[src..src + tile_w]);
+            }
+        }
+    }
+    drawn
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A plane of sparse points facing the camera: Voronoi covers every pixel inside, and
+    /// each pixel shows the point nearest it (the Voronoi cell).
+    #[test]
+    fn voronoi_covers_a_sparse_plane_with_nearest_points() {
+        let v = ViewParams::axis_aligned(64, 64, false, 1.0 / 32.0);
+        // Points 4 px apart on the plane z = 5, radius 3 px.
+        let mut pos = Vec::new();
+        for j in 0..16 {
+            for i in 0..16 {
+                pos.push(Vec3::new(
+                    (i as f32 - 7.5) * 4.0 + 0.3,
+                    (j as f32 - 7.5) * 4.0 - 0.2,
+                    5.0,
+                ));
+            }
+        }
+        let normals = vec![-Vec3::Z; pos.len()];
+        let radii = vec![3.0; pos.len()];
+        let input = SplatInput {
+            positions: &pos,
+            normals: Some(&normals),
+            radii: &radii,
+            epsilon: 1.0,
+        };
+        let mut g = GBuffer::new(64, 64);
+        let drawn = splat(&v, &input, SplatMode::Voronoi, None, &mut g, None);
+        assert_eq!(drawn, 256);
+        for j in 2..62u32 {
+            for i in 2..62u32 {
+                let k = (j * 64 + i) as usize;
+                let id = g.id[k];
+                assert_ne!(id, BACKGROUND, "hole at {i},{j}");
+                assert_eq!(g.depth[k], 5.0);
+                // The pixel's position in the plane (x right, y up).
+                let q = Vec3::new(i as f32 + 0.5 - 32.0, 32.0 - (j as f32 + 0.5), 5.0);
+                let nearest = (0..pos.len())
+                    .min_by(|&a, &b| {
+                        (pos[a] - q)
+                            .length_squared()
+                            .total_cmp(&(pos[b] - q).length_squared())
+                    })
+                    .unwrap();
+                let d_win = (pos[id as usize] - q).length();
+                let d_near = (pos[nearest] - q).length();
+                assert!(d_win <= d_near + 1e-4, "pixel {i},{j}");
+            }
+        }
+    }
+
+    /// Two planes: the far one never shows where the near one covers; ε-z keeps one layer.
+    #[test]
+    fn the_nearer_surface_hides_the_farther() {
+        let v = ViewParams::axis_aligned(32, 32, false, 1.0 / 16.0);
+        let mut pos = Vec::new();
+        for z in [5.0, 9.0] {
+            for j in 0..8 {
+                for i in 0..8 {
+                    pos.push(Vec3::new(i as f32 * 4.0 - 14.0, j as f32 * 4.0 - 14.0, z));
+                }
+            }
+        }
+        let radii = vec![3.0; pos.len()];
+        let input = SplatInput {
+            positions: &pos,
+            normals: None,
+            radii: &radii,
+            epsilon: 1.0,
+        };
+        for mode in [SplatMode::Voronoi, SplatMode::Blend] {
+            let mut g = GBuffer::new(32, 32);
+            let mut b = Blended::default();
+            splat(&v, &input, mode, None, &mut g, Some(&mut b));
+            for k in 0..32 * 32 {
+                assert!(g.id[k] < 64, "{mode:?}: pixel {k} shows {}", g.id[k]);
+                assert!((g.depth[k] - 5.0).abs() < 1e-5);
+                if mode == SplatMode::Blend {
+                    // Eye-facing discs: the blended normal faces the eye.
+                    assert!((b.normal[k] - Vec3::new(0.0, 0.0, -1.0)).length() < 1e-4);
+                }
+            }
+        }
+    }
+
+    /// Normals of random sign blend to the eye-facing normal, not to zero.
+    #[test]
+    fn blending_turns_normals_towards_the_eye() {
+        let v = ViewParams::axis_aligned(16, 16, false, 1.0 / 8.0);
+        let mut pos = Vec::new();
+        let mut nrm = Vec::new();
+        for j in 0..8 {
+            for i in 0..8 {
+                pos.push(Vec3::new(i as f32 * 2.0 - 7.0, j as f32 * 2.0 - 7.0, 3.0));
+                nrm.push(if (i + j) % 2 == 0 { Vec3::Z } else { -Vec3::Z });
+            }
+        }
+        let radii = vec![2.5; pos.len()];
+        let input = SplatInput {
+            positions: &pos,
+            normals: Some(&nrm),
+            radii: &radii,
+            epsilon: 0.5,
+        };
+        let mut g = GBuffer::new(16, 16);
+        let mut b = Blended::default();
+        splat(&v, &input, SplatMode::Blend, None, &mut g, Some(&mut b));
+        assert!(b.normal.iter().all(|n| (n.z + 1.0).abs() < 1e-5));
+    }
+}
