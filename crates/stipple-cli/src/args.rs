@@ -11,6 +11,7 @@ use stipple_render::pipeline::{
     ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline, RawSettings, RawShading,
 };
 use stipple_render::{Backend, PreparedCloud, Renderer};
+use stipple_render::{SplatMode, SplatSettings};
 
 #[derive(clap::Args, Clone)]
 pub struct SourceArgs {
@@ -210,9 +211,11 @@ fn parse_colour(s: &str) -> std::result::Result<[u8; 3], String> {
 /// Which pipeline renders the cloud.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PipelineChoice {
-    /// Raw for clouds without normals, Dobrev for clouds with them.
+    /// Splats where points land apart on screen, Dobrev where they are dense (normals are
+    /// estimated where missing); raw for trees.
     Auto,
     Dobrev,
+    Splat,
     Raw,
 }
 
@@ -220,8 +223,66 @@ fn parse_pipeline(s: &str) -> std::result::Result<PipelineChoice, String> {
     match s {
         "auto" => Ok(PipelineChoice::Auto),
         "dobrev" => Ok(PipelineChoice::Dobrev),
+        "splat" | "splats" | "zhang" => Ok(PipelineChoice::Splat),
         "raw" | "pintus" => Ok(PipelineChoice::Raw),
-        _ => Err(format!("unknown pipeline `{s}` (auto, dobrev, raw)")),
+        _ => Err(format!("unknown pipeline `{s}` (auto, dobrev, splat, raw)")),
+    }
+}
+
+/// `--pipeline auto` draws splats when the cloud's median point spacing on screen exceeds
+/// this many pixels: Dobrev's 3×3 fills close one-pixel gaps, but real clouds are not uniform
+/// (the median understates their gaps; the Armadillo at 512² is 1.5 px apart and 41% of it
+/// is hole-filled), so points more than 1 px
+/// apart are drawn as splats (dense clouds project faster as points).
+pub const SPLAT_ABOVE_PX: f32 = 1.0;
+
+/// Splats and normal estimation (Zhang & Pajarola 2007; normals by PCA, Hoppe et al. 1992).
+#[derive(clap::Args, Clone)]
+#[command(
+    next_help_heading = "Splats and normals (Zhang & Pajarola; sparse clouds, clouds without normals)"
+)]
+pub struct SplatArgs {
+    /// How splats make a pixel: voronoi (the splat whose centre is nearest the pixel, relative
+    /// to its radius, wins: sharp and hole-free) or blend (Gaussian-weighted mean of the
+    /// nearest surface's splats, shaded per pixel; CPU backend).
+    #[arg(long = "splat", default_value = "voronoi", value_name = "MODE")]
+    pub splat_mode: SplatMode,
+    /// Multiplies every splat radius (radii: 0.5 × the 16th-neighbour distance, or the
+    /// file's `radius`).
+    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    pub splat_scale: f32,
+    /// ε of the splats' ε-z test in world units: fragments this far behind the nearest one
+    /// still blend [default: the median splat radius].
+    #[arg(long, value_name = "D")]
+    pub splat_epsilon: Option<f32>,
+    /// Do not estimate normals for clouds without them (they are then drawn unlit: raw
+    /// pipeline by default, or eye-facing splats).
+    #[arg(long)]
+    pub no_estimate_normals: bool,
+    /// Neighbours per point for normal estimation and splat radii.
+    #[arg(long, default_value_t = 16, value_name = "K",
+          value_parser = clap::value_parser!(u32).range(3..=64))]
+    pub normal_k: u32,
+}
+
+impl SplatArgs {
+    pub fn settings(&self) -> Result<SplatSettings> {
+        if !(self.splat_scale > 0.0 && self.splat_scale.is_finite()) {
+            return Err(format!(
+                "--splat-scale {}: must be a positive number",
+                self.splat_scale
+            ));
+        }
+        if let Some(e) = self.splat_epsilon {
+            if !(e >= 0.0 && e.is_finite()) {
+                return Err(format!("--splat-epsilon {e}: must be 0 or more"));
+            }
+        }
+        Ok(SplatSettings {
+            mode: self.splat_mode,
+            scale: self.splat_scale,
+            epsilon: self.splat_epsilon,
+        })
     }
 }
 
@@ -254,13 +315,13 @@ fn parse_shading(s: &str) -> std::result::Result<RawShading, String> {
 
 /// Settings of the raw-cloud pipeline (Pintus et al. §4–6).
 #[derive(clap::Args, Clone)]
-#[command(
-    next_help_heading = "Raw clouds (Pintus et al. §4-6; the default for clouds without normals)"
-)]
+#[command(next_help_heading = "Raw clouds (Pintus et al. §4-6; --raw, and .stlod trees)")]
 pub struct RawArgs {
-    /// Pipeline: auto (raw for clouds without normals, such as most LAS/LAZ; dobrev where
-    /// normals exist), dobrev (image-space filters and Phong lighting with normals), or raw
-    /// (screen-space visibility, anisotropic filling and shape depiction, no normals needed).
+    /// Pipeline: auto (splat where points land more than 1 px apart on screen, else dobrev;
+    /// normals are estimated for clouds without them; raw for .stlod trees), dobrev
+    /// (image-space filters and Phong lighting), splat (surface splats, Zhang & Pajarola), or
+    /// raw (screen-space visibility, anisotropic filling and shape depiction from depth alone,
+    /// Pintus et al.; no normals needed).
     #[arg(long, default_value = "auto", value_parser = parse_pipeline, value_name = "NAME")]
     pub pipeline: PipelineChoice,
     /// Shorthand for --pipeline raw.
@@ -307,14 +368,13 @@ pub struct RawArgs {
 }
 
 impl RawArgs {
-    /// Whether the raw pipeline renders a cloud with (or without) normals.
-    pub fn is_raw(&self, has_normals: bool) -> bool {
-        self.raw
-            || match self.pipeline {
-                PipelineChoice::Raw => true,
-                PipelineChoice::Dobrev => false,
-                PipelineChoice::Auto => !has_normals,
-            }
+    /// The pipeline asked for (`--raw` is `--pipeline raw`).
+    pub fn choice(&self) -> PipelineChoice {
+        if self.raw {
+            PipelineChoice::Raw
+        } else {
+            self.pipeline
+        }
     }
 
     pub fn build(&self, background: [u8; 3]) -> Result<Pipeline> {
@@ -425,17 +485,102 @@ pub struct PipelineArgs {
     pub background: Option<[u8; 3]>,
     #[command(flatten)]
     pub raw: RawArgs,
+    #[command(flatten)]
+    pub splat: SplatArgs,
 }
 
 impl PipelineArgs {
-    /// The pipeline for a cloud with (or without) normals: see `--pipeline`.
+    /// The pipeline for a cloud that is not prepared (no estimation, no camera): raw where
+    /// the cloud has no normals and auto is asked for, else the pipeline named.
     pub fn build_for(&self, has_normals: bool) -> Result<Pipeline> {
-        if self.raw.is_raw(has_normals) {
-            self.raw
-                .build(self.background.unwrap_or(DEFAULT_BACKGROUND))
-        } else {
-            self.build()
+        let background = self.background.unwrap_or(DEFAULT_BACKGROUND);
+        match self.raw.choice() {
+            PipelineChoice::Raw => self.raw.build(background),
+            PipelineChoice::Auto if !has_normals => self.raw.build(background),
+            PipelineChoice::Splat => {
+                let mut p = self.build()?;
+                p.geometry.clear();
+                p.backface_culling = false;
+                p.splat = Some(self.splat.settings()?);
+                Ok(p)
+            }
+            _ => self.build(),
         }
+    }
+
+    /// Chooses the pipeline for a cloud seen by `camera` (see `--pipeline`) and prepares the
+    /// cloud for it: estimates normals where a lit pipeline needs them, re-orients given
+    /// normals of inconsistent sign, computes splat radii. `tree`: a cut of a .stlod tree
+    /// (auto keeps the raw pipeline there). Returns the pipeline and lines to tell the user.
+    pub fn choose(
+        &self,
+        cloud: &mut PreparedCloud,
+        camera: &stipple_core::Camera,
+        tree: bool,
+    ) -> Result<(Pipeline, Vec<String>)> {
+        let choice = self.raw.choice();
+        let mut notes = Vec::new();
+        let background = self.background.unwrap_or(DEFAULT_BACKGROUND);
+        let splat = self.splat.settings()?;
+        // Built (and so checked) whichever pipeline is chosen: a bad raw flag is an error.
+        let raw = self.raw.build(background)?;
+        if choice == PipelineChoice::Raw || (choice == PipelineChoice::Auto && tree) {
+            return Ok((raw, notes));
+        }
+        let estimate = !self.splat.no_estimate_normals && !self.no_lighting;
+        let had_normals = cloud.cloud.normals.is_some();
+        let n = cloud.cloud.len();
+        if estimate && !had_normals && n > 1_000_000 {
+            eprintln!(
+                "stipple: estimating normals for {n} points (k = {}; --no-estimate-normals or \
+                 --raw skip this)...",
+                self.splat.normal_k
+            );
+        }
+        let report = cloud
+            .prepare_surface(self.splat.normal_k as usize, estimate)
+            .map_err(|e| format!("normal estimation: {e}"))?;
+        if report.estimated {
+            notes.push(format!(
+                "estimated normals for {n} points (k = {}, oriented by a spanning tree) in {:.2} s",
+                self.splat.normal_k, report.seconds
+            ));
+        }
+        if report.reoriented > 0 {
+            notes.push(format!(
+                "turned round {} of {n} given normals: their signs were inconsistent \
+                 ({:.0}% of neighbouring normals disagreed)",
+                report.reoriented,
+                100.0 * report.inconsistency
+            ));
+        }
+        let has_normals = cloud.cloud.normals.is_some();
+        let pick = match choice {
+            PipelineChoice::Auto if !has_normals => {
+                // No normals and none estimated: the raw operators need none.
+                return Ok((raw, notes));
+            }
+            PipelineChoice::Auto => {
+                let px = cloud.screen_spacing(camera);
+                if px.is_finite() && px <= SPLAT_ABOVE_PX {
+                    PipelineChoice::Dobrev
+                } else {
+                    notes.push(format!(
+                        "drawing splats: the points land {px:.1} px apart on screen (more than \
+                         {SPLAT_ABOVE_PX} px; --pipeline dobrev draws single points)"
+                    ));
+                    PipelineChoice::Splat
+                }
+            }
+            c => c,
+        };
+        let mut p = self.build()?;
+        if pick == PipelineChoice::Splat {
+            p.geometry.clear();
+            p.backface_culling = false;
+            p.splat = Some(splat);
+        }
+        Ok((p, notes))
     }
 
     /// The Dobrev pipeline.

@@ -114,7 +114,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
     if a.table3 {
         return table3(&a, cloud, &label, &mut r);
     }
-    let mut pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
+    let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, false)?;
+    for n in &notes {
+        println!("  {n}");
+    }
     if let Some(line) = crate::look::apply(
         &mut cloud,
         &mut pipe,

@@ -35,6 +35,8 @@ Examples:
   stipple render tile.laz --backend gpu             on the GPU (auto: GPU if usable, else CPU)
   stipple devices                                   GPU adapters and what they support
   stipple render tile.laz --raw --shading edl       raw-cloud pipeline with eye-dome lighting
+  stipple render sparse.xyz --normal-out n.npy      splats; world-space normals per pixel
+  stipple normals scan.xyz -o scan-normals.ply      estimate normals and splat radii
   stipple eval bun_zipper.ply                       raw rendering of a mesh's vertices vs the mesh
   stipple build-lod tiles/*.laz -o area.stlod       a multi-resolution tree for clouds beyond memory
   stipple render area.stlod --point-budget 5M       draw a view-dependent cut of the tree
@@ -48,9 +50,13 @@ holes are filled in image space (background fill, then occluded-pixel fill with 
 gap d̃), the result is lit with Phong, smoothed and anti-aliased. Every step can be switched
 off or iterated; see `stipple render --help`.
 
-Clouds without normals (most LAS/LAZ) use the raw pipeline instead (Pintus et al. 2011):
-screen-space visibility removes points that should be hidden, an anisotropic fill closes the
-gaps, and multi-level shape depiction shades from depth alone. `--pipeline` chooses.
+Where points land more than a pixel apart on screen, each point is drawn as a surface splat
+instead (Zhang & Pajarola 2007): ε-z visibility, then Voronoi rasterization (sharp) or
+Gaussian blending (--splat blend), so sparse clouds come out whole. Clouds without normals
+(most LAS/LAZ) get estimated ones; normals of inconsistent sign are re-oriented
+(`stipple normals` saves them). `--raw` uses the screen-space operators of Pintus et al.
+2011 instead: visibility, anisotropic filling and shape depiction from depth alone.
+`--pipeline` chooses.
 
 Transparency and shadows (Dobrev et al. 2010, §4-6): `--layers N` peels the N nearest
 surface layers (each through the filters above) and blends them front to back with each
@@ -91,6 +97,9 @@ enum Cmd {
     /// Build a multi-resolution tree (.stlod) from clouds of any size, for `render` and
     /// `bench` to draw under a point budget (Pintus et al. 2011, §7).
     BuildLod(lod::BuildLodArgs),
+    /// Estimate normals (PCA over k neighbours, oriented by a spanning tree) and splat radii,
+    /// or re-orient given normals whose signs disagree, and write a PLY with nx ny nz radius.
+    Normals(NormalsArgs),
     /// Render a mesh's vertices as a raw cloud and compare the depth with the mesh's own
     /// (Pintus Fig. 4): error image and the share of pixels off by more than 0.5%.
     Eval(eval::EvalArgs),
@@ -110,6 +119,10 @@ struct RenderArgs {
     /// Also write the camera (eye, target, up, fov, size, near, far, matrices) as JSON.
     #[arg(long, value_name = "FILE.json")]
     camera_out: Option<PathBuf>,
+    /// Also write world-space unit normals of the visible surface as float32 NumPy
+    /// (H, W, 3), facing the eye, NaN on background, row 0 at the top.
+    #[arg(long, value_name = "FILE.npy")]
+    normal_out: Option<PathBuf>,
     #[command(flatten)]
     camera: CameraArgs,
     #[command(flatten)]
@@ -127,6 +140,26 @@ struct RenderArgs {
     /// Print the time each pass took.
     #[arg(long)]
     stats: bool,
+}
+
+#[derive(clap::Args)]
+struct NormalsArgs {
+    /// The cloud (.ply, .ply.gz, .las, .laz, .xyz, ...). It is only read.
+    input: PathBuf,
+    /// The PLY to write (positions, colours and the other attributes of the input, plus
+    /// nx ny nz and radius).
+    #[arg(short, long, value_name = "OUT.ply")]
+    output: PathBuf,
+    /// Neighbours per point.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(3..=64))]
+    k: u32,
+    /// Estimate new normals even where the file has some (by default given normals are kept
+    /// and only turned round where their signs are inconsistent).
+    #[arg(long)]
+    reestimate: bool,
+    /// Overwrite OUT.ply if it exists (never the input).
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(clap::Args)]
@@ -166,6 +199,7 @@ fn main() -> ExitCode {
         Some(Cmd::Bench(a)) => bench::run(a),
         Some(Cmd::Devices) => devices(),
         Some(Cmd::Eval(a)) => eval::run(a),
+        Some(Cmd::Normals(a)) => normals(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -271,7 +305,19 @@ fn render(a: RenderArgs) -> Result<()> {
             check_output(&o, &inputs)?;
         }
     }
-    let mut pipe = a.pipeline.build_for(cloud.cloud.normals.is_some())?;
+    if let Some(d) = &a.normal_out {
+        if stipple_io::extension(d) != "npy" {
+            return Err(format!(
+                "{}: --normal-out must name a .npy file",
+                d.display()
+            ));
+        }
+        check_output(d, &inputs)?;
+    }
+    let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, tree.is_some())?;
+    for n in &notes {
+        eprintln!("stipple: {n}");
+    }
     let mut renderer = a.backend.open()?;
     let shadow_line = look::apply(
         &mut cloud,
@@ -300,6 +346,11 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(c) = &a.camera_out {
         std::fs::write(c, camera.to_json()).map_err(|e| format!("{}: {e}", c.display()))?;
+    }
+    if let Some(d) = &a.normal_out {
+        let normals = frame.normal_image(&cloud, &camera);
+        stipple_io::image::write_npy3(d, frame.width, frame.height, &normals)
+            .map_err(|e| e.to_string())?;
     }
     let layer_files = if a.layer_images.is_some() {
         layer_paths(frame.layers.len())
@@ -353,6 +404,9 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(c) = &a.camera_out {
         println!("wrote {}", c.display());
+    }
+    if let Some(d) = &a.normal_out {
+        println!("wrote {}", d.display());
     }
     for p in &layer_files {
         println!("wrote {}", p.display());
@@ -473,6 +527,55 @@ fn info(files: &[PathBuf], verify: bool) -> Result<()> {
     } else {
         Ok(())
     }
+}
+
+fn normals(a: NormalsArgs) -> Result<()> {
+    if !matches!(stipple_io::extension(&a.output).as_str(), "ply") {
+        return Err(format!(
+            "{}: the output must be a .ply file (it carries nx ny nz radius)",
+            a.output.display()
+        ));
+    }
+    check_output(&a.output, &[&a.input])?;
+    if a.output.exists() && !a.force {
+        return Err(format!(
+            "{}: already exists; pass --force to overwrite it",
+            a.output.display()
+        ));
+    }
+    let mut c = args::read_with_progress(&a.input)?;
+    if a.reestimate {
+        c.normals = None;
+    }
+    let had = c.normals.is_some();
+    c.radius = None;
+    let n = c.len();
+    let mut p = PreparedCloud::with_spacing(c, 0.0);
+    let t0 = Instant::now();
+    let r = p
+        .prepare_surface(a.k as usize, true)
+        .map_err(|e| format!("{}: {e}", a.input.display()))?;
+    let s = t0.elapsed().as_secs_f64();
+    if had {
+        println!(
+            "kept the file's normals; {} of {n} turned round ({:.1}% of neighbouring normals \
+             disagreed before)",
+            r.reoriented,
+            100.0 * r.inconsistency
+        );
+    } else {
+        println!(
+            "estimated normals for {n} points (k = {}) in {s:.2} s ({:.2} M points/s)",
+            a.k,
+            n as f64 / s.max(1e-9) / 1e6
+        );
+    }
+    stipple_io::write_atomically(&a.output, |tmp| {
+        stipple_io::ply::write_ply(tmp, &p.cloud, stipple_io::ply::Encoding::BinaryLittleEndian)
+    })
+    .map_err(|e| e.to_string())?;
+    println!("wrote {} (nx ny nz radius)", a.output.display());
+    Ok(())
 }
 
 fn gen(a: GenArgs) -> Result<()> {

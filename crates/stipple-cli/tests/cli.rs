@@ -316,7 +316,7 @@ fn auto_passes_over_a_software_adapter() {
 }
 
 #[test]
-fn clouds_without_normals_use_the_raw_pipeline_unless_told_otherwise() {
+fn clouds_without_normals_get_estimated_normals_and_raw_on_request() {
     let Some(laz) = data("lidar/autzen_trim.laz") else {
         return;
     };
@@ -329,28 +329,60 @@ fn clouds_without_normals_use_the_raw_pipeline_unless_told_otherwise() {
         assert!(o.status.success(), "{extra:?}: {}", text(&o));
         text(&o)
     };
+    // Default: normals are estimated and the cloud is lit (splats or Dobrev by spacing).
     let auto = run(&["--backend", "cpu"]);
+    assert!(auto.contains("estimated normals"), "{auto}");
+    assert!(
+        auto.contains("shade") && !auto.contains("visibility"),
+        "{auto}"
+    );
+    let raw = run(&["--backend", "cpu", "--raw"]);
     for pass in ["visibility", "fill_anisotropic", "depiction"] {
-        assert!(auto.contains(pass), "default for LAZ lacks {pass}: {auto}");
+        assert!(raw.contains(pass), "--raw lacks {pass}: {raw}");
     }
+    // Without estimation a cloud without normals falls back to the raw operators.
+    let unlit = run(&["--backend", "cpu", "--no-estimate-normals"]);
+    assert!(
+        unlit.contains("visibility") && !unlit.contains("estimated"),
+        "{unlit}"
+    );
     let dobrev = run(&["--backend", "cpu", "--pipeline", "dobrev"]);
     assert!(dobrev.contains("fill_background") && !dobrev.contains("visibility"));
+    let splat = run(&["--backend", "cpu", "--pipeline", "splat"]);
+    assert!(
+        splat.contains("splat") && !splat.contains("fill_background"),
+        "{splat}"
+    );
     let edl = run(&[
         "--backend",
         "cpu",
+        "--raw",
         "--shading",
         "edl",
         "--visibility-kernel",
         "5",
     ]);
     assert!(edl.contains("edl") && !edl.contains("depiction"), "{edl}");
-    let off = run(&["--backend", "cpu", "--no-visibility", "--shading", "none"]);
+    let off = run(&[
+        "--backend",
+        "cpu",
+        "--raw",
+        "--no-visibility",
+        "--shading",
+        "none",
+    ]);
     assert!(!off.contains("visibility") && off.contains("fill_anisotropic"));
     for bad in [
         vec!["--visibility-kernel", "20"],
         vec!["--visibility-threshold", "1.5"],
         vec!["--pipeline", "fancy"],
         vec!["--fill-delta", "-1"],
+        vec!["--splat", "fuzzy"],
+        vec!["--splat-scale", "0"],
+        vec!["--splat-epsilon", "-1"],
+        vec!["--normal-k", "2"],
+        vec!["--pipeline", "splat", "--layers", "3"],
+        vec!["--normal-out", "n.png"],
     ] {
         let mut args = vec!["render", laz, "-o", "x.png"];
         args.extend_from_slice(&bad);

@@ -147,7 +147,8 @@ pub fn fragment(v: &ViewParams, i: u32, j: u32, p: Vec3, n: Vec3, r2: f32) -> Op
     let t = n.dot(p - o) / nd;
     let hit = o + dir * t;
     let d2 = (hit - p).length_squared();
-    if !(d2 < r2) {
+    // NaN (a degenerate disc) misses too.
+    if d2 >= r2 || d2.is_nan() {
         return None;
     }
     let depth = if v.perspective == 1 {
@@ -155,7 +156,7 @@ pub fn fragment(v: &ViewParams, i: u32, j: u32, p: Vec3, n: Vec3, r2: f32) -> Op
     } else {
         t + (o - Vec3::from(v.eye)).dot(Vec3::from(v.forward))
     };
-    if !(depth > v.near) {
+    if depth <= v.near || depth.is_nan() {
         return None;
     }
     Some((depth, d2 / r2))
