@@ -87,8 +87,9 @@ fn parse_vec3(s: &str) -> std::result::Result<DVec3, String> {
 }
 
 fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
-    let err = || format!("`{s}` is not a size WxH such as 1024x768 (each side 1..=16384)");
-    let (w, h) = s.split_once(['x', 'X']).ok_or_else(err)?;
+    let err =
+        || format!("`{s}` is not a size WxH such as 1024x768, or N for N×N (each side 1..=16384)");
+    let (w, h) = s.split_once(['x', 'X']).unwrap_or((s, s));
     let (w, h): (u32, u32) = (w.parse().map_err(|_| err())?, h.parse().map_err(|_| err())?);
     if w == 0 || h == 0 || w > 16384 || h > 16384 {
         return Err(err());
@@ -107,7 +108,8 @@ pub const DEFAULT_BACKGROUND: [u8; 3] = [24, 26, 31];
 
 #[derive(clap::Args, Clone)]
 pub struct CameraArgs {
-    /// Image size in pixels [default: 1024x1024, or a scene file's camera size].
+    /// Image size in pixels, WxH or N for a square [default: 1024x1024, or a scene file's
+    /// camera size].
     #[arg(long, value_parser = parse_size, value_name = "WxH")]
     pub size: Option<(u32, u32)>,
     /// Eye position x,y,z (world coordinates). Default: framing the whole cloud.
@@ -230,11 +232,12 @@ fn parse_pipeline(s: &str) -> std::result::Result<PipelineChoice, String> {
 }
 
 /// `--pipeline auto` draws splats when the cloud's median point spacing on screen exceeds
-/// this many pixels: Dobrev's 3×3 fills close one-pixel gaps, but real clouds are not uniform
-/// (the median understates their gaps; the Armadillo at 512² is 1.5 px apart and 41% of it
-/// is hole-filled), so points more than 1 px
-/// apart are drawn as splats (dense clouds project faster as points).
-pub const SPLAT_ABOVE_PX: f32 = 1.0;
+/// this many pixels. Dobrev's 3×3 fills close one-pixel gaps, but real clouds are not uniform
+/// and the median understates their gaps: the Dragon (vrip) at 1024² is 0.9 px apart and
+/// shows hundreds of holes to the background after the fills (45% of its pixels are filled),
+/// the Armadillo at 512² (1.5 px) 41%. Splats close every gap at any spacing; single points
+/// are only kept where they are dense enough for the fills (and project faster).
+pub const SPLAT_ABOVE_PX: f32 = 0.5;
 
 /// Splats and normal estimation (Zhang & Pajarola 2007; normals by PCA, Hoppe et al. 1992).
 #[derive(clap::Args, Clone)]
@@ -242,12 +245,16 @@ pub const SPLAT_ABOVE_PX: f32 = 1.0;
     next_help_heading = "Splats and normals (Zhang & Pajarola; sparse clouds, clouds without normals)"
 )]
 pub struct SplatArgs {
-    /// How splats make a pixel: voronoi (the splat whose centre is nearest the pixel, relative
-    /// to its radius, wins: sharp and hole-free) or blend (Gaussian-weighted mean of the
-    /// nearest surface's splats, shaded per pixel; CPU backend).
-    #[arg(long = "splat", default_value = "voronoi", value_name = "MODE")]
+    /// How splats make a pixel: blend (Gaussian-weighted mean of the nearest surface's
+    /// splats' normals, colours and depths, shaded per pixel: smooth shading that averages
+    /// out the noise of scanned normals; two passes over the splats), voronoi (the splat
+    /// whose centre is nearest the pixel, relative to its radius, wins: sharp cells, each
+    /// shaded with its point's normal) or deferred (Zhang & Pajarola's single-pass deferred
+    /// blending: splats graph-coloured into groups, one pass, per-pixel compositing; see
+    /// --splat-c).
+    #[arg(long = "splat", default_value = "blend", value_name = "MODE")]
     pub splat_mode: SplatMode,
-    /// Multiplies every splat radius (radii: 0.5 × the 16th-neighbour distance, or the
+    /// Multiplies every splat radius (radii: 0.6 × the 16th-neighbour distance, or the
     /// file's `radius`).
     #[arg(long, default_value_t = 1.0, value_name = "F")]
     pub splat_scale: f32,
@@ -255,6 +262,11 @@ pub struct SplatArgs {
     /// still blend [default: the median splat radius].
     #[arg(long, value_name = "D")]
     pub splat_epsilon: Option<f32>,
+    /// Overlap relaxation c of --splat deferred's grouping: splats closer than c × the sum
+    /// of their radii go to different groups (1: every overlap; smaller: fewer groups, a
+    /// little overlap inside a group). The paper's choice is 0.4.
+    #[arg(long, default_value_t = stipple_core::grouping::DEFAULT_C, value_name = "C")]
+    pub splat_c: f32,
     /// Do not estimate normals for clouds without them (they are then drawn unlit: raw
     /// pipeline by default, or eye-facing splats).
     #[arg(long)]
@@ -278,10 +290,18 @@ impl SplatArgs {
                 return Err(format!("--splat-epsilon {e}: must be 0 or more"));
             }
         }
+        if !(self.splat_c > 0.0 && self.splat_c <= 1.0) {
+            return Err(format!(
+                "--splat-c {}: the overlap relaxation must lie in (0, 1]",
+                self.splat_c
+            ));
+        }
         Ok(SplatSettings {
             mode: self.splat_mode,
             scale: self.splat_scale,
             epsilon: self.splat_epsilon,
+            c: self.splat_c,
+            depth_range: None,
         })
     }
 }
@@ -517,6 +537,7 @@ impl PipelineArgs {
         cloud: &mut PreparedCloud,
         camera: &stipple_core::Camera,
         tree: bool,
+        peeled: bool,
     ) -> Result<(Pipeline, Vec<String>)> {
         let choice = self.raw.choice();
         let mut notes = Vec::new();
@@ -560,6 +581,9 @@ impl PipelineArgs {
                 // No normals and none estimated: the raw operators need none.
                 return Ok((raw, notes));
             }
+            // Single points asked for: Dobrev's pipeline without its passes. Depth peeling
+            // (--layers N) is Dobrev's too: splats have no layers yet.
+            PipelineChoice::Auto if self.points_only || peeled => PipelineChoice::Dobrev,
             PipelineChoice::Auto => {
                 let px = cloud.screen_spacing(camera);
                 if px.is_finite() && px <= SPLAT_ABOVE_PX {
@@ -575,6 +599,12 @@ impl PipelineArgs {
             c => c,
         };
         let mut p = self.build()?;
+        if report.estimated || report.reoriented > 0 {
+            // Orientation propagated over a neighbour graph can still be wrong in patches
+            // (thin parts, where two sheets touch); culling would cut holes there (the Dragon
+            // at 512²: specks all over its body). Depth visibility hides the back anyway.
+            p.backface_culling = false;
+        }
         if pick == PipelineChoice::Splat {
             p.geometry.clear();
             p.backface_culling = false;

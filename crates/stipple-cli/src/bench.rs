@@ -114,7 +114,12 @@ pub fn run(a: BenchArgs) -> Result<()> {
     if a.table3 {
         return table3(&a, cloud, &label, &mut r);
     }
-    let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, false)?;
+    let peeled = a
+        .look
+        .layers
+        .or(scene.as_ref().and_then(|s| s.render.layers))
+        > Some(1);
+    let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, false, peeled)?;
     for n in &notes {
         println!("  {n}");
     }

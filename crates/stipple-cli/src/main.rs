@@ -314,7 +314,14 @@ fn render(a: RenderArgs) -> Result<()> {
         }
         check_output(d, &inputs)?;
     }
-    let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, tree.is_some())?;
+    let peeled = a
+        .look
+        .layers
+        .or(scene.as_ref().and_then(|s| s.render.layers))
+        > Some(1);
+    let (mut pipe, notes) = a
+        .pipeline
+        .choose(&mut cloud, &camera, tree.is_some(), peeled)?;
     for n in &notes {
         eprintln!("stipple: {n}");
     }

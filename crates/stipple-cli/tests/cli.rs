@@ -184,7 +184,15 @@ fn inputs_are_never_overwritten_and_errors_are_clear() {
 fn pipeline_switches_change_the_image() {
     let dir = tempdir("switches");
     let base = [
-        "render", "--demo", "torus", "--points", "40000", "--size", "256x256",
+        "render",
+        "--demo",
+        "torus",
+        "--points",
+        "40000",
+        "--size",
+        "256x256",
+        "--pipeline",
+        "dobrev",
     ];
     let run = |extra: &[&str], out: &str| {
         let npy = format!("{out}.npy");

@@ -4,6 +4,7 @@
 pub mod camera;
 pub mod cloud;
 pub mod demo;
+pub mod grouping;
 pub mod normals;
 pub mod rng;
 

@@ -28,12 +28,18 @@
 //!    closed surface facing inwards).
 //! 5. **Splat radii** (Zhang & Pajarola §3.1 ask for radii "such that splats overlap"):
 //!    r = [`RADIUS_FACTOR`] × the distance to the 16th nearest neighbour (with k ≠ 16 the k-th
-//!    distance scaled by √(16/k), which estimates the same length). Why 0.5: for randomly
-//!    placed points of density ρ, πd₁₆²ρ ≈ 16, so discs of radius 0.5·d₁₆ cover each spot
-//!    of the surface about πr²ρ ≈ 4 times; larger discs stick out of curved silhouettes by
-//!    r²κ/2 (measured on a unit sphere sampled 4 px apart: factor 0.75 overshoots the
-//!    silhouette by 1.5 px on average, IoU 0.974; 0.5 by 0.6 px, IoU 0.989, with no hole
-//!    inside); smaller ones let the far side show through gaps (0.4: 5% of pixels).
+//!    distance scaled by √(16/k), which estimates the same length). Why 0.6: for randomly
+//!    placed points of density ρ, πd₁₆²ρ ≈ 16, so discs of radius 0.6·d₁₆ cover each spot
+//!    of the surface about πr²ρ ≈ 5.8 times; smaller ones let the far side show through the
+//!    largest gaps of a random sampling (0.5: 0.8% of pixels on a unit sphere sampled 4 px
+//!    apart; 0.6: 0.05%). Flat discs that large would stick out of curved silhouettes by
+//!    r²κ/2 and off the surface between samples; the splats are bent and clipped instead
+//!    (step 6), so the silhouette stays within a pixel (IoU 0.999 on that sphere).
+//! 6. **Splat shapes** ([`shapes`]): each splat is bent to the surface's second fundamental
+//!    form (a quadric fitted to the neighbourhood) and, at a crease, cut by the tangent
+//!    planes of the neighbours across it. Estimated normals are first made robust at creases
+//!    ([`robust_normals`]) and then turned to the slope of the fitted quadric
+//!    ([`refine_normals`]).
 
 use crate::cloud::Bounds;
 use glam::{DVec3, Vec3};
@@ -44,7 +50,7 @@ pub const DEFAULT_K: usize = 16;
 /// Shells of grid cells a neighbour search visits at most.
 pub const MAX_RINGS: i64 = 6;
 /// Splat radius as a fraction of the 16th-neighbour distance (see the module docs).
-pub const RADIUS_FACTOR: f32 = 0.5;
+pub const RADIUS_FACTOR: f32 = 0.6;
 /// Share of inconsistent neighbour pairs above which given normals are re-oriented.
 pub const INCONSISTENT: f32 = 0.02;
 /// Given normals are re-oriented when at least this share of them disagree with the
@@ -59,6 +65,8 @@ pub enum NormalError {
     NonFinite(usize),
     #[error("k = {0}: the neighbourhood size must be 3 to 64")]
     BadK(usize),
+    #[error("c = {0}: the overlap relaxation must lie in (0, 1]")]
+    BadC(f32),
 }
 
 /// The k nearest neighbours of every point (itself excluded), in a flat array of n × k
@@ -593,10 +601,286 @@ pub fn splat_radii(nb: &Neighbours, scale: f32) -> Vec<f32> {
     r
 }
 
+/// An orthonormal tangent frame (t₁, t₂) for the unit normal `n` (Duff et al. 2017,
+/// branchless, continuous except where n.z changes sign). The splat pass computes the same
+/// frame on both backends, so a point's [`shapes`] mean the same thing everywhere.
+#[inline]
+pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
+    let sign = if n.z >= 0.0 { 1.0f32 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// Largest |curvature| × radius a splat may bend with: the patch then rises at most r/2 off
+/// its tangent plane at its rim (see [`shapes`]).
+pub const MAX_BEND: f32 = 1.0;
+/// Neighbours whose normals differ by more than this (cosine: 37°) are across a crease.
+pub const CREASE_COS: f32 = 0.8;
+
+/// How a splat departs from a flat disc (see [`shapes`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SplatShape {
+    /// (A, B, C): the patch is h = ½(A u² + 2B uv + C v²) above the tangent plane.
+    pub bend: [f32; 3],
+    /// Two clip planes (m, c): the splat keeps only the points x with m·x ≤ c (x in the
+    /// cloud's coordinates). All zero: none.
+    pub clip: [[f32; 4]; 2],
+}
+
+/// The shape of every point's splat, relative to its normal:
+/// - **bend**: the second fundamental form (A, B, C) of the surface, so that near point p
+///   with unit normal n the surface is h = ½(A u² + 2B uv + C v²) above its tangent plane,
+///   in the frame ([`tangent_frame`] of n) u = (q − p)·t₁, v = (q − p)·t₂, h = (q − p)·n;
+///   least squares over the neighbourhood ([`jet`]). Splats bent this way (quadric splats)
+///   follow a curved surface to second order: a flat disc is off the surface by r²κ/2 at
+///   its rim, which is what makes flat splats overshoot curved silhouettes and miss the true
+///   depth between samples. Limited to [`MAX_BEND`] / radius (noise); degenerate
+///   neighbourhoods (a line, duplicates) are flat.
+/// - **clip**: at a crease (a neighbour j whose normal differs by more than [`CREASE_COS`]
+///   and whose tangent plane has p behind it: a convex edge of outward-facing normals), the
+///   splat is cut by j's tangent plane, the nearest such plane (and at a corner by a second
+///   one, across a crease from the first). A disc on one face of a box
+///   then ends at the edge instead of sticking out of the silhouette by up to its radius.
+///   Inward normals and concave creases clip nothing (the other face hides the overhang).
+pub fn shapes(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    radii: &[f32],
+    nb: &Neighbours,
+) -> Vec<SplatShape> {
+    (0..positions.len())
+        .into_par_iter()
+        .map(|i| {
+            let n = normals[i].try_normalize().unwrap_or(Vec3::Z);
+            let p = positions[i];
+            let mut out = SplatShape::default();
+            // The nearest crease plane, then the nearest one across another crease from it
+            // (a box corner has two).
+            let mut planes: Vec<(f32, Vec3, f32)> = Vec::new();
+            for &j in nb.of(i) {
+                let Some(m) = normals[j as usize].try_normalize() else {
+                    continue;
+                };
+                let q = positions[j as usize];
+                let s = (q - p).dot(m);
+                if n.dot(m) < CREASE_COS && s > 0.0 {
+                    planes.push((s, m, m.dot(q)));
+                }
+            }
+            planes.sort_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some(&(_, m0, c0)) = planes.first() {
+                out.clip[0] = [m0.x, m0.y, m0.z, c0];
+                if let Some(&(_, m1, c1)) = planes.iter().find(|e| e.1.dot(m0) < CREASE_COS) {
+                    out.clip[1] = [m1.x, m1.y, m1.z, c1];
+                }
+            }
+            let Some(j) = jet(positions, i, n, nb) else {
+                return out;
+            };
+            let (a, b, c) = (j[2] as f32, j[3] as f32, j[4] as f32);
+            // Largest principal curvature magnitude.
+            let mean = 0.5 * (a + c);
+            let dev = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+            let kmax = mean.abs() + dev;
+            let limit = MAX_BEND / radii[i].max(f32::MIN_POSITIVE);
+            if kmax.is_finite() {
+                let f = if kmax > limit { limit / kmax } else { 1.0 };
+                out.bend = [a * f, b * f, c * f];
+            }
+            out
+        })
+        .collect()
+}
+
+/// The osculating quadric ("jet") of the surface at point i in the frame of the unit normal
+/// `n`: least squares of h = c₁u + c₂v + ½A u² + B uv + ½C v² over the neighbourhood
+/// (neighbours far off the tangent plane down-weighted, as in [`robust_normals`]),
+/// returned as [c₁, c₂, A, B, C]; None where it is ill-conditioned (fewer than five
+/// neighbours, a line, duplicates).
+fn jet(positions: &[Vec3], i: usize, n: Vec3, nb: &Neighbours) -> Option<[f64; 5]> {
+    let (t1, t2) = tangent_frame(n);
+    let p = positions[i];
+    let ids = nb.of(i);
+    if ids.len() < 5 {
+        return None;
+    }
+    // Unknowns scaled by the neighbourhood size s (u/s, v/s) for conditioning.
+    let s = ids
+        .iter()
+        .map(|&j| (positions[j as usize] - p).length())
+        .fold(0.0f32, f32::max) as f64;
+    if !(s > 0.0 && s.is_finite()) {
+        return None;
+    }
+    // Neighbours far off the tangent plane (across a crease) weigh little, as in
+    // `robust_normals`: σ = ¼ of the mean neighbour distance.
+    let mean = ids
+        .iter()
+        .map(|&j| (positions[j as usize] - p).length() as f64)
+        .sum::<f64>()
+        / ids.len() as f64;
+    let sigma = 0.25 * mean / s;
+    let mut m = [[0.0f64; 6]; 5];
+    for &j in ids {
+        let d = positions[j as usize] - p;
+        let (u, v, h) = (
+            d.dot(t1) as f64 / s,
+            d.dot(t2) as f64 / s,
+            d.dot(n) as f64 / s,
+        );
+        let w = (-(h / sigma) * (h / sigma)).exp();
+        let row = [u, v, 0.5 * u * u, u * v, 0.5 * v * v];
+        for r in 0..5 {
+            for c in 0..5 {
+                m[r][c] += w * row[r] * row[c];
+            }
+            m[r][5] += w * row[r] * h;
+        }
+    }
+    let scale = (0..5).map(|r| m[r][r]).fold(0.0, f64::max);
+    // Gaussian elimination with partial pivoting.
+    for col in 0..5 {
+        let piv = (col..5).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs()))?;
+        if m[piv][col].abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        m.swap(col, piv);
+        for r in col + 1..5 {
+            let f = m[r][col] / m[col][col];
+            for c in col..6 {
+                m[r][c] -= f * m[col][c];
+            }
+        }
+    }
+    let mut x = [0.0f64; 5];
+    for r in (0..5).rev() {
+        let mut acc = m[r][5];
+        for c in r + 1..5 {
+            acc -= m[r][c] * x[c];
+        }
+        x[r] = acc / m[r][r];
+    }
+    // Back to world units: h = c u + (A/s) u² ...
+    let out = [x[0], x[1], x[2] / s, x[3] / s, x[4] / s];
+    out.iter().all(|v| v.is_finite()).then_some(out)
+}
+
+/// Robust re-fit of each normal (iteratively reweighted PCA, three rounds): neighbours far
+/// from the current tangent plane through the point (relative to σ = ¼ of the mean
+/// neighbour distance) lose weight exp(−(h/σ)²). On smooth surface this changes next to
+/// nothing (neighbours sit d²κ/2 off the plane); at a crease PCA averages both faces (45° off
+/// at a box edge): there the fit starts from the neighbour's normal whose plane through the
+/// point the most neighbours lie on, and the reweighting settles on the face the point lies
+/// on. Signs are kept.
+pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) {
+    let start: Vec<Vec3> = normals.to_vec();
+    normals.par_iter_mut().enumerate().for_each(|(i, n)| {
+        let p0 = positions[i].as_dvec3();
+        let ids = nb.of(i);
+        if ids.len() < 3 {
+            return;
+        }
+        let mean = ids
+            .iter()
+            .map(|&j| (positions[j as usize].as_dvec3() - p0).length())
+            .sum::<f64>()
+            / ids.len() as f64;
+        let sigma = 0.25 * mean;
+        if !(sigma > 0.0 && sigma.is_finite()) {
+            return;
+        }
+        // Start from the candidate plane (its own normal or a neighbour's) that the most
+        // neighbours lie on: at a crease, the normal of a neighbour inside the point's face.
+        let score = |c: DVec3| -> f64 {
+            ids.iter()
+                .map(|&j| {
+                    let h = (positions[j as usize].as_dvec3() - p0).dot(c) / sigma;
+                    (-h * h).exp()
+                })
+                .sum()
+        };
+        let own = n.as_dvec3();
+        let mut cur = own;
+        let mut best = score(own);
+        for &j in ids {
+            let c = start[j as usize].as_dvec3();
+            let sc = score(c);
+            if sc > best * 1.05 {
+                best = sc;
+                cur = if c.dot(own) < 0.0 { -c } else { c };
+            }
+        }
+        for _ in 0..3 {
+            let mut wsum = 1.0;
+            let mut c = DVec3::ZERO;
+            let mut ws = Vec::with_capacity(ids.len());
+            for &j in ids {
+                let d = positions[j as usize].as_dvec3() - p0;
+                let h = d.dot(cur) / sigma;
+                let w = (-h * h).exp();
+                ws.push(w);
+                wsum += w;
+                c += w * d;
+            }
+            c /= wsum;
+            let mut cov = [[0.0f64; 3]; 3];
+            let mut add = |d: DVec3, w: f64| {
+                let d = d.to_array();
+                for r in 0..3 {
+                    for s in r..3 {
+                        cov[r][s] += w * d[r] * d[s];
+                    }
+                }
+            };
+            add(-c, 1.0);
+            for (&j, &w) in ids.iter().zip(&ws) {
+                add(positions[j as usize].as_dvec3() - p0 - c, w);
+            }
+            cov[1][0] = cov[0][1];
+            cov[2][0] = cov[0][2];
+            cov[2][1] = cov[1][2];
+            let m = smallest_eigenvector(cov).as_dvec3();
+            cur = if m.dot(cur) < 0.0 { -m } else { m };
+        }
+        if cur.is_finite() {
+            *n = cur.as_vec3();
+        }
+    });
+}
+
+/// Turns each normal to the slope of its osculating quadric at the point ([`jet`]): PCA's
+/// plane is tilted where the neighbourhood is lopsided on a curved surface (random
+/// samples), the quadric's tangent plane is not. The sign is kept; tilts over 30° (creases,
+/// noise) are left alone.
+pub fn refine_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) {
+    normals.par_iter_mut().enumerate().for_each(|(i, n)| {
+        let Some(u) = n.try_normalize() else {
+            return;
+        };
+        let Some(j) = jet(positions, i, u, nb) else {
+            return;
+        };
+        let (t1, t2) = tangent_frame(u);
+        let (c1, c2) = (j[0] as f32, j[1] as f32);
+        if c1 * c1 + c2 * c2 > 0.33 {
+            return;
+        }
+        if let Some(r) = (u - c1 * t1 - c2 * t2).try_normalize() {
+            *n = r;
+        }
+    });
+}
+
 /// What [`estimate`] found.
 pub struct Estimated {
     pub normals: Vec<Vec3>,
     pub radii: Vec<f32>,
+    /// Surface shape per point relative to its normal (see [`shapes`]).
+    pub shapes: Vec<SplatShape>,
     /// Normals whose sign orientation changed (from PCA's arbitrary sign, or from the given
     /// normals' sign).
     pub flipped: usize,
@@ -643,9 +927,11 @@ pub fn estimate(
             } else {
                 0
             };
+            let shapes = shapes(positions, &normals, &radii, &nb);
             Ok(Estimated {
                 normals,
                 radii,
+                shapes,
                 flipped,
                 given: true,
                 inconsistency: bad,
@@ -654,9 +940,13 @@ pub fn estimate(
         None => {
             let mut normals = pca_normals(positions, &nb);
             let flipped = orient(positions, &mut normals, &nb);
+            robust_normals(positions, &mut normals, &nb);
+            refine_normals(positions, &mut normals, &nb);
+            let shapes = shapes(positions, &normals, &radii, &nb);
             Ok(Estimated {
                 normals,
                 radii,
+                shapes,
                 flipped,
                 given: false,
                 inconsistency: 0.0,
@@ -812,9 +1102,86 @@ mod tests {
     }
 
     #[test]
+    fn shapes_bend_to_a_sphere_and_clip_at_a_box_edge() {
+        // Unit sphere, outward normals: the surface falls away from the tangent plane,
+        // h = −½(u² + v²), so A = C = −1 and B = 0.
+        let pts = sphere(4000, 11);
+        let nb = neighbours(&pts, 16).unwrap();
+        let radii = splat_radii(&nb, 1.0);
+        let sh = shapes(&pts, &pts, &radii, &nb);
+        let mut errs: Vec<f32> = sh
+            .iter()
+            .map(|s| {
+                (s.bend[0] + 1.0)
+                    .abs()
+                    .max((s.bend[2] + 1.0).abs())
+                    .max(s.bend[1].abs())
+            })
+            .collect();
+        errs.sort_by(f32::total_cmp);
+        assert!(
+            errs[errs.len() / 2] < 0.02,
+            "median bend error {}",
+            errs[errs.len() / 2]
+        );
+        assert!(
+            sh.iter().all(|s| s.clip == [[0.0; 4]; 2]),
+            "a sphere has no crease"
+        );
+        // Two faces of a box meeting at x = 0: the top face (y = 0, normal +y) for x < 0,
+        // the side face (x = 0, normal +x) for y < 0. A top point next to the edge is cut by
+        // the side's plane x ≤ 0.
+        let mut p = Vec::new();
+        let mut n = Vec::new();
+        for i in 0..20 {
+            for j in 0..20 {
+                let z = j as f32 * 0.05;
+                p.push(Vec3::new(-0.025 - i as f32 * 0.05, 0.0, z));
+                n.push(Vec3::Y);
+                p.push(Vec3::new(0.0, -0.025 - i as f32 * 0.05, z));
+                n.push(Vec3::X);
+            }
+        }
+        let nb = neighbours(&p, 16).unwrap();
+        let radii = splat_radii(&nb, 1.0);
+        let sh = shapes(&p, &n, &radii, &nb);
+        let edge = p
+            .iter()
+            .position(|q| q.x == -0.025 && q.y == 0.0 && q.z == 0.5)
+            .unwrap();
+        let c = sh[edge].clip[0];
+        assert!(
+            (Vec3::new(c[0], c[1], c[2]) - Vec3::X).length() < 1e-5,
+            "{c:?}"
+        );
+        assert!(c[3].abs() < 1e-6, "{c:?}");
+        // Inside a face, far from the edge: flat, no clip.
+        let inner = p.iter().position(|q| q.x < -0.5 && q.z == 0.5).unwrap();
+        assert_eq!(sh[inner].clip, [[0.0; 4]; 2]);
+        assert!(sh[inner].bend.iter().all(|b| b.abs() < 1e-3));
+    }
+
+    #[test]
+    fn refined_normals_beat_pca_on_random_samples() {
+        let pts = sphere(3000, 12);
+        let nb = neighbours(&pts, 16).unwrap();
+        let mut n = pca_normals(&pts, &nb);
+        orient(&pts, &mut n, &nb);
+        let (pca_median, _, _) = angles(&n, &pts);
+        robust_normals(&pts, &mut n, &nb);
+        refine_normals(&pts, &mut n, &nb);
+        let (median, _, out) = angles(&n, &pts);
+        assert_eq!(out, pts.len());
+        assert!(
+            median < 0.5 * pca_median,
+            "refined {median}°, PCA {pca_median}°"
+        );
+    }
+
+    #[test]
     fn radii_cover_the_spacing() {
         // A regular grid of spacing 0.01: the 16th neighbour is at √5 × 0.01 = 0.0224, so
-        // the radius is 0.5 × that (more than the spacing: neighbouring discs overlap).
+        // the radius is RADIUS_FACTOR × that (more than the spacing: discs overlap).
         let mut pts = Vec::new();
         for i in 0..60 {
             for j in 0..60 {
@@ -824,7 +1191,7 @@ mod tests {
         let e = estimate(&pts, None, 16, 1.0).unwrap();
         let mid = e.radii[30 * 60 + 30];
         assert!(
-            (mid - 0.5 * 0.05f32.sqrt() * 0.1).abs() < 1e-4,
+            (mid - RADIUS_FACTOR * 0.05f32.sqrt() * 0.1).abs() < 1e-4 && mid > 0.01,
             "radius {mid}"
         );
         // A plane: normals ±z, oriented up.

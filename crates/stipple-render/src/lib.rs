@@ -108,6 +108,13 @@ pub struct PreparedCloud {
     pub mean_alpha: f32,
     /// Objects and their materials (None: one object with the pipeline's material).
     pub objects: Option<ObjectTable>,
+    /// Surface shape per point relative to the cloud's normals (quadric splats; see
+    /// `stipple_core::normals::shapes`), from [`PreparedCloud::prepare_surface`]. None: flat
+    /// splats. Valid only for the normals it was fitted to.
+    pub shapes: Option<Vec<passes::splat::SplatShape>>,
+    /// Deferred blending's splat groups, computed on first use (see
+    /// [`PreparedCloud::groups`]), with the key and c they were made for.
+    groups: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<stipple_core::grouping::Grouping>)>>,
     /// The shadow texture in use (see [`PreparedCloud::set_lit`]).
     lit: Option<LitTexture>,
     /// Unique per preparation: the GPU backend re-uploads when it changes.
@@ -149,6 +156,8 @@ impl PreparedCloud {
             alpha,
             mean_alpha,
             objects: None,
+            shapes: None,
+            groups: Default::default(),
             lit: None,
             key: next_key(),
             lit_key: next_key(),
@@ -233,6 +242,9 @@ impl PreparedCloud {
         let mut p = pipe.resolved(v, self.spacing, self.centre_depth(v));
         if let Some(s) = &mut p.splat {
             s.epsilon = Some(self.splat_epsilon(s));
+            if s.mode == SplatMode::Deferred {
+                s.depth_range = Some(self.depth_range(v));
+            }
         }
         p
     }
@@ -301,11 +313,11 @@ impl PreparedCloud {
         let c = &mut self.cloud;
         let need_normals = c.normals.is_none() && estimate;
         let mut report = SurfaceReport::default();
-        if !need_normals && c.normals.is_none() && c.radius.is_some() {
+        if c.normals.is_none() && !need_normals && c.radius.is_some() {
             return Ok(report);
         }
-        let need_radii = c.radius.is_none();
         let t0 = std::time::Instant::now();
+        let need_radii = c.radius.is_none();
         let e = stipple_core::normals::estimate(&c.positions, c.normals.as_deref(), k, 1.0)?;
         if need_normals {
             c.normals = Some(e.normals);
@@ -319,9 +331,59 @@ impl PreparedCloud {
             c.radius = Some(e.radii);
             report.radii = true;
         }
+        if c.normals.is_some() {
+            self.shapes = Some(e.shapes);
+        }
         report.seconds = t0.elapsed().as_secs_f64();
         self.key = next_key();
         Ok(report)
+    }
+}
+
+impl PreparedCloud {
+    /// The splat groups of deferred blending for overlap relaxation `c` (Zhang & Pajarola
+    /// §4.1; `stipple_core::grouping`), computed on first use and kept until the cloud or
+    /// c changes. A cloud too small to group gets one group.
+    pub fn groups(&self, c: f32) -> std::sync::Arc<stipple_core::grouping::Grouping> {
+        let mut g = self.groups.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, cb, gr)) = g.as_ref() {
+            if *k == self.key && *cb == c.to_bits() {
+                return gr.clone();
+            }
+        }
+        let radii = self.splat_radii();
+        let normals = self.cloud.normals.as_deref();
+        let gr = std::sync::Arc::new(
+            stipple_core::grouping::grouping(&self.cloud.positions, normals, &radii, c)
+                .unwrap_or_else(|_| stipple_core::grouping::Grouping {
+                    group: vec![0; self.cloud.len()],
+                    groups: 1,
+                    max_degree: 0,
+                    mean_degree: 0.0,
+                    conflicts: 0,
+                    c,
+                }),
+        );
+        *g = Some((self.key, c.to_bits(), gr.clone()));
+        gr
+    }
+
+    /// The view-depth range [min, max] of the cloud's bounds (min at least the near plane).
+    pub fn depth_range(&self, v: &ViewParams) -> (f32, f32) {
+        let b = self.cloud.bounds();
+        let (eye, fwd) = (glam::Vec3::from(v.eye), glam::Vec3::from(v.forward));
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in 0..8 {
+            let c = glam::Vec3::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let d = (c - eye).dot(fwd);
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+        (lo.max(v.near), hi.max(lo.max(v.near)))
     }
 }
 
@@ -544,7 +606,14 @@ impl Renderer {
             Inner::Gpu { renderer, uploaded } => {
                 let up = upload(renderer, uploaded, cloud)?;
                 if pipe.splat.is_some() {
-                    renderer.set_splat_radii(up, &cloud.splat_radii())?;
+                    let shapes = cloud
+                        .shapes
+                        .as_deref()
+                        .filter(|s| s.len() == cloud.cloud.len());
+                    renderer.set_splat_shapes(up, &cloud.splat_radii(), shapes)?;
+                    if let Some(sp) = pipe.splat.filter(|s| s.mode == SplatMode::Deferred) {
+                        renderer.set_splat_groups(up, &cloud.groups(sp.c))?;
+                    }
                 }
                 Ok(renderer.render(up, &v, pipe)?)
             }

@@ -438,6 +438,12 @@ impl Pipeline {
                     return Err(format!("splat epsilon {e}: it must be 0 or more"));
                 }
             }
+            if !(s.c > 0.0 && s.c <= 1.0) {
+                return Err(format!(
+                    "splat grouping c = {}: the overlap relaxation must lie in (0, 1]",
+                    s.c
+                ));
+            }
         }
         if !(1..=MAX_LAYERS).contains(&self.layers) {
             return Err(format!(

@@ -38,6 +38,12 @@ fn sphere_wall_sdf(p: DVec3) -> f64 {
     a.min(b)
 }
 
+/// A box with edges rounded to radius 0.01 (sharp at the point spacing, ~0.04).
+fn box_sdf(p: DVec3) -> f64 {
+    let q = p.abs() - DVec3::splat(0.79);
+    q.max(DVec3::ZERO).length() + q.max_element().min(0.0) - 0.01
+}
+
 fn gradient(sdf: Sdf, p: DVec3) -> DVec3 {
     let e = 1e-6;
     DVec3::new(
@@ -127,11 +133,8 @@ struct Report {
 impl Report {
     fn check(&self, what: &str) {
         eprintln!("{what}: {self:?}");
-        // The issue asks IoU ≥ 0.99 and 95% of depths within 0.5%: not met yet (curved
-        // silhouettes overshoot by r²κ/2, tangent planes are off the surface by d²κ/2
-        // between samples); these bounds hold what is reached so that it cannot regress.
-        assert!(self.iou >= 0.98, "{what}: {self:?}");
-        assert!(self.depth_within >= 0.80, "{what}: {self:?}");
+        assert!(self.iou >= 0.99, "{what}: {self:?}");
+        assert!(self.depth_within >= 0.95, "{what}: {self:?}");
         assert!(self.behind <= 0.02, "{what}: {self:?}");
         assert!(self.normal_median <= 5.0, "{what}: {self:?}");
         assert!(self.normal_p90 <= 15.0, "{what}: {self:?}");
@@ -195,6 +198,31 @@ fn measure(name: &str, cam: &Camera, sdf: Sdf, cloud: PointCloud, mode: SplatMod
         // The truth faces the eye: the first hit's outward normal does.
         errs.push(n.dot(tn).clamp(-1.0, 1.0).acos().to_degrees());
     }
+    if std::env::var("SPLAT_DEBUG").is_ok() {
+        // Depth error map: green within, red nearer, blue deeper than the truth.
+        let mut img = vec![0u8; w * h * 4];
+        for k in 0..w * h {
+            if let (Some((td, _)), true) = (truth[k], frame.id[k] != BACKGROUND) {
+                let e = (frame.depth[k] as f64 - td) / (0.005 * range);
+                let px = if e.abs() <= 1.0 {
+                    [0, 160, 0]
+                } else if e < 0.0 {
+                    [255, 0, 0]
+                } else {
+                    [0, 0, 255]
+                };
+                img[4 * k..4 * k + 3].copy_from_slice(&px);
+            }
+            img[4 * k + 3] = 255;
+        }
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
+        let _ = stipple_io::image::write_png(
+            &dir.join(format!("{name}-deptherr.png")),
+            w as u32,
+            h as u32,
+            &img,
+        );
+    }
     errs.sort_by(f64::total_cmp);
     eprintln!("{name}: {over} px covered outside the silhouette, {under} inside not covered");
     Report {
@@ -224,23 +252,36 @@ fn variants(c: &PointCloud, seed: u64) -> [(&'static str, PointCloud); 3] {
     ]
 }
 
+/// Every variant in every splat mode.
+fn modes(v: [(&'static str, PointCloud); 3]) -> Vec<((&'static str, PointCloud), SplatMode)> {
+    v.into_iter()
+        .flat_map(|x| {
+            [
+                (x.clone(), SplatMode::Voronoi),
+                (x.clone(), SplatMode::Blend),
+                (x, SplatMode::Deferred),
+            ]
+        })
+        .collect()
+}
+
 #[test]
 fn sparse_sphere_is_whole_and_accurate() {
     let cam = camera(DVec3::new(0.4, 0.5, 3.2), 256);
     let c = sample(sphere_sdf, 2000, 1.05, 1);
-    for (what, cloud) in variants(&c, 2) {
+    for ((what, cloud), mode) in modes(variants(&c, 2)) {
         let r = measure(
-            &format!("splat-sphere-{what}"),
+            &format!("splat-sphere-{what}-{mode:?}"),
             &cam,
             sphere_sdf,
             cloud,
-            SplatMode::Voronoi,
+            mode,
         );
         assert!(
             (3.0..=6.0).contains(&r.spacing_px),
             "the scene must put points 3-6 px apart: {r:?}"
         );
-        r.check(&format!("sphere, normals {what}"));
+        r.check(&format!("sphere, normals {what}, {mode:?}"));
     }
 }
 
@@ -248,16 +289,44 @@ fn sparse_sphere_is_whole_and_accurate() {
 fn sparse_torus_is_whole_and_accurate() {
     let cam = camera(DVec3::new(0.3, 2.2, 2.4), 256);
     let c = sample(torus_sdf, 2700, 1.45, 3);
-    for (what, cloud) in variants(&c, 4) {
+    for ((what, cloud), mode) in modes(variants(&c, 4)) {
         let r = measure(
-            &format!("splat-torus-{what}"),
+            &format!("splat-torus-{what}-{mode:?}"),
             &cam,
             torus_sdf,
             cloud,
-            SplatMode::Voronoi,
+            mode,
         );
         assert!((3.0..=6.0).contains(&r.spacing_px), "{r:?}");
-        r.check(&format!("torus, normals {what}"));
+        r.check(&format!("torus, normals {what}, {mode:?}"));
+    }
+}
+
+#[test]
+fn sparse_box_keeps_its_edges() {
+    let cam = camera(DVec3::new(1.9, 1.5, 2.3), 256);
+    let c = sample(box_sdf, 3600, 0.85, 9);
+    for ((what, cloud), mode) in modes(variants(&c, 10)) {
+        let r = measure(
+            &format!("splat-box-{what}-{mode:?}"),
+            &cam,
+            box_sdf,
+            cloud,
+            mode,
+        );
+        assert!((3.0..=6.0).contains(&r.spacing_px), "{r:?}");
+        if what == "estimated" {
+            // Sharp creases without normals: PCA cannot tell which face an edge point
+            // belongs to, so edges and corners keep a band of error (measured: IoU 0.985,
+            // depth within 0.5% on 92%). Held here so that it cannot regress.
+            eprintln!("box, normals estimated: {r:?}");
+            assert!(
+                r.iou >= 0.98 && r.depth_within >= 0.90 && r.behind <= 0.02,
+                "{r:?}"
+            );
+            continue;
+        }
+        r.check(&format!("box, normals {what}, {mode:?}"));
     }
 }
 
@@ -266,7 +335,7 @@ fn a_sphere_in_front_of_a_wall_hides_it() {
     let cam = camera(DVec3::new(0.2, 0.3, 3.4), 256);
     let c = sample(sphere_wall_sdf, 2600, 1.45, 5);
     for (what, cloud) in variants(&c, 6) {
-        for mode in [SplatMode::Voronoi, SplatMode::Blend] {
+        for mode in [SplatMode::Voronoi, SplatMode::Blend, SplatMode::Deferred] {
             let r = measure(
                 &format!("splat-wall-{what}-{mode:?}"),
                 &cam,
@@ -280,7 +349,8 @@ fn a_sphere_in_front_of_a_wall_hides_it() {
     }
 }
 
-/// The same splat frame on the GPU (lavapipe in CI) as on the CPU.
+/// The same splat frame on the GPU (lavapipe in CI) as on the CPU, Voronoi and blend, with
+/// bent splats and with eye-facing discs (no normals).
 #[test]
 fn gpu_splats_match_the_cpu() {
     let ctx = match stipple_render::gpu::GpuContext::new(Default::default()) {
@@ -305,26 +375,41 @@ fn gpu_splats_match_the_cpu() {
     );
     let mut prepared = PreparedCloud::new(c);
     prepared.prepare_surface(16, true).unwrap();
-    for no_normals in [false, true] {
+    for (no_normals, mode) in [
+        (false, SplatMode::Voronoi),
+        (true, SplatMode::Voronoi),
+        (false, SplatMode::Blend),
+        (true, SplatMode::Blend),
+        (false, SplatMode::Deferred),
+        (true, SplatMode::Deferred),
+    ] {
         let mut p = PreparedCloud::new(prepared.cloud.clone());
         if no_normals {
             p.cloud.normals = None;
+        } else {
+            p.shapes = prepared.shapes.clone();
         }
-        let pipe = Pipeline::splats(SplatSettings::default());
+        let pipe = Pipeline::splats(SplatSettings {
+            mode,
+            ..Default::default()
+        });
         let a = render(&p, &cam, &pipe, Backend::Cpu).unwrap();
         let b = render(&p, &cam, &pipe, Backend::Gpu).unwrap();
         let n = a.id.len();
         let same = a.id.iter().zip(&b.id).filter(|(x, y)| x == y).count();
         assert!(
             same as f64 >= 0.99 * n as f64,
-            "ids agree on {same} of {n} pixels"
+            "{mode:?}: ids agree on {same} of {n} pixels"
         );
         let cov_a = a.id.iter().filter(|&&i| i != BACKGROUND).count();
         assert!(cov_a > n / 4, "the frame shows the scene");
         for k in 0..n {
             if a.id[k] == b.id[k] && a.id[k] != BACKGROUND {
                 let (x, y) = (a.depth[k], b.depth[k]);
-                assert!((x - y).abs() <= 1e-4 * x.abs(), "depth {x} vs {y} at {k}");
+                assert!(
+                    (x - y).abs() <= 1e-4 * x.abs(),
+                    "{mode:?}: depth {x} vs {y} at {k}"
+                );
             }
         }
         let close = a
@@ -339,7 +424,7 @@ fn gpu_splats_match_the_cpu() {
             .count();
         assert!(
             close as f64 >= 0.98 * n as f64,
-            "colour agrees on {close} of {n}"
+            "{mode:?}: colour agrees on {close} of {n}"
         );
     }
 }

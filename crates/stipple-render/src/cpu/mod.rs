@@ -329,13 +329,28 @@ impl CpuRenderer {
         self.blended_valid = false;
         if let Some(sp) = &pipe.splat {
             let radii: Vec<f32> = cloud.splat_radii().iter().map(|r| r * sp.scale).collect();
+            let epsilon = cloud.splat_epsilon(sp);
+            let deferred = sp.mode == crate::SplatMode::Deferred;
+            let groups = deferred.then(|| cloud.groups(sp.c));
+            let quant = deferred.then(|| {
+                sp.quant().unwrap_or_else(|| {
+                    let (lo, hi) = cloud.depth_range(v);
+                    crate::passes::splat::DepthQuant::new(lo, hi, epsilon)
+                })
+            });
             let input = crate::passes::splat::cpu::SplatInput {
                 positions: &c.positions,
                 normals: c.normals.as_deref(),
                 radii: &radii,
-                epsilon: cloud.splat_epsilon(sp),
+                shapes: cloud
+                    .shapes
+                    .as_deref()
+                    .filter(|s| s.len() == c.positions.len()),
+                groups: groups.as_ref().map(|g| (&g.group[..], g.groups)),
+                quant,
+                epsilon,
             };
-            let blend = sp.mode == crate::SplatMode::Blend;
+            let blend = sp.mode != crate::SplatMode::Voronoi;
             let lut = shade::srgb_to_linear_table();
             let albedo = blend.then(|| (cloud.albedo(pipe), &lut));
             let blended = blend.then_some(&mut self.blended);
@@ -427,7 +442,9 @@ pub fn shade_params(
         lights,
         samples,
         materials,
-        max_correction: gap,
+        // Splats hit their own (bent) surface already: the tangent-plane correction would
+        // only flatten it again.
+        max_correction: if pipe.splat.is_some() { -1.0 } else { gap },
         background: pipe.background.map(|c| lut[c as usize]),
     }
 }

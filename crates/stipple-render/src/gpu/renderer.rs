@@ -778,10 +778,24 @@ impl GpuRenderer {
         &self.ctx
     }
 
-    /// Uploads an uploaded cloud's splat radii (unscaled) for the splat pass, unless they
-    /// are there already.
-    pub fn set_splat_radii(&mut self, cloud: &GpuCloud, radii: &[f32]) -> Result<(), GpuError> {
-        self.splat.set_radii(&self.ctx, cloud, radii)
+    /// Uploads an uploaded cloud's splat groups (deferred blending), unless they are there.
+    pub fn set_splat_groups(
+        &mut self,
+        cloud: &GpuCloud,
+        groups: &stipple_core::grouping::Grouping,
+    ) -> Result<(), GpuError> {
+        self.splat.set_groups(&self.ctx, cloud, groups)
+    }
+
+    /// Uploads an uploaded cloud's splat radii (unscaled) and shapes (None: flat splats)
+    /// for the splat pass, unless they are there already.
+    pub fn set_splat_shapes(
+        &mut self,
+        cloud: &GpuCloud,
+        radii: &[f32],
+        shapes: Option<&[crate::passes::splat::SplatShape]>,
+    ) -> Result<(), GpuError> {
+        self.splat.set_shapes(&self.ctx, cloud, radii, shapes)
     }
 
     fn prepare(&mut self, v: &ViewParams) -> Result<(), GpuError> {
@@ -926,7 +940,7 @@ impl GpuRenderer {
                 let peel = (k > 0).then_some(gap);
                 match (splat, projection, &f.targets) {
                     (Some(sp), _, _) => {
-                        record_splat(&mut rec, splat_gpu, &kit.view, &f, cloud, sp)?
+                        record_splat(&mut rec, splat_gpu, kit, &kit.view, &f, cloud, sp)?
                     }
                     (None, ProjectionPath::Hardware, Some((t, copy))) => {
                         record_project_hw(&mut rec, kit, &f, t, copy, cloud, cull)?
@@ -936,7 +950,7 @@ impl GpuRenderer {
                 for pass in &pipe.geometry {
                     record_geometry(&mut rec, kit, &f, &mut cur, pass, gap)?;
                 }
-                record_shade(&mut rec, kit, &f, &cur, cloud, shade_block)?;
+                record_shade(&mut rec, kit, &f, &cur, cloud, shade_block, Some(splat_gpu))?;
                 for pass in &pipe.colour {
                     record_colour(&mut rec, kit, &f, &mut cur, pass, v)?;
                 }
@@ -1131,7 +1145,7 @@ impl GpuRenderer {
             q.write_buffer(&f.depth[0], 0, bytemuck::cast_slice(&g.depth));
             q.write_buffer(&f.id[0], 0, bytemuck::cast_slice(&g.id));
             let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
-            record_shade(&mut rec, kit, &f, &Cursor::default(), cloud, block)?;
+            record_shade(&mut rec, kit, &f, &Cursor::default(), cloud, block, None)?;
             finish(rec, kit)?;
             let colour = read_colour(&self.ctx, &f.colour[0], v.pixels())?;
             let depth = read_f32(&self.ctx, &f.surface, v.pixels())?;
@@ -1318,18 +1332,12 @@ fn record_project(
 fn record_splat(
     rec: &mut Rec<'_>,
     splat: &mut crate::passes::splat::gpu::SplatGpu,
+    kit: &Kit,
     view: &Buffer,
     f: &FrameBuffers,
     cloud: &GpuCloud,
     s: crate::SplatSettings,
 ) -> Result<(), GpuError> {
-    if s.mode != crate::SplatMode::Voronoi {
-        return Err(GpuError::Unsupported(
-            "splat blending runs on the CPU backend only for now (--backend cpu, or \
-             --splat voronoi on the GPU)"
-                .into(),
-        ));
-    }
     rec.start();
     let q = rec.queries();
     let timer = rec.timer;
@@ -1357,6 +1365,12 @@ fn record_splat(
         (f.width, f.height),
         (s.epsilon.unwrap_or(0.0), s.scale),
         (&f.depth[0], &f.id[0]),
+        (s.mode, s.quant()),
+        (s.mode != crate::SplatMode::Voronoi).then_some(crate::passes::splat::gpu::BlendTargets {
+            attr_pos: &f.attr_pos,
+            attr_normal: &f.attr_normal,
+            to_linear: &kit.to_linear,
+        }),
         &mut begin,
     )?;
     rec.end("splat", 1, vec![], q)
@@ -1566,6 +1580,7 @@ fn record_shade(
     cur: &Cursor,
     cloud: &GpuCloud,
     block: ShadeBlock,
+    splat: Option<&mut crate::passes::splat::gpu::SplatGpu>,
 ) -> Result<(), GpuError> {
     let ctx = rec.ctx;
     rec.start();
@@ -1591,6 +1606,9 @@ fn record_shade(
     for (bg, off) in &gathers {
         p.set_bind_group(0, *bg, &[*off]);
         p.dispatch_workgroups(fx, fy, 1);
+    }
+    if let Some(sg) = splat {
+        sg.record_resolve(&mut p);
     }
     p.set_pipeline(&kit.shade.shade.pipeline);
     p.set_bind_group(0, &f.groups().shade[cur.g], &[soff]);

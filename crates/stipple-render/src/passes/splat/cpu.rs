@@ -3,8 +3,8 @@
 //! depend on thread timing), and each tile runs the visibility and selection loops of the
 //! module docs over its own list on one thread.
 
-use super::{footprint, fragment, splat_normal, weight, SplatMode};
-use crate::cpu::shade::{intensity_grey, Albedo};
+use super::{footprint, fragment, weight, Disc, SplatMode};
+use crate::cpu::shade::{intensity_grey, linear_to_srgb8, srgb_to_linear_table, Albedo};
 use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
 use glam::Vec3;
@@ -19,6 +19,12 @@ pub struct SplatInput<'a> {
     pub normals: Option<&'a [Vec3]>,
     /// Radius per point, already scaled.
     pub radii: &'a [f32],
+    /// Shape per point (quadric splats; used only with normals).
+    pub shapes: Option<&'a [super::SplatShape]>,
+    /// Deferred blending: the group of every point and the number of groups.
+    pub groups: Option<(&'a [u8], usize)>,
+    /// Deferred blending: the low-precision depth of Eq. 6.
+    pub quant: Option<super::DepthQuant>,
     /// ε of the ε-z test.
     pub epsilon: f32,
 }
@@ -28,6 +34,39 @@ pub struct SplatInput<'a> {
 pub struct Blended {
     pub normal: Vec<Vec3>,
     pub albedo: Vec<[f32; 3]>,
+}
+
+/// The blend of one pixel (Eq. 1): weighted sums, and the fragment of largest weight (ties:
+/// the smaller point index).
+#[derive(Clone, Default)]
+struct Acc {
+    w: f32,
+    d: f32,
+    n: Vec3,
+    c: [f32; 3],
+    top: f32,
+    top_id: u32,
+}
+
+impl Acc {
+    #[inline]
+    fn add(&mut self, fr: super::Frag, dsc: &Disc, sid: usize, dir: Vec3, albedo: [f32; 3]) {
+        let wt = weight(fr.q);
+        let mut nrm = dsc.normal_at(fr.u, fr.v);
+        if nrm.dot(dir) > 0.0 {
+            nrm = -nrm;
+        }
+        self.w += wt;
+        self.d += wt * fr.depth;
+        self.n += wt * nrm;
+        for (a, c) in self.c.iter_mut().zip(albedo) {
+            *a += wt * c;
+        }
+        if wt > self.top || (wt == self.top && (sid as u32) < self.top_id) {
+            self.top = wt;
+            self.top_id = sid as u32;
+        }
+    }
 }
 
 struct TileOut {
@@ -51,9 +90,18 @@ pub fn splat(
     let (w, h) = (v.width, v.height);
     let (tw, th) = (w.div_ceil(TILE), h.div_ceil(TILE));
     let n = s.positions.len();
+    let disc = |i: usize| {
+        Disc::new(
+            v,
+            s.positions[i],
+            s.normals.map(|n| n[i]),
+            s.radii[i],
+            s.shapes.map(|k| k[i]),
+        )
+    };
     let feet: Vec<Option<[u32; 4]>> = (0..n)
         .into_par_iter()
-        .map(|i| footprint(v, s.positions[i], s.radii[i]))
+        .map(|i| footprint(v, s.positions[i], disc(i).bound()))
         .collect();
     let drawn = feet.par_iter().filter(|f| f.is_some()).count() as u64;
     // Counting sort of (tile, splat).
@@ -87,7 +135,8 @@ pub fn splat(
             }
         }
     });
-    let blend = mode == SplatMode::Blend;
+    let blend = mode != SplatMode::Voronoi;
+    let srgb_lut = srgb_to_linear_table();
     let lut_albedo = |id: usize| -> [f32; 3] {
         match albedo {
             Some((Albedo::Colours(c), lut)) => c[id].map(|x| lut[x as usize]),
@@ -109,82 +158,110 @@ pub fn splat(
             let (px1, py1) = ((px0 + TILE).min(w) - 1, (py0 + TILE).min(h) - 1);
             let tile_w = (px1 - px0 + 1) as usize;
             let m = tile_w * (py1 - py0 + 1) as usize;
-            let mut zmin = vec![f32::INFINITY; m];
-            // Calls `f(local pixel, depth, (d/r)², splat)` for every fragment in the tile.
-            let each = |f: &mut dyn FnMut(usize, f32, f32, usize)| {
+            // Calls `f(local pixel, fragment, splat)` for every fragment in the tile.
+            let each = |f: &mut dyn FnMut(usize, super::Frag, &Disc, usize)| {
                 for &sid in &ids {
                     let sid = sid as usize;
                     let fp = feet[sid].expect("listed splats have footprints");
-                    let p = s.positions[sid];
-                    let nrm = splat_normal(v, p, s.normals.map(|n| n[sid]));
-                    let r2 = s.radii[sid] * s.radii[sid];
+                    let d = disc(sid);
                     for y in fp[1].max(py0)..=fp[3].min(py1) {
                         for x in fp[0].max(px0)..=fp[2].min(px1) {
-                            if let Some((d, q)) = fragment(v, x, y, p, nrm, r2) {
-                                f((y - py0) as usize * tile_w + (x - px0) as usize, d, q, sid);
+                            if let Some(fr) = fragment(v, x, y, &d) {
+                                f(
+                                    (y - py0) as usize * tile_w + (x - px0) as usize,
+                                    fr,
+                                    &d,
+                                    sid,
+                                );
                             }
                         }
                     }
                 }
             };
-            each(&mut |k, d, _, _| {
-                if d < zmin[k] {
-                    zmin[k] = d;
-                }
-            });
+            let ray = |k: usize| {
+                let (x, y) = ((k % tile_w) as u32 + px0, (k / tile_w) as u32 + py0);
+                (x, y, v.pixel_ray(x, y).1)
+            };
             let mut out = TileOut {
                 depth: vec![f32::INFINITY; m],
                 id: vec![BACKGROUND; m],
                 normal: Vec::new(),
                 albedo: Vec::new(),
             };
-            if !blend {
-                let mut best = vec![f32::INFINITY; m];
-                each(&mut |k, d, q, sid| {
-                    if d <= zmin[k] + s.epsilon && q < best[k] {
-                        best[k] = q;
-                        out.depth[k] = d;
-                        out.id[k] = sid as u32;
+            let mut acc = vec![Acc::default(); if mode == SplatMode::Voronoi { 0 } else { m }];
+            if let SplatMode::Deferred = mode {
+                // §3.2 geometry pass: one pass over the splats, each into its group's image
+                // with a plain depth test on the key of Eq. 10 (low-precision depth, then
+                // the Voronoi distance): per group and pixel the nearest layer's splat
+                // nearest its centre.
+                let (groups, k_groups) = s.groups.expect("deferred blending needs groups");
+                let q = s
+                    .quant
+                    .expect("deferred blending needs the depth quantisation");
+                let mut gkey = vec![u32::MAX; m * k_groups];
+                let mut gid = vec![u32::MAX; m * k_groups];
+                each(&mut |k, fr, _, sid| {
+                    let at = groups[sid] as usize * m + k;
+                    let key = q.key(fr.depth, fr.q);
+                    if key < gkey[at] {
+                        gkey[at] = key;
+                        gid[at] = sid as u32;
                     }
                 });
-                return out;
+                // Compositing (Fig. 5): the nearest depth over the groups, then the blend of
+                // the groups within ε of it.
+                let mut frags: Vec<(super::Frag, usize)> = Vec::with_capacity(k_groups);
+                for k in 0..m {
+                    let (x, y, dir) = ray(k);
+                    frags.clear();
+                    for g in 0..k_groups {
+                        let sid = gid[g * m + k];
+                        if sid != u32::MAX {
+                            let sid = sid as usize;
+                            let fr = fragment(v, x, y, &disc(sid)).expect("the winner hits");
+                            frags.push((fr, sid));
+                        }
+                    }
+                    let z = frags.iter().fold(f32::INFINITY, |z, f| z.min(f.0.depth));
+                    for &(fr, sid) in &frags {
+                        if fr.depth <= z + s.epsilon {
+                            acc[k].add(fr, &disc(sid), sid, dir, lut_albedo(sid));
+                        }
+                    }
+                }
+            } else {
+                let mut zmin = vec![f32::INFINITY; m];
+                each(&mut |k, fr, _, _| {
+                    if fr.depth < zmin[k] {
+                        zmin[k] = fr.depth;
+                    }
+                });
+                if mode == SplatMode::Voronoi {
+                    let mut best = vec![f32::INFINITY; m];
+                    each(&mut |k, fr, _, sid| {
+                        if fr.depth <= zmin[k] + s.epsilon && fr.q < best[k] {
+                            best[k] = fr.q;
+                            out.depth[k] = fr.depth;
+                            out.id[k] = sid as u32;
+                        }
+                    });
+                    return out;
+                }
+                each(&mut |k, fr, dsc, sid| {
+                    if fr.depth <= zmin[k] + s.epsilon {
+                        acc[k].add(fr, dsc, sid, ray(k).2, lut_albedo(sid));
+                    }
+                });
             }
-            let mut acc_w = vec![0.0f32; m];
-            let mut acc_d = vec![0.0f32; m];
-            let mut acc_n = vec![Vec3::ZERO; m];
-            let mut acc_c = vec![[0.0f32; 3]; m];
-            let mut top = vec![0.0f32; m];
-            each(&mut |k, d, q, sid| {
-                if d > zmin[k] + s.epsilon {
-                    return;
-                }
-                let wt = weight(q);
-                let (x, y) = ((k % tile_w) as u32 + px0, (k / tile_w) as u32 + py0);
-                let (_, dir) = v.pixel_ray(x, y);
-                let p = s.positions[sid];
-                let mut nrm = splat_normal(v, p, s.normals.map(|n| n[sid]));
-                if nrm.dot(dir) > 0.0 {
-                    nrm = -nrm;
-                }
-                let c = lut_albedo(sid);
-                acc_w[k] += wt;
-                acc_d[k] += wt * d;
-                acc_n[k] += wt * nrm;
-                for (a, c) in acc_c[k].iter_mut().zip(c) {
-                    *a += wt * c;
-                }
-                if wt > top[k] {
-                    top[k] = wt;
-                    out.id[k] = sid as u32;
-                }
-            });
             out.normal = vec![Vec3::ZERO; m];
             out.albedo = vec![[0.0; 3]; m];
-            for k in 0..m {
-                if acc_w[k] > 0.0 {
-                    out.depth[k] = acc_d[k] / acc_w[k];
-                    out.normal[k] = acc_n[k].normalize_or_zero();
-                    out.albedo[k] = acc_c[k].map(|c| c / acc_w[k]);
+            for (k, a) in acc.iter().enumerate() {
+                if a.w > 0.0 {
+                    out.depth[k] = a.d / a.w;
+                    out.id[k] = a.top_id;
+                    out.normal[k] = a.n.normalize_or_zero();
+                    // Stored as 8-bit sRGB, as every albedo is (the GPU twin does the same).
+                    out.albedo[k] = a.c.map(|c| srgb_lut[linear_to_srgb8(c / a.w) as usize]);
                 }
             }
             out
@@ -243,6 +320,9 @@ mod tests {
             positions: &pos,
             normals: Some(&normals),
             radii: &radii,
+            shapes: None,
+            groups: None,
+            quant: None,
             epsilon: 1.0,
         };
         let mut g = GBuffer::new(64, 64);
@@ -287,6 +367,9 @@ mod tests {
             positions: &pos,
             normals: None,
             radii: &radii,
+            shapes: None,
+            groups: None,
+            quant: None,
             epsilon: 1.0,
         };
         for mode in [SplatMode::Voronoi, SplatMode::Blend] {
@@ -321,11 +404,84 @@ mod tests {
             positions: &pos,
             normals: Some(&nrm),
             radii: &radii,
+            shapes: None,
+            groups: None,
+            quant: None,
             epsilon: 0.5,
         };
         let mut g = GBuffer::new(16, 16);
         let mut b = Blended::default();
         splat(&v, &input, SplatMode::Blend, None, &mut g, Some(&mut b));
         assert!(b.normal.iter().all(|n| (n.z + 1.0).abs() < 1e-5));
+    }
+
+    /// Deferred blending equals the two-pass blend when no two splats of a group overlap
+    /// (§3.2, Eq. 2–4), and with every splat in one group it keeps one splat per pixel.
+    #[test]
+    fn deferred_blending_equals_blending_for_independent_groups() {
+        let v = ViewParams::axis_aligned(64, 64, true, 1.0);
+        let mut pos = Vec::new();
+        let mut groups = Vec::new();
+        for j in 0..16 {
+            for i in 0..16 {
+                // A plane tilted a little, 6 units in front of the eye, points 0.4 apart.
+                let (x, y) = ((i as f32 - 7.5) * 0.4, (j as f32 - 7.5) * 0.4);
+                pos.push(Vec3::new(x, y, 6.0 + 0.1 * x));
+                groups.push((i % 2 + 2 * (j % 2)) as u8);
+            }
+        }
+        let n = Vec3::new(-0.1, 0.0, 1.0).normalize();
+        let normals = vec![n; pos.len()];
+        let radii = vec![0.3; pos.len()];
+        let colours: Vec<[u8; 3]> = (0..pos.len())
+            .map(|i| [(i * 7 % 256) as u8, 90, 200])
+            .collect();
+        let lut = srgb_to_linear_table();
+        let mut input = SplatInput {
+            positions: &pos,
+            normals: Some(&normals),
+            radii: &radii,
+            shapes: None,
+            groups: Some((&groups, 4)),
+            quant: Some(super::super::DepthQuant::new(5.0, 8.0, 0.3)),
+            epsilon: 0.3,
+        };
+        let run = |mode, input: &SplatInput| {
+            let mut g = GBuffer::new(64, 64);
+            let mut b = Blended::default();
+            let albedo = Some((Albedo::Colours(&colours), &lut));
+            splat(&v, input, mode, albedo, &mut g, Some(&mut b));
+            (g, b)
+        };
+        let (ga, ba) = run(SplatMode::Blend, &input);
+        let (gb, bb) = run(SplatMode::Deferred, &input);
+        let mut covered = 0;
+        for k in 0..64 * 64 {
+            assert_eq!(ga.id[k], gb.id[k], "pixel {k}");
+            if ga.id[k] == BACKGROUND {
+                continue;
+            }
+            covered += 1;
+            assert!((ga.depth[k] - gb.depth[k]).abs() < 1e-5, "pixel {k}");
+            assert!((ba.normal[k] - bb.normal[k]).length() < 1e-5, "pixel {k}");
+            for c in 0..3 {
+                assert!(
+                    (ba.albedo[k][c] - bb.albedo[k][c]).abs() < 1e-3,
+                    "pixel {k}"
+                );
+            }
+        }
+        assert!(covered > 1000, "{covered}");
+        // One group: overlapping splats of the group compete in the depth test, so each
+        // pixel blends exactly one splat: its own albedo, no mixture.
+        let one = vec![0u8; pos.len()];
+        input.groups = Some((&one, 1));
+        let (gc, bc) = run(SplatMode::Deferred, &input);
+        for k in 0..64 * 64 {
+            if gc.id[k] != BACKGROUND {
+                let own = colours[gc.id[k] as usize].map(|x| lut[x as usize]);
+                assert_eq!(bc.albedo[k], own, "pixel {k}");
+            }
+        }
     }
 }

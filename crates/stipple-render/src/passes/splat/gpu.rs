@@ -1,13 +1,15 @@
 //! splat on the GPU (twin of `cpu.rs`; shader `splat.wgsl`): the Voronoi mode as four
 //! dispatches over the points, one thread per splat, with 32-bit atomics only (so it runs on
-//! every adapter, lavapipe included). The pass owns its pipelines, its per-pixel scratch
-//! buffers and its per-point radius buffers; the frame schedule (`gpu/renderer.rs`) only
-//! calls [`SplatGpu::record`].
+//! every adapter, lavapipe included); blend mode adds an accumulation dispatch over the
+//! points (fixed-point sums with integer atomics) and a per-pixel resolve that runs inside
+//! shade, after its gather. The pass owns its pipelines, its per-pixel scratch buffers and
+//! its per-point shape buffers; the frame schedule (`gpu/renderer.rs`) only calls
+//! [`SplatGpu::record`] and [`SplatGpu::record_resolve`].
 
 use crate::gpu::cloud::GpuCloud;
 use crate::gpu::context::{GpuContext, GpuError};
 use crate::gpu::shaders::SPLAT_MODULE;
-use crate::gpu::util::{self, Arena, Res, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::gpu::util::{self, Arena, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
 use wgpu::{Buffer, ComputePipeline, ShaderStages};
 
 /// Splats per workgroup (splat.wgsl's workgroup size).
@@ -22,16 +24,37 @@ pub(crate) struct SplatBlock {
     pub has_normals: u32,
     pub epsilon: f32,
     pub scale: f32,
-    pub pad: [u32; 3],
+    /// 1: the shapes buffer holds bent splats (else flat discs).
+    pub has_shapes: u32,
+    /// 1: the chunk has per-point albedo (blend mode).
+    pub has_albedo: u32,
+    /// Deferred blending: the number of groups and the depth quantisation (`DepthQuant`).
+    pub groups: u32,
+    pub qmin: f32,
+    pub qscale: f32,
+    /// 0 Voronoi, 1 blend, 2 deferred.
+    pub mode: u32,
+    pub pad: u32,
 }
 
-const _: () = assert!(std::mem::size_of::<SplatBlock>() == 32);
+const _: () = assert!(std::mem::size_of::<SplatBlock>() == 48);
 
 struct Scratch {
     pixels: u64,
     z: Buffer,
     q: Buffer,
     i: Buffer,
+    /// Blend sums, 8 per pixel (made on the first blend frame).
+    acc: Option<Buffer>,
+    /// Deferred blending's group images (key, id), K per pixel, and their K.
+    group_images: Option<(usize, Buffer, Buffer)>,
+}
+
+/// Targets of the blend mode's resolve: shade's per-pixel position/albedo and normal.
+pub(crate) struct BlendTargets<'a> {
+    pub attr_pos: &'a Buffer,
+    pub attr_normal: &'a Buffer,
+    pub to_linear: &'a Buffer,
 }
 
 pub(crate) struct SplatGpu {
@@ -41,9 +64,26 @@ pub(crate) struct SplatGpu {
     index: ComputePipeline,
     write: ComputePipeline,
     clear: ComputePipeline,
+    accum_bgl: wgpu::BindGroupLayout,
+    accum: ComputePipeline,
+    resolve_bgl: wgpu::BindGroupLayout,
+    resolve: ComputePipeline,
+    /// The resolve of the blend frame recorded last, until shade runs it.
+    pending: Option<(wgpu::BindGroup, u32, (u32, u32))>,
+    group_bgl: wgpu::BindGroupLayout,
+    group_key: ComputePipeline,
+    group_id: ComputePipeline,
+    composite_bgl: wgpu::BindGroupLayout,
+    composite: ComputePipeline,
+    /// The groups of the cloud uploaded last: (upload key, c bits, packed groups, K).
+    groups: Option<(u64, u32, Buffer, usize)>,
+    /// The sRGB → linear table as a uniform (the composite's ninth buffer would exceed the
+    /// eight storage bindings every adapter has).
+    lin: Buffer,
     scratch: Option<Scratch>,
-    /// Radii per chunk of the cloud uploaded last (keyed by its upload key).
-    radii: Option<(u64, Vec<Buffer>)>,
+    /// (radius, A, B, C) per point, per chunk of the cloud uploaded last (keyed by its
+    /// upload key), and whether it has shapes.
+    radii: Option<(u64, Vec<Buffer>, bool)>,
 }
 
 impl SplatGpu {
@@ -59,7 +99,62 @@ impl SplatGpu {
         );
         let m = util::module(d, &SPLAT_MODULE);
         let p = |e: &str| util::compute(d, &m, e, &bgl);
+        const NO: Slot = Slot::Skip;
+        let accum_bgl = util::layout(
+            d,
+            "splat accum",
+            &[
+                UNIFORM, DYNAMIC, READ, READ, READ, WRITE, NO, NO, NO, NO, READ, READ, WRITE,
+            ],
+            ShaderStages::COMPUTE,
+        );
+        let resolve_bgl = util::layout(
+            d,
+            "splat resolve",
+            &[
+                UNIFORM, DYNAMIC, NO, NO, NO, WRITE, NO, NO, WRITE, NO, NO, NO, WRITE, WRITE, WRITE,
+            ],
+            ShaderStages::COMPUTE,
+        );
+        let group_bgl = util::layout(
+            d,
+            "splat groups",
+            &[
+                UNIFORM, DYNAMIC, READ, READ, READ, NO, NO, NO, NO, NO, NO, NO, NO, NO, NO, READ,
+                WRITE, WRITE,
+            ],
+            ShaderStages::COMPUTE,
+        );
+        let composite_bgl = util::layout(
+            d,
+            "splat composite",
+            &[
+                UNIFORM, DYNAMIC, READ, READ, READ, NO, NO, NO, WRITE, WRITE, READ, NO, WRITE, NO,
+                NO, NO, NO, WRITE, UNIFORM,
+            ],
+            ShaderStages::COMPUTE,
+        );
+        let table = crate::cpu::shade::srgb_to_linear_table();
         SplatGpu {
+            group_key: util::compute(d, &m, "splat_group_key", &group_bgl),
+            group_id: util::compute(d, &m, "splat_group_id", &group_bgl),
+            composite: util::compute(d, &m, "splat_group_composite", &composite_bgl),
+            group_bgl,
+            composite_bgl,
+            groups: None,
+            lin: wgpu::util::DeviceExt::create_buffer_init(
+                d,
+                &wgpu::util::BufferInitDescriptor {
+                    label: Some("splat srgb to linear"),
+                    contents: bytemuck::cast_slice(&table),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                },
+            ),
+            accum: util::compute(d, &m, "splat_accum", &accum_bgl),
+            resolve: util::compute(d, &m, "splat_resolve", &resolve_bgl),
+            accum_bgl,
+            resolve_bgl,
+            pending: None,
             depth: p("splat_depth"),
             select: p("splat_select"),
             index: p("splat_index"),
@@ -71,17 +166,19 @@ impl SplatGpu {
         }
     }
 
-    /// Uploads the cloud's radii (unscaled) unless this upload already has them.
-    pub fn set_radii(
+    /// Uploads the cloud's radii (unscaled) and shapes (see `Disc`) unless this upload
+    /// already has them.
+    pub fn set_shapes(
         &mut self,
         ctx: &GpuContext,
         cloud: &GpuCloud,
         radii: &[f32],
+        shapes: Option<&[crate::passes::splat::SplatShape]>,
     ) -> Result<(), GpuError> {
         if self.radii.as_ref().map(|r| r.0) == Some(cloud.key) {
             return Ok(());
         }
-        if radii.len() != cloud.len {
+        if radii.len() != cloud.len || shapes.is_some_and(|s| s.len() != cloud.len) {
             return Err(GpuError::Wgpu(format!(
                 "splat: {} radii for a cloud of {} points",
                 radii.len(),
@@ -92,19 +189,63 @@ impl SplatGpu {
             .chunks
             .iter()
             .map(|c| {
-                util::storage_init(
-                    &ctx.device,
-                    "splat radii",
-                    bytemuck::cast_slice(&radii[c.base as usize..(c.base + c.count) as usize]),
-                )
+                let range = c.base as usize..(c.base + c.count) as usize;
+                // Three vec4 per point: (r, A, B, C), then the clip planes.
+                let packed: Vec<[f32; 4]> = range
+                    .flat_map(|i| {
+                        let s = shapes.map_or_else(Default::default, |s| s[i]);
+                        let [a, b, k] = s.bend;
+                        [[radii[i], a, b, k], s.clip[0], s.clip[1]]
+                    })
+                    .collect();
+                util::storage_init(&ctx.device, "splat shapes", bytemuck::cast_slice(&packed))
             })
             .collect();
-        self.radii = Some((cloud.key, bufs));
+        self.radii = Some((cloud.key, bufs, shapes.is_some()));
         ctx.take_errors()
     }
 
-    /// Records the pass: clears, then the five dispatches, into `pass` (made by `begin`
-    /// after the clears). `depth_out` and `id_out` receive the G-buffer.
+    /// Uploads the cloud's splat groups (deferred blending) unless this upload has them.
+    pub fn set_groups(
+        &mut self,
+        ctx: &GpuContext,
+        cloud: &GpuCloud,
+        g: &stipple_core::grouping::Grouping,
+    ) -> Result<(), GpuError> {
+        if self
+            .groups
+            .as_ref()
+            .is_some_and(|x| x.0 == cloud.key && x.1 == g.c.to_bits())
+        {
+            return Ok(());
+        }
+        if cloud.chunks.len() != 1 {
+            return Err(GpuError::Unsupported(format!(
+                "deferred splat blending on the GPU takes clouds that fit one buffer binding; \
+                 this one has {} points in {} chunks (--splat blend, or --backend cpu)",
+                cloud.len,
+                cloud.chunks.len()
+            )));
+        }
+        if g.group.len() != cloud.len {
+            return Err(GpuError::Wgpu(format!(
+                "splat: {} groups for a cloud of {} points",
+                g.group.len(),
+                cloud.len
+            )));
+        }
+        let mut packed = vec![0u32; g.group.len().div_ceil(4).max(1)];
+        for (i, &x) in g.group.iter().enumerate() {
+            packed[i / 4] |= (x as u32) << (8 * (i % 4));
+        }
+        let buf = util::storage_init(&ctx.device, "splat groups", bytemuck::cast_slice(&packed));
+        self.groups = Some((cloud.key, g.c.to_bits(), buf, g.groups));
+        ctx.take_errors()
+    }
+
+    /// Records the pass: clears, then the five dispatches (six with `blend`), into `pass`
+    /// (made by `begin` after the clears). `depth_out` and `id_out` receive the G-buffer; with
+    /// `blend` the resolve waits for [`SplatGpu::record_resolve`].
     #[allow(clippy::too_many_arguments)]
     pub fn record(
         &mut self,
@@ -116,20 +257,75 @@ impl SplatGpu {
         (width, height): (u32, u32),
         (epsilon, scale): (f32, f32),
         outputs: (&Buffer, &Buffer),
+        (mode, quant): (crate::SplatMode, Option<super::DepthQuant>),
+        blend: Option<BlendTargets>,
         begin: &mut dyn FnMut(&mut wgpu::CommandEncoder) -> wgpu::ComputePass<'static>,
     ) -> Result<(), GpuError> {
         let d = &ctx.device;
         let pixels = width as u64 * height as u64;
+        self.pending = None;
+        let deferred = mode == crate::SplatMode::Deferred;
+        let k_groups = match (&self.groups, deferred) {
+            (Some(g), true) if g.0 == cloud.key => g.3,
+            (_, true) => {
+                return Err(GpuError::Wgpu(
+                    "splat: the cloud's groups were not uploaded".into(),
+                ))
+            }
+            _ => 0,
+        };
+        let max = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
         if self.scratch.as_ref().map(|s| s.pixels) != Some(pixels) {
             self.scratch = Some(Scratch {
                 pixels,
                 z: util::storage(d, "splat z", 4 * pixels),
                 q: util::storage(d, "splat q", 4 * pixels),
                 i: util::storage(d, "splat id", 4 * pixels),
+                acc: None,
+                group_images: None,
             });
         }
-        let radii = match &self.radii {
-            Some((k, r)) if *k == cloud.key => r,
+        if deferred {
+            let bytes = 4 * k_groups as u64 * pixels;
+            if bytes > max {
+                return Err(GpuError::TooLarge(format!(
+                    "deferred splat blending at {width}x{height} with {k_groups} groups needs \
+                     {} MiB per group image set, more than this adapter binds ({} MiB): a \
+                     smaller --splat-c, a smaller --size, --splat blend or --backend cpu",
+                    bytes >> 20,
+                    max >> 20
+                )));
+            }
+            let s = self.scratch.as_mut().expect("made above");
+            if s.group_images.as_ref().map(|g| g.0) != Some(k_groups) {
+                s.group_images = Some((
+                    k_groups,
+                    util::storage(d, "splat group keys", bytes),
+                    util::storage(d, "splat group ids", bytes),
+                ));
+            }
+        }
+        if blend.is_some() {
+            let bytes = 4 * ACC_WORDS * pixels;
+            if bytes > max {
+                return Err(GpuError::TooLarge(format!(
+                    "splat blending at {width}x{height} needs {} MiB of sums per frame, more \
+                     than this adapter binds ({} MiB): --splat voronoi, a smaller --size or \
+                     --backend cpu",
+                    bytes >> 20,
+                    max >> 20
+                )));
+            }
+            let s = self.scratch.as_mut().expect("made above");
+            if s.acc.is_none() {
+                s.acc = Some(util::storage(d, "splat sums", bytes));
+            }
+        }
+        let (radii, has_shapes) = match &self.radii {
+            Some((k, r, s)) if *k == cloud.key => (r, *s),
             _ => {
                 return Err(GpuError::Wgpu(
                     "splat: the cloud's radii were not uploaded".into(),
@@ -140,8 +336,19 @@ impl SplatGpu {
         enc.clear_buffer(&s.z, 0, None);
         enc.clear_buffer(&s.q, 0, None);
         enc.clear_buffer(&s.i, 0, None);
+        if let (Some(acc), true) = (&s.acc, blend.is_some()) {
+            enc.clear_buffer(acc, 0, None);
+        }
+        if let (Some((_, gk, gi)), true) = (&s.group_images, deferred) {
+            enc.clear_buffer(gk, 0, None);
+            enc.clear_buffer(gi, 0, None);
+        }
+        let (qmin, qscale) = quant.map_or((0.0, 0.0), |q| (q.dmin, q.scale));
         let size = std::mem::size_of::<SplatBlock>() as u64;
         let mut groups = Vec::new();
+        let mut accums = Vec::new();
+        let mut deferred_groups = None;
+        let mut first_off = 0;
         for (c, r) in cloud.chunks.iter().zip(radii) {
             let off = arena.push(&SplatBlock {
                 base: c.base,
@@ -149,8 +356,21 @@ impl SplatGpu {
                 has_normals: c.normals.is_some() as u32,
                 epsilon,
                 scale,
-                pad: [0; 3],
+                has_shapes: (has_shapes && c.normals.is_some()) as u32,
+                has_albedo: c.albedo.is_some() as u32,
+                groups: k_groups as u32,
+                qmin,
+                qscale,
+                mode: match mode {
+                    crate::SplatMode::Voronoi => 0,
+                    crate::SplatMode::Blend => 1,
+                    crate::SplatMode::Deferred => 2,
+                },
+                pad: 0,
             })?;
+            if groups.is_empty() {
+                first_off = off;
+            }
             let bg = util::bind(
                 d,
                 "splat",
@@ -168,7 +388,112 @@ impl SplatGpu {
                     Res::Buf(outputs.1),
                 ],
             );
-            groups.push((bg, off, ctx.grid(c.count.div_ceil(PER_GROUP))));
+            let grid = ctx.grid(c.count.div_ceil(PER_GROUP));
+            if let (Some((_, gk, gi)), Some((_, _, gbuf, _)), Some(b), Some(acc), true) =
+                (&s.group_images, &self.groups, &blend, &s.acc, deferred)
+            {
+                let gg = util::bind(
+                    d,
+                    "splat groups",
+                    &self.group_bgl,
+                    &[
+                        Res::Buf(view),
+                        Res::Arena(&arena.buffer, size),
+                        Res::Buf(&c.positions),
+                        Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                        Res::Buf(r),
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Buf(gbuf),
+                        Res::Buf(gk),
+                        Res::Buf(gi),
+                    ],
+                );
+                let cg = util::bind(
+                    d,
+                    "splat composite",
+                    &self.composite_bgl,
+                    &[
+                        Res::Buf(view),
+                        Res::Arena(&arena.buffer, size),
+                        Res::Buf(&c.positions),
+                        Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                        Res::Buf(r),
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Buf(outputs.0),
+                        Res::Buf(outputs.1),
+                        Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
+                        Res::Skip,
+                        Res::Buf(acc),
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Buf(gi),
+                        Res::Buf(&self.lin),
+                    ],
+                );
+                let _ = b;
+                deferred_groups = Some((gg, cg, off, grid));
+            } else if let (Some(b), Some(acc), false) = (&blend, &s.acc, deferred) {
+                let ag = util::bind(
+                    d,
+                    "splat accum",
+                    &self.accum_bgl,
+                    &[
+                        Res::Buf(view),
+                        Res::Arena(&arena.buffer, size),
+                        Res::Buf(&c.positions),
+                        Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+                        Res::Buf(r),
+                        Res::Buf(&s.z),
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Skip,
+                        Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
+                        Res::Buf(b.to_linear),
+                        Res::Buf(acc),
+                    ],
+                );
+                accums.push((ag, off, grid));
+            }
+            groups.push((bg, off, grid));
+        }
+        if let (Some(b), Some(acc)) = (&blend, &s.acc) {
+            let rg = util::bind(
+                d,
+                "splat resolve",
+                &self.resolve_bgl,
+                &[
+                    Res::Buf(view),
+                    Res::Arena(&arena.buffer, size),
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Buf(&s.z),
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Buf(outputs.0),
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Buf(acc),
+                    Res::Buf(b.attr_pos),
+                    Res::Buf(b.attr_normal),
+                ],
+            );
+            self.pending = Some((rg, first_off, ctx.grid(pixels.div_ceil(256) as u32)));
         }
         let mut pass = begin(enc);
         if let Some((bg, off, _)) = groups.first() {
@@ -177,6 +502,19 @@ impl SplatGpu {
             let (gx, gy) = ctx.grid(pixels.div_ceil(256) as u32);
             pass.dispatch_workgroups(gx, gy, 1);
         }
+        if let Some((gg, cg, off, (gx, gy))) = &deferred_groups {
+            // One pass over the splats (the key; the id pass only settles equal keys), then
+            // the compositing per pixel.
+            for p in [&self.group_key, &self.group_id] {
+                pass.set_pipeline(p);
+                pass.set_bind_group(0, gg, &[*off]);
+                pass.dispatch_workgroups(*gx, *gy, 1);
+            }
+            pass.set_pipeline(&self.composite);
+            pass.set_bind_group(0, cg, &[*off]);
+            pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
+            return Ok(());
+        }
         for p in [&self.depth, &self.select, &self.index, &self.write] {
             pass.set_pipeline(p);
             for (bg, off, (gx, gy)) in &groups {
@@ -184,6 +522,24 @@ impl SplatGpu {
                 pass.dispatch_workgroups(*gx, *gy, 1);
             }
         }
+        pass.set_pipeline(&self.accum);
+        for (bg, off, (gx, gy)) in &accums {
+            pass.set_bind_group(0, bg, &[*off]);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+        }
         Ok(())
     }
+
+    /// Records the blend resolve of the frame recorded last (if it blends) into `pass`: after
+    /// shade's gather, before its shading.
+    pub fn record_resolve(&mut self, pass: &mut wgpu::ComputePass<'_>) {
+        if let Some((bg, off, (gx, gy))) = self.pending.take() {
+            pass.set_pipeline(&self.resolve);
+            pass.set_bind_group(0, &bg, &[off]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+    }
 }
+
+/// Blend sums per pixel.
+const ACC_WORDS: u64 = 8;

@@ -5,6 +5,18 @@
 //   splat_index  : among those at exactly that (d/r)^2, the smallest point index
 //   splat_write  : the winning splat writes its depth and index into the G-buffer
 // The result equals the CPU's lexicographic minimum of ((d/r)^2, index).
+// Blend mode adds two:
+//   splat_accum  : per splat, fragments within z_min + eps add their Gaussian weight, weighted
+//                  depth offset, eye-facing normal and linear albedo into per-pixel
+//                  fixed-point sums (integer atomics: exact and order-independent)
+//   splat_resolve: per pixel, after shade's gather, the normalised sums replace the pixel's
+//                  depth, normal and albedo (the albedo as 8-bit sRGB, as the CPU stores it)
+// Deferred mode (Zhang & Pajarola §3.2) replaces all but the resolve:
+//   splat_group_key      : ONE pass over the splats: per group and pixel the smallest Eq. 10
+//                          key (atomicMax of its complement)
+//   splat_group_id       : the smallest index among the splats with that key (ties only)
+//   splat_group_composite: per pixel, Fig. 5 over the groups: z = min depth, the blend of
+//                          the groups within eps, depth and id written, the sums for resolve
 
 // Keep in sync with SplatBlock in passes/splat/gpu.rs.
 struct SplatBlock {
@@ -13,28 +25,59 @@ struct SplatBlock {
     has_normals: u32,
     epsilon: f32,
     scale: f32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    has_shapes: u32,
+    has_albedo: u32,
+    // Deferred blending: groups K, Eq. 6's d_min and n / (d_max - d_min); mode 2 = deferred.
+    groups: u32,
+    qmin: f32,
+    qscale: f32,
+    mode: u32,
+    pad3: u32,
 }
 
 const MAX_FOOTPRINT: f32 = 256.0;
+// passes/splat/mod.rs BENT_BOUND.
+const BENT_BOUND: f32 = 1.125;
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<uniform> blk: SplatBlock;
 @group(0) @binding(2) var<storage, read> positions: array<f32>;
 @group(0) @binding(3) var<storage, read> normals: array<f32>;
-@group(0) @binding(4) var<storage, read> radii: array<f32>;
+// Per point three vec4: (radius, A, B, C) and the two clip planes; see Disc in passes/splat/mod.rs.
+@group(0) @binding(4) var<storage, read> shapes: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> zbuf: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> qbuf: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> ibuf: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read_write> depth_out: array<f32>;
 @group(0) @binding(9) var<storage, read_write> id_out: array<u32>;
+// Blend mode.
+@group(0) @binding(10) var<storage, read> albedo: array<u32>;
+@group(0) @binding(11) var<storage, read> to_linear: array<f32, 256>;
+// Per pixel 8 fixed-point sums: weight, weight × (depth − z_min) / eps, weight × normal (xyz,
+// two's complement), weight × linear albedo (rgb).
+@group(0) @binding(12) var<storage, read_write> acc: array<atomic<u32>>;
+@group(0) @binding(13) var<storage, read_write> attr_pos: array<vec4<f32>>;
+@group(0) @binding(14) var<storage, read_write> attr_normal: array<vec4<f32>>;
+
+// Deferred blending: the group of every point (4 per word), the per-group keys and ids (K
+// images of the frame's size), and the sRGB → linear table as a uniform.
+@group(0) @binding(15) var<storage, read> group_of: array<u32>;
+@group(0) @binding(16) var<storage, read_write> gkey: array<atomic<u32>>;
+@group(0) @binding(17) var<storage, read_write> gid: array<atomic<u32>>;
+@group(0) @binding(18) var<uniform> lin: array<vec4<f32>, 64>;
+
+// Fixed-point scale of the blend sums (passes/splat/gpu.rs FIXED).
+const FIXED: f32 = 65536.0;
 
 struct Splat {
     ok: bool,
     p: vec3<f32>,
     n: vec3<f32>,
+    t1: vec3<f32>,
+    t2: vec3<f32>,
+    shape: vec3<f32>,
+    clip0: vec4<f32>,
+    clip1: vec4<f32>,
     r2: f32,
     x0: u32,
     y0: u32,
@@ -46,6 +89,22 @@ struct Frag {
     ok: bool,
     depth: f32,
     q: f32,
+    u: f32,
+    v: f32,
+}
+
+// stipple_core::normals::tangent_frame.
+fn tangent_frame(n: vec3<f32>) -> array<vec3<f32>, 2> {
+    var sign = -1.0;
+    if (n.z >= 0.0) {
+        sign = 1.0;
+    }
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    return array<vec3<f32>, 2>(
+        vec3<f32>(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        vec3<f32>(b, sign + n.y * n.y * a, -n.y),
+    );
 }
 
 fn length_sq(a: vec3<f32>) -> f32 {
@@ -60,7 +119,17 @@ fn load_splat(local: u32) -> Splat {
         return s;
     }
     let p = vec3<f32>(positions[3u * local], positions[3u * local + 1u], positions[3u * local + 2u]);
-    let r = radii[local] * blk.scale;
+    let sh = shapes[3u * local];
+    let r = sh.x * blk.scale;
+    var bent = false;
+    if (blk.has_shapes == 1u) {
+        bent = sh.y != 0.0 || sh.z != 0.0 || sh.w != 0.0;
+    }
+    // Disc::bound.
+    var rb = r;
+    if (bent) {
+        rb = r * BENT_BOUND;
+    }
     let d = p - view.eye;
     let z = dot3(d, view.forward);
     let w = f32(view.width);
@@ -72,21 +141,21 @@ fn load_splat(local: u32) -> Splat {
     var rx: f32;
     var ry: f32;
     if (view.perspective == 1u) {
-        if (z - r <= view.near) {
+        if (z - rb <= view.near) {
             return s;
         }
         cx = (x * view.sx / z + 1.0) * 0.5 * w - 0.5;
         cy = (1.0 - y * view.sy / z) * 0.5 * h - 0.5;
-        rx = r * view.sx * 0.5 * w / (z - r);
-        ry = r * view.sy * 0.5 * h / (z - r);
+        rx = rb * view.sx * 0.5 * w / (z - rb);
+        ry = rb * view.sy * 0.5 * h / (z - rb);
     } else {
         if (z <= view.near) {
             return s;
         }
         cx = (x * view.sx + 1.0) * 0.5 * w - 0.5;
         cy = (1.0 - y * view.sy) * 0.5 * h - 0.5;
-        rx = r * view.sx * 0.5 * w;
-        ry = r * view.sy * 0.5 * h;
+        rx = rb * view.sx * 0.5 * w;
+        ry = rb * view.sy * 0.5 * h;
     }
     let half = MAX_FOOTPRINT * 0.5;
     rx = min(rx, half);
@@ -105,8 +174,22 @@ fn load_splat(local: u32) -> Splat {
     s.y0 = u32(y0);
     s.x1 = u32(x1);
     s.y1 = u32(y1);
+    s.shape = vec3<f32>(0.0);
+    s.clip0 = vec4<f32>(0.0);
+    s.clip1 = vec4<f32>(0.0);
     if (blk.has_normals == 1u) {
-        s.n = vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
+        let n = vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
+        let l2 = dot3(n, n);
+        if (l2 > 0.0) {
+            s.n = n * (1.0 / sqrt(l2));
+        } else {
+            s.n = vec3<f32>(0.0);
+        }
+        if (blk.has_shapes == 1u) {
+            s.shape = sh.yzw;
+            s.clip0 = shapes[3u * local + 1u];
+            s.clip1 = shapes[3u * local + 2u];
+        }
     } else if (view.perspective == 1u) {
         let e = view.eye - p;
         let l = sqrt(dot3(e, e));
@@ -118,6 +201,9 @@ fn load_splat(local: u32) -> Splat {
     } else {
         s.n = -view.forward;
     }
+    let tf = tangent_frame(s.n);
+    s.t1 = tf[0];
+    s.t2 = tf[1];
     return s;
 }
 
@@ -135,26 +221,65 @@ fn fragment(s: Splat, i: u32, j: u32) -> Frag {
     } else {
         o = view.eye + off;
     }
-    let nd = dot3(s.n, dir);
-    if (abs(nd) < 1e-6 * sqrt(dot3(dir, dir))) {
+    let a = o - s.p;
+    let au = dot3(a, s.t1);
+    let av = dot3(a, s.t2);
+    let ah = dot3(a, s.n);
+    let du = dot3(dir, s.t1);
+    let dv = dot3(dir, s.t2);
+    let dh = dot3(dir, s.n);
+    let ka = s.shape.x;
+    let kb = s.shape.y;
+    let kc = s.shape.z;
+    let qd = 0.5 * (ka * du * du + kc * dv * dv) + kb * du * dv;
+    let l = ka * au * du + kb * (au * dv + av * du) + kc * av * dv;
+    let qa = 0.5 * (ka * au * au + kc * av * av) + kb * au * av;
+    let b = l - dh;
+    let c = qa - ah;
+    let disc = b * b - 4.0 * qd * c;
+    if (!(disc >= 0.0)) {
         return f;
     }
-    let t = dot3(s.n, s.p - o) / nd;
-    let hit = o + dir * t;
-    let d2 = length_sq(hit - s.p);
-    if (!(d2 < s.r2)) {
+    var sq = sqrt(disc);
+    if (!(b >= 0.0)) {
+        sq = -sq;
+    }
+    let root = -0.5 * (b + sq);
+    if (root == 0.0) {
         return f;
     }
-    var depth = t;
+    var ta = c / root;
+    var tb = root / qd;
+    if (tb < ta) {
+        let tmp = ta;
+        ta = tb;
+        tb = tmp;
+    }
+    var doff = 0.0;
     if (view.perspective != 1u) {
-        depth = t + dot3(o - view.eye, view.forward);
+        doff = dot3(o - view.eye, view.forward);
     }
-    if (!(depth > view.near)) {
-        return f;
+    for (var k = 0u; k < 2u; k++) {
+        var t = ta;
+        if (k == 1u) {
+            t = tb;
+        }
+        let depth = t + doff;
+        let u = au + t * du;
+        let w = av + t * dv;
+        let d2 = u * u + w * w;
+        let x = o + dir * t;
+        let cut = s.clip0.x * x.x + s.clip0.y * x.y + s.clip0.z * x.z > s.clip0.w
+            || s.clip1.x * x.x + s.clip1.y * x.y + s.clip1.z * x.z > s.clip1.w;
+        if (depth > view.near && d2 < s.r2 && !cut) {
+            f.ok = true;
+            f.depth = depth;
+            f.q = d2 / s.r2;
+            f.u = u;
+            f.v = w;
+            return f;
+        }
     }
-    f.ok = true;
-    f.depth = depth;
-    f.q = d2 / s.r2;
     return f;
 }
 
@@ -273,4 +398,265 @@ fn splat_clear(
     }
     depth_out[k] = infinity();
     id_out[k] = BACKGROUND;
+}
+
+// Disc::normal_at, turned towards the eye along the pixel's ray (mod.rs / cpu.rs blend).
+fn blend_normal(s: Splat, f: Frag, i: u32, j: u32) -> vec3<f32> {
+    let m = s.n - (s.shape.x * f.u + s.shape.y * f.v) * s.t1 - (s.shape.y * f.u + s.shape.z * f.v) * s.t2;
+    let l2 = dot3(m, m);
+    var n = vec3<f32>(0.0);
+    if (l2 > 0.0) {
+        n = m * (1.0 / sqrt(l2));
+    }
+    let nx = 2.0 * (f32(i) + 0.5) / f32(view.width) - 1.0;
+    let ny = 1.0 - 2.0 * (f32(j) + 0.5) / f32(view.height);
+    var dir = view.forward;
+    if (view.perspective == 1u) {
+        dir = view.forward + view.right * (nx / view.sx) + view.up * (ny / view.sy);
+    }
+    if (dot3(n, dir) > 0.0) {
+        n = -n;
+    }
+    return n;
+}
+
+fn fixed_u(x: f32) -> u32 {
+    return u32(max(x, 0.0) * FIXED + 0.5);
+}
+
+fn fixed_i(x: f32) -> u32 {
+    return bitcast<u32>(i32(round(x * FIXED)));
+}
+
+@compute @workgroup_size(64)
+fn splat_accum(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let local = splat_index_of(wg, groups, li);
+    let s = load_splat(local);
+    if (!s.ok) {
+        return;
+    }
+    var c = vec3<f32>(0.0);
+    if (blk.has_albedo == 1u) {
+        let a = albedo[local];
+        c = vec3<f32>(to_linear[a & 0xffu], to_linear[(a >> 8u) & 0xffu], to_linear[(a >> 16u) & 0xffu]);
+    }
+    for (var y = s.y0; y <= s.y1; y++) {
+        for (var x = s.x0; x <= s.x1; x++) {
+            let f = fragment(s, x, y);
+            let k = y * view.width + x;
+            if (!f.ok) {
+                continue;
+            }
+            let z0 = z_min(k);
+            if (!(f.depth <= z0 + blk.epsilon)) {
+                continue;
+            }
+            // mod.rs weight
+            let wt = exp(-3.0 * f.q);
+            let n = blend_normal(s, f, x, y);
+            var dz = 0.0;
+            if (blk.epsilon > 0.0) {
+                dz = clamp((f.depth - z0) / blk.epsilon, 0.0, 1.0);
+            }
+            let b = 8u * k;
+            atomicAdd(&acc[b], fixed_u(wt));
+            atomicAdd(&acc[b + 1u], fixed_u(wt * dz));
+            atomicAdd(&acc[b + 2u], fixed_i(wt * n.x));
+            atomicAdd(&acc[b + 3u], fixed_i(wt * n.y));
+            atomicAdd(&acc[b + 4u], fixed_i(wt * n.z));
+            if (blk.has_albedo == 1u) {
+                atomicAdd(&acc[b + 5u], fixed_u(wt * c.x));
+                atomicAdd(&acc[b + 6u], fixed_u(wt * c.y));
+                atomicAdd(&acc[b + 7u], fixed_u(wt * c.z));
+            }
+        }
+    }
+}
+
+// shade::linear_to_srgb8.
+fn srgb8(c: f32) -> u32 {
+    let x = clamp(c, 0.0, 1.0);
+    var s: f32;
+    if (x <= 0.0031308) {
+        s = x * 12.92;
+    } else {
+        s = 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+    }
+    return u32(s * 255.0 + 0.5);
+}
+
+@compute @workgroup_size(256)
+fn splat_resolve(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let k = group_index(wg, groups) * 256u + li;
+    if (k >= view.width * view.height) {
+        return;
+    }
+    let b = 8u * k;
+    let w = atomicLoad(&acc[b]);
+    if (w == 0u) {
+        return;
+    }
+    let wf = f32(w);
+    if (blk.mode != 2u) {
+        depth_out[k] = z_min(k) + blk.epsilon * (f32(atomicLoad(&acc[b + 1u])) / wf);
+    }
+    let n = vec3<f32>(
+        f32(bitcast<i32>(atomicLoad(&acc[b + 2u]))),
+        f32(bitcast<i32>(atomicLoad(&acc[b + 3u]))),
+        f32(bitcast<i32>(atomicLoad(&acc[b + 4u]))),
+    );
+    let l2 = dot3(n, n);
+    if (l2 > 0.0) {
+        attr_normal[k] = vec4<f32>(n * (1.0 / sqrt(l2)), 0.0);
+    }
+    if (blk.has_albedo == 1u) {
+        let r = srgb8(f32(atomicLoad(&acc[b + 5u])) / wf);
+        let g = srgb8(f32(atomicLoad(&acc[b + 6u])) / wf);
+        let bl = srgb8(f32(atomicLoad(&acc[b + 7u])) / wf);
+        let a = attr_pos[k];
+        attr_pos[k] = vec4<f32>(a.xyz, bitcast<f32>(r | (g << 8u) | (bl << 16u)));
+    }
+}
+
+// DepthQuant::key (mod.rs).
+fn quant_key(depth: f32, q: f32) -> u32 {
+    let level = u32(clamp(floor((depth - blk.qmin) * blk.qscale), 0.0, 65535.0));
+    let vor = u32(clamp(floor(q * 65536.0), 0.0, 65535.0));
+    return (level << 16u) | vor;
+}
+
+fn group_image(local: u32, pixel: u32) -> u32 {
+    let g = (group_of[local >> 2u] >> (8u * (local & 3u))) & 0xffu;
+    return g * view.width * view.height + pixel;
+}
+
+@compute @workgroup_size(64)
+fn splat_group_key(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let local = splat_index_of(wg, groups, li);
+    let s = load_splat(local);
+    if (!s.ok) {
+        return;
+    }
+    for (var y = s.y0; y <= s.y1; y++) {
+        for (var x = s.x0; x <= s.x1; x++) {
+            let f = fragment(s, x, y);
+            if (f.ok) {
+                let at = group_image(local, y * view.width + x);
+                let key = ~quant_key(f.depth, f.q);
+                if (key > atomicLoad(&gkey[at])) {
+                    atomicMax(&gkey[at], key);
+                }
+            }
+        }
+    }
+}
+
+@compute @workgroup_size(64)
+fn splat_group_id(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let local = splat_index_of(wg, groups, li);
+    let s = load_splat(local);
+    if (!s.ok) {
+        return;
+    }
+    for (var y = s.y0; y <= s.y1; y++) {
+        for (var x = s.x0; x <= s.x1; x++) {
+            let f = fragment(s, x, y);
+            if (f.ok) {
+                let at = group_image(local, y * view.width + x);
+                if (~quant_key(f.depth, f.q) == atomicLoad(&gkey[at])) {
+                    atomicMax(&gid[at], ~(blk.base + local));
+                }
+            }
+        }
+    }
+}
+
+fn lin_of(c: u32) -> f32 {
+    return lin[c >> 2u][c & 3u];
+}
+
+@compute @workgroup_size(8, 8)
+fn splat_group_composite(@builtin(global_invocation_id) gid3: vec3<u32>) {
+    if (gid3.x >= view.width || gid3.y >= view.height) {
+        return;
+    }
+    let k = gid3.y * view.width + gid3.x;
+    let pixels = view.width * view.height;
+    // z: the nearest depth over the groups' winners.
+    var z = infinity();
+    for (var g = 0u; g < blk.groups; g++) {
+        let w = atomicLoad(&gid[g * pixels + k]);
+        if (w != 0u) {
+            let f = fragment(load_splat(~w - blk.base), gid3.x, gid3.y);
+            if (f.ok) {
+                z = min(z, f.depth);
+            }
+        }
+    }
+    var sw = 0.0;
+    var sd = 0.0;
+    var sn = vec3<f32>(0.0);
+    var sc = vec3<f32>(0.0);
+    var top = 0.0;
+    var top_id = 0xffffffffu;
+    for (var g = 0u; g < blk.groups; g++) {
+        let w = atomicLoad(&gid[g * pixels + k]);
+        if (w == 0u) {
+            continue;
+        }
+        let id = ~w;
+        let local = id - blk.base;
+        let s = load_splat(local);
+        let f = fragment(s, gid3.x, gid3.y);
+        if (!f.ok || !(f.depth <= z + blk.epsilon)) {
+            continue;
+        }
+        let wt = exp(-3.0 * f.q);
+        let n = blend_normal(s, f, gid3.x, gid3.y);
+        sw = sw + wt;
+        sd = sd + wt * f.depth;
+        sn = sn + wt * n;
+        if (blk.has_albedo == 1u) {
+            let a = albedo[local];
+            sc = sc + wt * vec3<f32>(lin_of(a & 0xffu), lin_of((a >> 8u) & 0xffu), lin_of((a >> 16u) & 0xffu));
+        }
+        if (wt > top || (wt == top && id < top_id)) {
+            top = wt;
+            top_id = id;
+        }
+    }
+    let b = 8u * k;
+    if (sw > 0.0) {
+        depth_out[k] = sd / sw;
+        id_out[k] = top_id;
+        // The sums for splat_resolve, in its fixed point (normalised by the weight there).
+        let inv = 1.0 / sw;
+        atomicStore(&acc[b], fixed_u(1.0));
+        atomicStore(&acc[b + 2u], fixed_i(sn.x * inv));
+        atomicStore(&acc[b + 3u], fixed_i(sn.y * inv));
+        atomicStore(&acc[b + 4u], fixed_i(sn.z * inv));
+        atomicStore(&acc[b + 5u], fixed_u(sc.x * inv));
+        atomicStore(&acc[b + 6u], fixed_u(sc.y * inv));
+        atomicStore(&acc[b + 7u], fixed_u(sc.z * inv));
+    } else {
+        depth_out[k] = infinity();
+        id_out[k] = BACKGROUND;
+        atomicStore(&acc[b], 0u);
+    }
 }
