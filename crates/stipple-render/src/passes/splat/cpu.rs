@@ -3,7 +3,7 @@
 //! depend on thread timing), and each tile runs the visibility and selection loops of the
 //! module docs over its own list on one thread.
 
-use super::{footprint, fragment, weight, Disc, SplatMode};
+use super::{footprint, weight, Disc, Raster, SplatMode};
 use crate::cpu::shade::{intensity_grey, linear_to_srgb8, srgb_to_linear_table, Albedo};
 use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
@@ -158,24 +158,31 @@ pub fn splat(
             let (px1, py1) = ((px0 + TILE).min(w) - 1, (py0 + TILE).min(h) - 1);
             let tile_w = (px1 - px0 + 1) as usize;
             let m = tile_w * (py1 - py0 + 1) as usize;
-            // Calls `f(local pixel, fragment, splat)` for every fragment in the tile.
-            let each = |f: &mut dyn FnMut(usize, super::Frag, &Disc, usize)| {
-                for &sid in &ids {
-                    let sid = sid as usize;
-                    let fp = feet[sid].expect("listed splats have footprints");
-                    let d = disc(sid);
-                    for y in fp[1].max(py0)..=fp[3].min(py1) {
-                        for x in fp[0].max(px0)..=fp[2].min(px1) {
-                            if let Some(fr) = fragment(v, x, y, &d) {
-                                f(
-                                    (y - py0) as usize * tile_w + (x - px0) as usize,
-                                    fr,
-                                    &d,
-                                    sid,
-                                );
-                            }
+            // Every fragment in the tile, computed once: (local pixel, splat in `discs`,
+            // fragment), in splat index order.
+            let discs: Vec<Disc> = ids.iter().map(|&sid| disc(sid as usize)).collect();
+            let mut frags: Vec<(u32, u32, super::Frag)> = Vec::new();
+            for (li, &sid) in ids.iter().enumerate() {
+                let fp = feet[sid as usize].expect("listed splats have footprints");
+                let r = Raster::new(v, &discs[li]);
+                for y in fp[1].max(py0)..=fp[3].min(py1) {
+                    let row = (y - py0) as usize * tile_w;
+                    for x in fp[0].max(px0)..=fp[2].min(px1) {
+                        if let Some(fr) = r.eval(x, y) {
+                            frags.push(((row + (x - px0) as usize) as u32, li as u32, fr));
                         }
                     }
+                }
+            }
+            // Calls `f(local pixel, fragment, splat, point index)` for every fragment.
+            let each = |f: &mut dyn FnMut(usize, super::Frag, &Disc, usize)| {
+                for &(k, li, fr) in &frags {
+                    f(
+                        k as usize,
+                        fr,
+                        &discs[li as usize],
+                        ids[li as usize] as usize,
+                    );
                 }
             };
             let ray = |k: usize| {
@@ -199,33 +206,29 @@ pub fn splat(
                     .quant
                     .expect("deferred blending needs the depth quantisation");
                 let mut gkey = vec![u32::MAX; m * k_groups];
-                let mut gid = vec![u32::MAX; m * k_groups];
-                each(&mut |k, fr, _, sid| {
-                    let at = groups[sid] as usize * m + k;
+                // The winning fragment (its place in `frags`) per group and pixel.
+                let mut win = vec![u32::MAX; m * k_groups];
+                for (fi, &(k, li, fr)) in frags.iter().enumerate() {
+                    let at = groups[ids[li as usize] as usize] as usize * m + k as usize;
                     let key = q.key(fr.depth, fr.q);
                     if key < gkey[at] {
                         gkey[at] = key;
-                        gid[at] = sid as u32;
+                        win[at] = fi as u32;
                     }
-                });
+                }
                 // Compositing (Fig. 5): the nearest depth over the groups, then the blend of
                 // the groups within ε of it.
-                let mut frags: Vec<(super::Frag, usize)> = Vec::with_capacity(k_groups);
                 for k in 0..m {
-                    let (x, y, dir) = ray(k);
-                    frags.clear();
-                    for g in 0..k_groups {
-                        let sid = gid[g * m + k];
-                        if sid != u32::MAX {
-                            let sid = sid as usize;
-                            let fr = fragment(v, x, y, &disc(sid)).expect("the winner hits");
-                            frags.push((fr, sid));
-                        }
-                    }
-                    let z = frags.iter().fold(f32::INFINITY, |z, f| z.min(f.0.depth));
-                    for &(fr, sid) in &frags {
+                    let dir = ray(k).2;
+                    let winners = (0..k_groups)
+                        .map(|g| win[g * m + k])
+                        .filter(|&fi| fi != u32::MAX)
+                        .map(|fi| frags[fi as usize]);
+                    let z = winners.clone().fold(f32::INFINITY, |z, f| z.min(f.2.depth));
+                    for (_, li, fr) in winners {
                         if fr.depth <= z + s.epsilon {
-                            acc[k].add(fr, &disc(sid), sid, dir, lut_albedo(sid));
+                            let sid = ids[li as usize] as usize;
+                            acc[k].add(fr, &discs[li as usize], sid, dir, lut_albedo(sid));
                         }
                     }
                 }
