@@ -72,7 +72,7 @@ pub fn read_with_progress(path: &Path) -> Result<PointCloud> {
     r
 }
 
-fn parse_vec3(s: &str) -> std::result::Result<DVec3, String> {
+pub fn parse_vec3(s: &str) -> std::result::Result<DVec3, String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|t| t.trim().parse::<f64>())
@@ -271,6 +271,12 @@ pub struct SplatArgs {
     /// pipeline by default, or eye-facing splats).
     #[arg(long)]
     pub no_estimate_normals: bool,
+    /// Where the sensor stood (x,y,z, the file's coordinates), for a single scan: estimated
+    /// normals face it, and given ones are turned to face it, instead of the orientation
+    /// propagated over the neighbour graph (which an open surface seen from below gets
+    /// upside down).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    pub viewpoint: Option<DVec3>,
     /// Neighbours per point for normal estimation and splat radii.
     #[arg(long, default_value_t = 16, value_name = "K",
           value_parser = clap::value_parser!(u32).range(3..=64))]
@@ -559,15 +565,26 @@ impl PipelineArgs {
             );
         }
         let report = cloud
-            .prepare_surface(self.splat.normal_k as usize, estimate)
+            .prepare_surface_from(self.splat.normal_k as usize, estimate, self.splat.viewpoint)
             .map_err(|e| format!("normal estimation: {e}"))?;
         if report.estimated {
             notes.push(format!(
-                "estimated normals for {n} points (k = {}, oriented by a spanning tree) in {:.2} s",
-                self.splat.normal_k, report.seconds
+                "estimated normals for {n} points (k = {}, oriented {}) in {:.2} s",
+                self.splat.normal_k,
+                if self.splat.viewpoint.is_some() {
+                    "towards the viewpoint"
+                } else {
+                    "by a spanning tree"
+                },
+                report.seconds
             ));
         }
-        if report.reoriented > 0 {
+        if report.reoriented > 0 && self.splat.viewpoint.is_some() {
+            notes.push(format!(
+                "turned {} of {n} given normals to face the viewpoint",
+                report.reoriented
+            ));
+        } else if report.reoriented > 0 {
             notes.push(format!(
                 "turned round {} of {n} given normals: their signs were inconsistent \
                  ({:.0}% of neighbouring normals disagreed)",

@@ -33,10 +33,22 @@ pub struct BenchArgs {
     /// changed with --table-sizes).
     #[arg(long)]
     table3: bool,
-    /// Square image sizes for --table3.
+    /// Zhang & Pajarola Table 2 for this cloud: frames per second of the splat pipeline with
+    /// the two-pass ε-z blend (their 2+1-pass reference), single-pass deferred blending with
+    /// c = 0.8 and c = 0.4 and Voronoi rasterization, at 512² and 1024² (--table-sizes),
+    /// beside the paper's Dragon figures (GeForce 7800 GTX, 1.1 M points). Normals and radii
+    /// are prepared (and the groups coloured) before the clock starts; the grouping time is
+    /// printed separately.
+    #[arg(long, conflicts_with = "table3")]
+    zhang: bool,
+    /// Square image sizes for --table3 and --zhang.
     #[arg(long, value_delimiter = ',', default_values_t = [512u32, 1024])]
     table_sizes: Vec<u32>,
 }
+
+/// Zhang & Pajarola Table 2, Dragon row (fps on a GeForce 7800 GTX; image size not given).
+const ZHANG_DRAGON: [(&str, f64); 3] =
+    [("2+1-pass", 15.04), ("c = 0.8", 19.70), ("c = 0.4", 22.62)];
 
 pub fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -113,6 +125,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let load_s = t0.elapsed().as_secs_f64();
     if a.table3 {
         return table3(&a, cloud, &label, &mut r);
+    }
+    if a.zhang {
+        return zhang(&a, cloud, &label, &mut r);
     }
     let peeled = a
         .look
@@ -279,6 +294,95 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
             print!(" {:>9.2}", c[k]);
         }
         println!();
+    }
+    Ok(())
+}
+
+/// `stipple bench --zhang`: see [`BenchArgs::zhang`].
+fn zhang(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer) -> Result<()> {
+    use stipple_render::{Pipeline, SplatMode, SplatSettings};
+    if let Some(g) = r.gpu_mut() {
+        g.sync_timing = false;
+    }
+    let t0 = Instant::now();
+    let report = cloud
+        .prepare_surface(stipple_core::normals::DEFAULT_K, true)
+        .map_err(|e| format!("normal estimation: {e}"))?;
+    let prep_s = t0.elapsed().as_secs_f64();
+    let rows: [(&str, SplatMode, f32); 4] = [
+        ("blend, 2 passes (ε-z)", SplatMode::Blend, 0.4),
+        ("deferred, c = 0.8", SplatMode::Deferred, 0.8),
+        ("deferred, c = 0.4", SplatMode::Deferred, 0.4),
+        ("voronoi", SplatMode::Voronoi, 0.4),
+    ];
+    let mut groups_line = Vec::new();
+    for c in [0.8f32, 0.4] {
+        let t = Instant::now();
+        let g = cloud.groups(c);
+        groups_line.push(format!(
+            "c = {c}: K = {} / max degree {} / mean degree {:.1} ({} conflicts), coloured in {:.2} s",
+            g.groups,
+            g.max_degree,
+            g.mean_degree,
+            g.conflicts,
+            t.elapsed().as_secs_f64()
+        ));
+    }
+    let mut cols: Vec<Vec<f64>> = Vec::new();
+    for &size in &a.table_sizes {
+        let mut cam_args = a.camera.clone();
+        cam_args.size = Some((size, size));
+        let camera = cam_args.build(&cloud.cloud)?;
+        let mut col = Vec::new();
+        for (name, mode, c) in rows {
+            let mut pipe = Pipeline::splats(SplatSettings {
+                mode,
+                c,
+                ..Default::default()
+            });
+            if let Some(bg) = a.pipeline.background {
+                pipe.background = bg;
+            }
+            let (_, mut totals) = time_frames(r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
+            let m = median(&mut totals);
+            eprintln!("  {size}² {name}: {m:.1} ms");
+            col.push(1e3 / m);
+        }
+        cols.push(col);
+    }
+    println!(
+        "Zhang & Pajarola Table 2 rows: {label}, {} points, {}, median of {} frames, fps",
+        cloud.cloud.len(),
+        r.describe(),
+        a.frames
+    );
+    println!(
+        "  surface: {}normals and radii in {prep_s:.2} s",
+        if report.estimated { "estimated " } else { "" }
+    );
+    for l in &groups_line {
+        println!("  groups {l}");
+    }
+    print!("  {:<24}", "Resolution");
+    for s in &a.table_sizes {
+        print!(" {:>9}", format!("{s}²"));
+    }
+    println!("   paper (7800 GTX, Dragon 1.1 M)");
+    for (k, (name, mode, c)) in rows.iter().enumerate() {
+        print!("  {name:<24}");
+        for col in &cols {
+            print!(" {:>9.2}", col[k]);
+        }
+        let paper = match (mode, c) {
+            (SplatMode::Blend, _) => Some(ZHANG_DRAGON[0]),
+            (SplatMode::Deferred, c) if *c > 0.5 => Some(ZHANG_DRAGON[1]),
+            (SplatMode::Deferred, _) => Some(ZHANG_DRAGON[2]),
+            _ => None,
+        };
+        match paper {
+            Some((what, fps)) => println!("   {fps:.2} ({what})"),
+            None => println!("   -"),
+        }
     }
     Ok(())
 }

@@ -44,6 +44,7 @@ Examples:
   stipple render tori.ply --layers 6                depth peeling: six layers blended by opacity
   stipple render scan.ply --shadows --light disc:0,2,1,0.2   soft shadows from an area light
   stipple bench dragon.ply.gz --table3              Dobrev Table 3: illumination, transparency, shadows
+  stipple bench dragon.ply.gz --zhang               Zhang & Pajarola Table 2: splat blending, grouping
 
 The rendering pipeline (Dobrev et al. 2010, §3): points are projected (nearest wins),
 holes are filled in image space (background fill, then occluded-pixel fill with the layer
@@ -123,6 +124,12 @@ struct RenderArgs {
     /// (H, W, 3), facing the eye, NaN on background, row 0 at the top.
     #[arg(long, value_name = "FILE.npy")]
     normal_out: Option<PathBuf>,
+    /// Save the cloud with the normals and splat radii this render estimated (or
+    /// re-oriented) as a new PLY (nx ny nz radius and the file's other attributes), so that
+    /// the next render of it skips the estimation. Never written into the input; an existing
+    /// file is not replaced.
+    #[arg(long, value_name = "FILE.ply")]
+    save_normals: Option<PathBuf>,
     #[command(flatten)]
     camera: CameraArgs,
     #[command(flatten)]
@@ -157,6 +164,10 @@ struct NormalsArgs {
     /// and only turned round where their signs are inconsistent).
     #[arg(long)]
     reestimate: bool,
+    /// Where the sensor stood (x,y,z in the file's coordinates), for a single scan: normals
+    /// face it instead of taking the orientation propagated over the neighbour graph.
+    #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    viewpoint: Option<glam::DVec3>,
     /// Overwrite OUT.ply if it exists (never the input).
     #[arg(long)]
     force: bool,
@@ -314,6 +325,27 @@ fn render(a: RenderArgs) -> Result<()> {
         }
         check_output(d, &inputs)?;
     }
+    if let Some(d) = &a.save_normals {
+        if stipple_io::extension(d) != "ply" {
+            return Err(format!(
+                "{}: --save-normals must name a .ply file",
+                d.display()
+            ));
+        }
+        if tree.is_some() || scene.is_some() || a.source.input.is_none() {
+            return Err(
+                "--save-normals saves a single cloud file's normals (not a scene, tree or demo)"
+                    .into(),
+            );
+        }
+        check_output(d, &inputs)?;
+        if d.exists() {
+            return Err(format!(
+                "{}: already exists; remove it or choose another name",
+                d.display()
+            ));
+        }
+    }
     let peeled = a
         .look
         .layers
@@ -353,6 +385,23 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(c) = &a.camera_out {
         std::fs::write(c, camera.to_json()).map_err(|e| format!("{}: {e}", c.display()))?;
+    }
+    if let Some(d) = &a.save_normals {
+        if cloud.cloud.normals.is_none() {
+            return Err(format!(
+                "{}: not written: this render estimated no normals (--no-estimate-normals, \
+                 --no-lighting or --raw)",
+                d.display()
+            ));
+        }
+        stipple_io::write_atomically(d, |tmp| {
+            stipple_io::ply::write_ply(
+                tmp,
+                &cloud.cloud,
+                stipple_io::ply::Encoding::BinaryLittleEndian,
+            )
+        })
+        .map_err(|e| e.to_string())?;
     }
     if let Some(d) = &a.normal_out {
         let normals = frame.normal_image(&cloud, &camera);
@@ -414,6 +463,12 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(d) = &a.normal_out {
         println!("wrote {}", d.display());
+    }
+    if let Some(d) = &a.save_normals {
+        println!(
+            "wrote {} (nx ny nz radius): render it next time to skip normal estimation",
+            d.display()
+        );
     }
     for p in &layer_files {
         println!("wrote {}", p.display());
@@ -560,7 +615,7 @@ fn normals(a: NormalsArgs) -> Result<()> {
     let mut p = PreparedCloud::with_spacing(c, 0.0);
     let t0 = Instant::now();
     let r = p
-        .prepare_surface(a.k as usize, true)
+        .prepare_surface_from(a.k as usize, true, a.viewpoint)
         .map_err(|e| format!("{}: {e}", a.input.display()))?;
     let s = t0.elapsed().as_secs_f64();
     if had {

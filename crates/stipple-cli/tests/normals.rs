@@ -128,3 +128,160 @@ fn sparse_clouds_default_to_splats_and_write_normals() {
     assert!(text(&o).contains("fill_background"), "{}", text(&o));
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--splat deferred` (Zhang & Pajarola's single pass) renders what `--splat blend` does
+/// closely, bad `--splat-c` is a clear error, and `bench --zhang` prints its table.
+#[test]
+fn deferred_blending_and_the_zhang_table() {
+    let dir = tempdir("splat-deferred");
+    sparse_sphere(&dir, 4000);
+    let render = |mode: &str, out: &str, extra: &[&str]| {
+        let mut a = vec![
+            "render",
+            "sphere.xyz",
+            "--size",
+            "128x128",
+            "--backend",
+            "cpu",
+            "--pipeline",
+            "splat",
+            "--splat",
+            mode,
+            "--depth-out",
+            out,
+            "-o",
+        ];
+        let png = format!("{out}.png");
+        a.push(&png);
+        a.extend_from_slice(extra);
+        let o = stipple(&dir, &a);
+        assert!(o.status.success(), "{}", text(&o));
+        stipple_io::image::read_npy(&dir.join(out)).unwrap().2
+    };
+    let blend = render("blend", "b.npy", &[]);
+    let deferred = render("deferred", "d.npy", &["--splat-c", "1"]);
+    let (mut both, mut close) = (0, 0);
+    for (x, y) in blend.iter().zip(&deferred) {
+        assert_eq!(x.is_finite(), y.is_finite(), "same silhouette");
+        if x.is_finite() {
+            both += 1;
+            close += ((x - y).abs() <= 1e-3 * x) as usize;
+        }
+    }
+    assert!(
+        both > 3000 && close as f64 >= 0.97 * both as f64,
+        "{close} of {both}"
+    );
+    for bad in ["0", "1.5", "nan"] {
+        let o = stipple(
+            &dir,
+            &[
+                "render",
+                "sphere.xyz",
+                "--splat",
+                "deferred",
+                "--splat-c",
+                bad,
+                "-o",
+                "x.png",
+            ],
+        );
+        assert!(!o.status.success(), "--splat-c {bad} accepted");
+        assert!(text(&o).contains("--splat-c"), "{}", text(&o));
+    }
+    let o = stipple(
+        &dir,
+        &[
+            "bench",
+            "sphere.xyz",
+            "--zhang",
+            "--frames",
+            "1",
+            "--warmup",
+            "0",
+            "--table-sizes",
+            "64",
+            "--backend",
+            "cpu",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let t = text(&o);
+    for row in [
+        "Zhang & Pajarola Table 2",
+        "deferred, c = 0.4",
+        "22.62",
+        "groups c = 0.8: K = ",
+    ] {
+        assert!(t.contains(row), "missing {row:?}: {t}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// `render --save-normals` writes the estimated normals and radii beside, never over, the
+/// input; the saved file renders without estimation.
+#[test]
+fn render_saves_estimated_normals_on_request() {
+    let dir = tempdir("save-normals");
+    let input = sparse_sphere(&dir, 3000);
+    let before = std::fs::read(&input).unwrap();
+    let args = |out: &str| {
+        vec![
+            "render".to_string(),
+            "sphere.xyz".into(),
+            "--size".into(),
+            "64x64".into(),
+            "--backend".into(),
+            "cpu".into(),
+            "--save-normals".into(),
+            out.into(),
+            "-o".into(),
+            "s.png".into(),
+        ]
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(String::as_str).collect();
+        stipple(&dir, &a)
+    };
+    let o = run(args("saved.ply"));
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(
+        std::fs::read(&input).unwrap(),
+        before,
+        "the input is untouched"
+    );
+    let c = stipple_io::read_cloud(&dir.join("saved.ply")).unwrap();
+    assert_eq!(c.len(), 3000);
+    let n = c.normals.as_ref().expect("normals saved");
+    assert!(c.radius.is_some(), "radii saved");
+    for i in 0..c.len() {
+        assert!(
+            n[i].dot(c.world(i).as_vec3().normalize()) > 0.99,
+            "point {i}"
+        );
+    }
+    // Not over an existing file, not over the input, only .ply.
+    for out in ["saved.ply", "sphere.xyz", "x.npy"] {
+        let o = run(args(out));
+        assert!(!o.status.success(), "{out} accepted");
+        assert!(!text(&o).contains("panicked"), "{}", text(&o));
+    }
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+    // The saved file needs no estimation.
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "saved.ply",
+            "--size",
+            "64x64",
+            "--backend",
+            "cpu",
+            "-o",
+            "t.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(!text(&o).contains("estimated normals"), "{}", text(&o));
+    std::fs::remove_dir_all(dir).ok();
+}

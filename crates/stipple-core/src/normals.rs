@@ -53,6 +53,9 @@ pub const TREE_K: usize = 10;
 pub const MAX_RINGS: i64 = 6;
 /// Splat radius as a fraction of the 16th-neighbour distance (see the module docs).
 pub const RADIUS_FACTOR: f32 = 0.6;
+/// Largest splat radius, in median radii: isolated points (LiDAR returns from water, birds,
+/// noise) would otherwise get discs as wide as the gap to their 16th neighbour.
+pub const RADIUS_CAP: f32 = 4.0;
 /// Share of inconsistent neighbour pairs above which given normals are re-oriented.
 pub const INCONSISTENT: f32 = 0.02;
 /// Given normals are re-oriented when at least this share of them disagree with the
@@ -692,8 +695,8 @@ fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> us
     changed
 }
 
-/// Splat radii from the neighbourhoods (see the module docs, step 5), times `scale`.
-/// Points that found no neighbour take the median radius.
+/// Splat radii from the neighbourhoods (see the module docs, step 5), times `scale`, at most
+/// [`RADIUS_CAP`] × the median. Points that found no neighbour take the median radius.
 pub fn splat_radii(nb: &Neighbours, scale: f32) -> Vec<f32> {
     let f = RADIUS_FACTOR * (16.0 / nb.k as f32).sqrt() * scale;
     let mut r: Vec<f32> = nb.kth.par_iter().map(|&d| d * f).collect();
@@ -704,9 +707,12 @@ pub fn splat_radii(nb: &Neighbours, scale: f32) -> Vec<f32> {
         let m = finite.len() / 2;
         *finite.select_nth_unstable_by(m, f32::total_cmp).1
     };
+    let cap = RADIUS_CAP * median;
     for x in &mut r {
         if !x.is_finite() || *x <= 0.0 {
             *x = median.max(f32::MIN_POSITIVE);
+        } else if *x > cap {
+            *x = cap;
         }
     }
     r
@@ -1069,8 +1075,60 @@ pub fn estimate(
     k: usize,
     radius_scale: f32,
 ) -> Result<Estimated, NormalError> {
+    estimate_from(positions, given, k, radius_scale, None)
+}
+
+/// Turns every normal to face `viewpoint` (the sensor's position): returns how many turned.
+pub fn orient_towards(positions: &[Vec3], normals: &mut [Vec3], viewpoint: Vec3) -> usize {
+    normals
+        .par_iter_mut()
+        .zip(positions.par_iter())
+        .map(|(n, &p)| {
+            let turn = n.dot(viewpoint - p) < 0.0;
+            if turn {
+                *n = -*n;
+            }
+            turn as usize
+        })
+        .sum()
+}
+
+/// [`estimate`], with the sensor's position when it is known (a single scan from a known
+/// place): every normal then faces it instead of taking the orientation propagated over
+/// the neighbour graph, and given normals are turned to face it too.
+pub fn estimate_from(
+    positions: &[Vec3],
+    given: Option<&[Vec3]>,
+    k: usize,
+    radius_scale: f32,
+    viewpoint: Option<Vec3>,
+) -> Result<Estimated, NormalError> {
     let nb = neighbours(positions, k)?;
     let radii = splat_radii(&nb, radius_scale);
+    if let Some(vp) = viewpoint.filter(|v| v.is_finite()) {
+        let mut normals: Vec<Vec3> = match given {
+            Some(g) => g
+                .iter()
+                .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
+                .collect(),
+            None => pca_normals(positions, &nb),
+        };
+        let flipped = orient_towards(positions, &mut normals, vp);
+        let shapes = if given.is_some() {
+            shapes(positions, &normals, &radii, &nb)
+        } else {
+            robust_normals(positions, &mut normals, &nb);
+            refine_and_shape(positions, &mut normals, &radii, &nb)
+        };
+        return Ok(Estimated {
+            normals,
+            radii,
+            shapes,
+            flipped,
+            given: given.is_some(),
+            inconsistency: 0.0,
+        });
+    }
     match given {
         Some(g) => {
             let mut normals: Vec<Vec3> = g
@@ -1346,6 +1404,31 @@ mod tests {
             median < 0.5 * pca_median,
             "refined {median}°, PCA {pca_median}°"
         );
+    }
+
+    #[test]
+    fn a_viewpoint_orients_normals_towards_the_sensor() {
+        // An open patch seen from below: propagation would turn it up (+z), the sensor
+        // below wants it down.
+        let mut pts = Vec::new();
+        for i in 0..40 {
+            for j in 0..40 {
+                let (x, y) = (i as f32 * 0.05, j as f32 * 0.05);
+                pts.push(Vec3::new(x, y, 0.1 * (x * 3.0).sin()));
+            }
+        }
+        let up = estimate(&pts, None, 16, 1.0).unwrap();
+        assert!(up.normals.iter().all(|n| n.z > 0.0));
+        let vp = Vec3::new(1.0, 1.0, -5.0);
+        let down = estimate_from(&pts, None, 16, 1.0, Some(vp)).unwrap();
+        for (n, p) in down.normals.iter().zip(&pts) {
+            assert!(n.dot(vp - *p) > 0.0);
+        }
+        // Given normals facing away are turned round.
+        let g = vec![Vec3::Z; pts.len()];
+        let e = estimate_from(&pts, Some(&g), 16, 1.0, Some(vp)).unwrap();
+        assert_eq!(e.flipped, pts.len());
+        assert!(e.normals.iter().all(|n| n.z < 0.0));
     }
 
     #[test]

@@ -310,6 +310,18 @@ impl PreparedCloud {
         k: usize,
         estimate: bool,
     ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        self.prepare_surface_from(k, estimate, None)
+    }
+
+    /// [`PreparedCloud::prepare_surface`] with the sensor's position (world coordinates)
+    /// when it is known: normals then face it (`stipple_core::normals::estimate_from`).
+    pub fn prepare_surface_from(
+        &mut self,
+        k: usize,
+        estimate: bool,
+        viewpoint: Option<glam::DVec3>,
+    ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        let vp = viewpoint.map(|v| (v - self.cloud.origin).as_vec3());
         let c = &mut self.cloud;
         let need_normals = c.normals.is_none() && estimate;
         let mut report = SurfaceReport::default();
@@ -318,7 +330,8 @@ impl PreparedCloud {
         }
         let t0 = std::time::Instant::now();
         let need_radii = c.radius.is_none();
-        let e = stipple_core::normals::estimate(&c.positions, c.normals.as_deref(), k, 1.0)?;
+        let e =
+            stipple_core::normals::estimate_from(&c.positions, c.normals.as_deref(), k, 1.0, vp)?;
         if need_normals {
             c.normals = Some(e.normals);
             report.estimated = true;
