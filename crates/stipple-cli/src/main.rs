@@ -51,11 +51,13 @@ holes are filled in image space (background fill, then occluded-pixel fill with 
 gap d̃), the result is lit with Phong, smoothed and anti-aliased. Every step can be switched
 off or iterated; see `stipple render --help`.
 
-Where points land more than a pixel apart on screen, each point is drawn as a surface splat
-instead (Zhang & Pajarola 2007): ε-z visibility, then Voronoi rasterization (sharp) or
-Gaussian blending (--splat blend), so sparse clouds come out whole. Clouds without normals
-(most LAS/LAZ) get estimated ones; normals of inconsistent sign are re-oriented
-(`stipple normals` saves them). `--raw` uses the screen-space operators of Pintus et al.
+Where points land more than half a pixel apart on screen, each point is drawn as a surface
+splat instead (Zhang & Pajarola 2007), bent to the surface and cut at creases: ε-z
+visibility, then Gaussian blending with per-pixel shading (default), their single-pass
+deferred blending over graph-coloured groups (--splat deferred) or Voronoi rasterization
+(--splat voronoi), so sparse clouds come out whole. Clouds without normals (most LAS/LAZ) get
+estimated ones (--viewpoint X,Y,Z orients them towards a known sensor); normals of
+inconsistent sign are re-oriented (--save-normals or `stipple normals` saves them). `--raw` uses the screen-space operators of Pintus et al.
 2011 instead: visibility, anisotropic filling and shape depiction from depth alone.
 `--pipeline` chooses.
 

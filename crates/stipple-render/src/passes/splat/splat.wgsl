@@ -78,6 +78,22 @@ struct Splat {
     shape: vec3<f32>,
     clip0: vec4<f32>,
     clip1: vec4<f32>,
+    // mod.rs Raster: au, av, ah, du, dv, dh, off as (c0, cx, cy); per clip plane in use m.o,
+    // m.dir and c; flat or bent.
+    l_au: vec3<f32>,
+    l_av: vec3<f32>,
+    l_ah: vec3<f32>,
+    l_du: vec3<f32>,
+    l_dv: vec3<f32>,
+    l_dh: vec3<f32>,
+    l_off: vec3<f32>,
+    clip_o0: vec3<f32>,
+    clip_d0: vec3<f32>,
+    clip_o1: vec3<f32>,
+    clip_d1: vec3<f32>,
+    clip_c: vec2<f32>,
+    clips: u32,
+    bent: bool,
     r2: f32,
     x0: u32,
     y0: u32,
@@ -204,30 +220,119 @@ fn load_splat(local: u32) -> Splat {
     let tf = tangent_frame(s.n);
     s.t1 = tf[0];
     s.t2 = tf[1];
+    raster_setup(&s);
     return s;
 }
 
-// ViewParams::pixel_ray + mod.rs fragment.
-fn fragment(s: Splat, i: u32, j: u32) -> Frag {
+fn proj(v0: vec3<f32>, vx: vec3<f32>, vy: vec3<f32>, axis: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(dot3(v0, axis), dot3(vx, axis), dot3(vy, axis));
+}
+
+// mod.rs Raster::new, operation for operation.
+fn raster_setup(s: ptr<function, Splat>) {
+    let w = f32(view.width);
+    let h = f32(view.height);
+    let ox = view.right * (2.0 / w / view.sx);
+    let oy = view.up * (-2.0 / h / view.sy);
+    let o0 = view.right * ((1.0 / w - 1.0) / view.sx) + view.up * ((1.0 - 1.0 / h) / view.sy);
+    let zero = vec3<f32>(0.0);
+    var orig0 = view.eye;
+    var orig1 = zero;
+    var orig2 = zero;
+    var dir0 = view.forward + o0;
+    var dir1 = ox;
+    var dir2 = oy;
+    if (view.perspective != 1u) {
+        orig0 = view.eye + o0;
+        orig1 = ox;
+        orig2 = oy;
+        dir0 = view.forward;
+        dir1 = zero;
+        dir2 = zero;
+    }
+    let a0 = orig0 - (*s).p;
+    var off = zero;
+    if (view.perspective != 1u) {
+        off = proj(orig0 - view.eye, orig1, orig2, view.forward);
+    }
+    (*s).l_au = proj(a0, orig1, orig2, (*s).t1);
+    (*s).l_av = proj(a0, orig1, orig2, (*s).t2);
+    (*s).l_ah = proj(a0, orig1, orig2, (*s).n);
+    (*s).l_du = proj(dir0, dir1, dir2, (*s).t1);
+    (*s).l_dv = proj(dir0, dir1, dir2, (*s).t2);
+    (*s).l_dh = proj(dir0, dir1, dir2, (*s).n);
+    (*s).l_off = off;
+    // The planes in use first (Raster keeps them in order).
+    var clips = 0u;
+    let p0 = (*s).clip0;
+    let p1 = (*s).clip1;
+    if (any(p0 != vec4<f32>(0.0))) {
+        (*s).clip_o0 = proj(orig0, orig1, orig2, p0.xyz);
+        (*s).clip_d0 = proj(dir0, dir1, dir2, p0.xyz);
+        (*s).clip_c.x = p0.w;
+        clips = 1u;
+    }
+    if (any(p1 != vec4<f32>(0.0))) {
+        if (clips == 0u) {
+            (*s).clip_o0 = proj(orig0, orig1, orig2, p1.xyz);
+            (*s).clip_d0 = proj(dir0, dir1, dir2, p1.xyz);
+            (*s).clip_c.x = p1.w;
+        } else {
+            (*s).clip_o1 = proj(orig0, orig1, orig2, p1.xyz);
+            (*s).clip_d1 = proj(dir0, dir1, dir2, p1.xyz);
+            (*s).clip_c.y = p1.w;
+        }
+        clips = clips + 1u;
+    }
+    (*s).clips = clips;
+    (*s).bent = any((*s).shape != vec3<f32>(0.0));
+}
+
+fn affine(c: vec3<f32>, x: f32, y: f32) -> f32 {
+    return c.x + c.y * x + c.z * y;
+}
+
+// mod.rs Raster::hit.
+fn raster_hit(s: Splat, t: f32, au: f32, av: f32, du: f32, dv: f32, off: f32, x: f32, y: f32) -> Frag {
     var f: Frag;
     f.ok = false;
-    let nx = 2.0 * (f32(i) + 0.5) / f32(view.width) - 1.0;
-    let ny = 1.0 - 2.0 * (f32(j) + 0.5) / f32(view.height);
-    let off = view.right * (nx / view.sx) + view.up * (ny / view.sy);
-    var o = view.eye;
-    var dir = view.forward;
-    if (view.perspective == 1u) {
-        dir = view.forward + off;
-    } else {
-        o = view.eye + off;
+    let depth = t + off;
+    let u = au + t * du;
+    let w = av + t * dv;
+    let d2 = u * u + w * w;
+    if (!(depth > view.near && d2 < s.r2)) {
+        return f;
     }
-    let a = o - s.p;
-    let au = dot3(a, s.t1);
-    let av = dot3(a, s.t2);
-    let ah = dot3(a, s.n);
-    let du = dot3(dir, s.t1);
-    let dv = dot3(dir, s.t2);
-    let dh = dot3(dir, s.n);
+    if (s.clips > 0u && affine(s.clip_o0, x, y) + t * affine(s.clip_d0, x, y) > s.clip_c.x) {
+        return f;
+    }
+    if (s.clips > 1u && affine(s.clip_o1, x, y) + t * affine(s.clip_d1, x, y) > s.clip_c.y) {
+        return f;
+    }
+    f.ok = true;
+    f.depth = depth;
+    f.q = d2 / s.r2;
+    f.u = u;
+    f.v = w;
+    return f;
+}
+
+// mod.rs Raster::eval (the CPU kernel's form of mod.rs fragment).
+fn fragment(s: Splat, i: u32, j: u32) -> Frag {
+    let x = f32(i);
+    let y = f32(j);
+    let au = affine(s.l_au, x, y);
+    let av = affine(s.l_av, x, y);
+    let ah = affine(s.l_ah, x, y);
+    let du = affine(s.l_du, x, y);
+    let dv = affine(s.l_dv, x, y);
+    let dh = affine(s.l_dh, x, y);
+    let off = affine(s.l_off, x, y);
+    if (!s.bent) {
+        return raster_hit(s, -ah / dh, au, av, du, dv, off, x, y);
+    }
+    var f: Frag;
+    f.ok = false;
     let ka = s.shape.x;
     let kb = s.shape.y;
     let kc = s.shape.z;
@@ -255,32 +360,11 @@ fn fragment(s: Splat, i: u32, j: u32) -> Frag {
         ta = tb;
         tb = tmp;
     }
-    var doff = 0.0;
-    if (view.perspective != 1u) {
-        doff = dot3(o - view.eye, view.forward);
+    let first = raster_hit(s, ta, au, av, du, dv, off, x, y);
+    if (first.ok) {
+        return first;
     }
-    for (var k = 0u; k < 2u; k++) {
-        var t = ta;
-        if (k == 1u) {
-            t = tb;
-        }
-        let depth = t + doff;
-        let u = au + t * du;
-        let w = av + t * dv;
-        let d2 = u * u + w * w;
-        let x = o + dir * t;
-        let cut = s.clip0.x * x.x + s.clip0.y * x.y + s.clip0.z * x.z > s.clip0.w
-            || s.clip1.x * x.x + s.clip1.y * x.y + s.clip1.z * x.z > s.clip1.w;
-        if (depth > view.near && d2 < s.r2 && !cut) {
-            f.ok = true;
-            f.depth = depth;
-            f.q = d2 / s.r2;
-            f.u = u;
-            f.v = w;
-            return f;
-        }
-    }
-    return f;
+    return raster_hit(s, tb, au, av, du, dv, off, x, y);
 }
 
 fn splat_index_of(wg: vec3<u32>, groups: vec3<u32>, li: u32) -> u32 {
