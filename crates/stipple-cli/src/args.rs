@@ -239,6 +239,11 @@ fn parse_pipeline(s: &str) -> std::result::Result<PipelineChoice, String> {
 /// are only kept where they are dense enough for the fills (and project faster).
 pub const SPLAT_ABOVE_PX: f32 = 0.5;
 
+/// `--pipeline auto` estimates normals for clouds up to this many points; larger clouds
+/// without normals (LiDAR tiles) are drawn raw, which needs none: estimation runs at
+/// 0.2–0.3 M points/s on 2 cores (BENCHMARKS.md), a minute for a 10 M tile.
+pub const AUTO_ESTIMATE_MAX: usize = 2_000_000;
+
 /// Splats and normal estimation (Zhang & Pajarola 2007; normals by PCA, Hoppe et al. 1992).
 #[derive(clap::Args, Clone)]
 #[command(
@@ -557,6 +562,16 @@ impl PipelineArgs {
         let estimate = !self.splat.no_estimate_normals && !self.no_lighting;
         let had_normals = cloud.cloud.normals.is_some();
         let n = cloud.cloud.len();
+        if choice == PipelineChoice::Auto && estimate && !had_normals && n > AUTO_ESTIMATE_MAX {
+            notes.push(format!(
+                "{:.1} M points without normals: drawn raw (screen-space operators, no normals \
+                 needed); --pipeline splat or dobrev estimates normals first (about {:.0} s \
+                 at 0.2-0.3 M points/s on 2 cores)",
+                n as f64 / 1e6,
+                n as f64 / 0.25e6
+            ));
+            return Ok((raw, notes));
+        }
         if estimate && !had_normals && n > 1_000_000 {
             eprintln!(
                 "stipple: estimating normals for {n} points (k = {}; --no-estimate-normals or \

@@ -575,6 +575,21 @@ pub fn orient_components(
             .then(a.cmp(&b))
     });
     const LEVELS: usize = 1024;
+    // Edge weights 1 − |nᵢ·nⱼ| as bucket levels, in parallel (a sign flip during the walk
+    // leaves |nᵢ·nⱼ| unchanged).
+    let nr: &[Vec3] = normals;
+    let level: Vec<u16> = (0..n)
+        .into_par_iter()
+        .flat_map_iter(|i| {
+            let ni = nr[i];
+            adj[start[i] as usize..start[i + 1] as usize]
+                .iter()
+                .map(move |&j| {
+                    let w = 1.0 - ni.dot(nr[j as usize]).abs();
+                    ((w.clamp(0.0, 1.0) * (LEVELS - 1) as f32) as usize).min(LEVELS - 1) as u16
+                })
+        })
+        .collect();
     let mut buckets: Vec<Vec<(u32, u32)>> = vec![Vec::new(); LEVELS];
     let mut visited = vec![false; n];
     let mut flipped = 0;
@@ -604,13 +619,12 @@ pub fn orient_components(
                     buckets: &mut Vec<Vec<(u32, u32)>>,
                     lo: &mut usize,
                     visited: &[bool],
-                    normals: &[Vec3]| {
-            for &j in &adj[start[i] as usize..start[i + 1] as usize] {
+                    _: &[Vec3]| {
+            let range = start[i] as usize..start[i + 1] as usize;
+            for (&j, &b) in adj[range.clone()].iter().zip(&level[range]) {
                 if !visited[j as usize] {
-                    let w = 1.0 - normals[i].dot(normals[j as usize]).abs();
-                    let b = ((w.clamp(0.0, 1.0) * (LEVELS - 1) as f32) as usize).min(LEVELS - 1);
-                    buckets[b].push((j, i as u32));
-                    *lo = (*lo).min(b);
+                    buckets[b as usize].push((j, i as u32));
+                    *lo = (*lo).min(b as usize);
                 }
             }
         };

@@ -101,7 +101,7 @@ pub fn splat(
     };
     let feet: Vec<Option<[u32; 4]>> = (0..n)
         .into_par_iter()
-        .map(|i| footprint(v, s.positions[i], disc(i).bound()))
+        .map(|i| footprint(v, &disc(i)))
         .collect();
     let drawn = feet.par_iter().filter(|f| f.is_some()).count() as u64;
     // Counting sort of (tile, splat).

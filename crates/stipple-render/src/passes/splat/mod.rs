@@ -176,39 +176,57 @@ pub fn epsilon(median_radius: f32) -> f32 {
     median_radius
 }
 
-/// The pixel rectangle (x0, y0, x1, y1), inclusive, that may hold fragments of the disc of
-/// radius `r` at `p`; None when it is off screen or not in front of the near plane.
+/// The pixel rectangle (x0, y0, x1, y1), inclusive, that may hold fragments of splat `s`;
+/// None when it is off screen or not in front of the near plane. The splat lies in the box
+/// about its point with half-extent r·√(1 − (n·a)²) + h·|n·a| along each camera axis a
+/// (a disc of radius r about n, bent at most h = ½κ_max·r² off its plane), whose
+/// perspective image is bounded by dividing each side by the nearest or farthest depth:
+/// tilted splats get narrow rectangles (a sphere bound would test up to twice the pixels).
+/// Written as the WGSL twin computes it.
 #[inline]
-pub fn footprint(v: &ViewParams, p: Vec3, r: f32) -> Option<[u32; 4]> {
-    let d = p - Vec3::from(v.eye);
-    let z = d.dot(Vec3::from(v.forward));
-    let (w, h) = (v.width as f32, v.height as f32);
-    let (cx, cy, rx, ry);
-    let x = d.dot(Vec3::from(v.right));
-    let y = d.dot(Vec3::from(v.up));
+pub fn footprint(v: &ViewParams, s: &Disc) -> Option<[u32; 4]> {
+    let (right, up, fwd) = (Vec3::from(v.right), Vec3::from(v.up), Vec3::from(v.forward));
+    let d = s.p - Vec3::from(v.eye);
+    let (x, y, z) = (d.dot(right), d.dot(up), d.dot(fwd));
+    let r = s.r2.sqrt();
+    let h = 0.5 * s.max_curvature() * s.r2;
+    let ext = |a: Vec3| {
+        let c = s.n.dot(a).abs().min(1.0);
+        r * (1.0 - c * c).max(0.0).sqrt() + h * c
+    };
+    let (ex, ey, ez) = (ext(right), ext(up), ext(fwd));
+    let (w, hgt) = (v.width as f32, v.height as f32);
+    let (x0, x1, y0, y1, cx, cy);
     if v.perspective == 1 {
-        if z - r <= v.near {
+        let (zn, zf) = (z - ez, z + ez);
+        if zn <= v.near {
             return None;
         }
+        // The extreme of (x ± e)/z over z in [zn, zf].
+        let lo = |c: f32| if c >= 0.0 { c / zf } else { c / zn };
+        let hi = |c: f32| if c >= 0.0 { c / zn } else { c / zf };
+        x0 = (lo(x - ex) * v.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = (hi(x + ex) * v.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - hi(y + ey) * v.sy) * 0.5 * hgt - 0.5;
+        y1 = (1.0 - lo(y - ey) * v.sy) * 0.5 * hgt - 0.5;
         cx = (x * v.sx / z + 1.0) * 0.5 * w - 0.5;
-        cy = (1.0 - y * v.sy / z) * 0.5 * h - 0.5;
-        rx = r * v.sx * 0.5 * w / (z - r);
-        ry = r * v.sy * 0.5 * h / (z - r);
+        cy = (1.0 - y * v.sy / z) * 0.5 * hgt - 0.5;
     } else {
-        if z <= v.near {
+        if z + ez <= v.near {
             return None;
         }
+        x0 = ((x - ex) * v.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = ((x + ex) * v.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - (y + ey) * v.sy) * 0.5 * hgt - 0.5;
+        y1 = (1.0 - (y - ey) * v.sy) * 0.5 * hgt - 0.5;
         cx = (x * v.sx + 1.0) * 0.5 * w - 0.5;
-        cy = (1.0 - y * v.sy) * 0.5 * h - 0.5;
-        rx = r * v.sx * 0.5 * w;
-        ry = r * v.sy * 0.5 * h;
+        cy = (1.0 - y * v.sy) * 0.5 * hgt - 0.5;
     }
     let half = MAX_FOOTPRINT * 0.5;
-    let (rx, ry) = (rx.min(half), ry.min(half));
-    let x0 = (cx - rx).ceil().max(0.0);
-    let x1 = (cx + rx).floor().min(w - 1.0);
-    let y0 = (cy - ry).ceil().max(0.0);
-    let y1 = (cy + ry).floor().min(h - 1.0);
+    let x0 = x0.max(cx - half).ceil().max(0.0);
+    let x1 = x1.min(cx + half).floor().min(w - 1.0);
+    let y0 = y0.max(cy - half).ceil().max(0.0);
+    let y1 = y1.min(cy + half).floor().min(hgt - 1.0);
     if !(x0 <= x1 && y0 <= y1) {
         return None;
     }
@@ -224,10 +242,6 @@ pub fn splat_normal(v: &ViewParams, p: Vec3, n: Option<Vec3>) -> Vec3 {
         None => -Vec3::from(v.forward),
     }
 }
-
-/// Footprint radius of a bent splat of radius r: its rim rises at most
-/// `MAX_BEND`·r/2 off the tangent plane, so it lies within √(1 + ¼) r < 1.125 r of its point.
-pub const BENT_BOUND: f32 = 1.125;
 
 /// One splat, ready to intersect with pixel rays: its point, unit normal, tangent frame
 /// (`stipple_core::normals::tangent_frame`), squared radius and shape
@@ -270,15 +284,11 @@ impl Disc {
         }
     }
 
-    /// The radius that bounds the splat's footprint.
+    /// The largest principal curvature magnitude of the bend, |A + C|/2 + √(((A − C)/2)² + B²).
     #[inline]
-    pub fn bound(&self) -> f32 {
-        let r = self.r2.sqrt();
-        if self.shape == [0.0; 3] {
-            r
-        } else {
-            r * BENT_BOUND
-        }
+    pub fn max_curvature(&self) -> f32 {
+        let [a, b, c] = self.shape;
+        (0.5 * (a + c)).abs() + (0.25 * (a - c) * (a - c) + b * b).sqrt()
     }
 
     /// The patch's unit normal at tangent coordinates (u, v) (on the side of `n`).

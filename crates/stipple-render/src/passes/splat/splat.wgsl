@@ -36,8 +36,6 @@ struct SplatBlock {
 }
 
 const MAX_FOOTPRINT: f32 = 256.0;
-// passes/splat/mod.rs BENT_BOUND.
-const BENT_BOUND: f32 = 1.125;
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<uniform> blk: SplatBlock;
@@ -137,59 +135,9 @@ fn load_splat(local: u32) -> Splat {
     let p = vec3<f32>(positions[3u * local], positions[3u * local + 1u], positions[3u * local + 2u]);
     let sh = shapes[3u * local];
     let r = sh.x * blk.scale;
-    var bent = false;
-    if (blk.has_shapes == 1u) {
-        bent = sh.y != 0.0 || sh.z != 0.0 || sh.w != 0.0;
-    }
-    // Disc::bound.
-    var rb = r;
-    if (bent) {
-        rb = r * BENT_BOUND;
-    }
-    let d = p - view.eye;
-    let z = dot3(d, view.forward);
-    let w = f32(view.width);
-    let h = f32(view.height);
-    let x = dot3(d, view.right);
-    let y = dot3(d, view.up);
-    var cx: f32;
-    var cy: f32;
-    var rx: f32;
-    var ry: f32;
-    if (view.perspective == 1u) {
-        if (z - rb <= view.near) {
-            return s;
-        }
-        cx = (x * view.sx / z + 1.0) * 0.5 * w - 0.5;
-        cy = (1.0 - y * view.sy / z) * 0.5 * h - 0.5;
-        rx = rb * view.sx * 0.5 * w / (z - rb);
-        ry = rb * view.sy * 0.5 * h / (z - rb);
-    } else {
-        if (z <= view.near) {
-            return s;
-        }
-        cx = (x * view.sx + 1.0) * 0.5 * w - 0.5;
-        cy = (1.0 - y * view.sy) * 0.5 * h - 0.5;
-        rx = rb * view.sx * 0.5 * w;
-        ry = rb * view.sy * 0.5 * h;
-    }
-    let half = MAX_FOOTPRINT * 0.5;
-    rx = min(rx, half);
-    ry = min(ry, half);
-    let x0 = max(ceil(cx - rx), 0.0);
-    let x1 = min(floor(cx + rx), w - 1.0);
-    let y0 = max(ceil(cy - ry), 0.0);
-    let y1 = min(floor(cy + ry), h - 1.0);
-    if (!(x0 <= x1 && y0 <= y1)) {
-        return s;
-    }
-    s.ok = true;
     s.p = p;
     s.r2 = r * r;
-    s.x0 = u32(x0);
-    s.y0 = u32(y0);
-    s.x1 = u32(x1);
-    s.y1 = u32(y1);
+    // Disc::new.
     s.shape = vec3<f32>(0.0);
     s.clip0 = vec4<f32>(0.0);
     s.clip1 = vec4<f32>(0.0);
@@ -210,18 +158,94 @@ fn load_splat(local: u32) -> Splat {
         let e = view.eye - p;
         let l = sqrt(dot3(e, e));
         if (l > 0.0) {
-            s.n = e / l;
+            s.n = e * (1.0 / l);
         } else {
             s.n = vec3<f32>(0.0);
         }
     } else {
         s.n = -view.forward;
     }
+    // mod.rs footprint.
+    let d = p - view.eye;
+    let x = dot3(d, view.right);
+    let y = dot3(d, view.up);
+    let z = dot3(d, view.forward);
+    let rr = sqrt(s.r2);
+    let kmax = abs(0.5 * (s.shape.x + s.shape.z))
+        + sqrt(0.25 * (s.shape.x - s.shape.z) * (s.shape.x - s.shape.z) + s.shape.y * s.shape.y);
+    let hb = 0.5 * kmax * s.r2;
+    let ex = footprint_ext(s.n, view.right, rr, hb);
+    let ey = footprint_ext(s.n, view.up, rr, hb);
+    let ez = footprint_ext(s.n, view.forward, rr, hb);
+    let w = f32(view.width);
+    let h = f32(view.height);
+    var x0: f32;
+    var x1: f32;
+    var y0: f32;
+    var y1: f32;
+    var cx: f32;
+    var cy: f32;
+    if (view.perspective == 1u) {
+        let zn = z - ez;
+        let zf = z + ez;
+        if (zn <= view.near) {
+            return s;
+        }
+        x0 = (ext_lo(x - ex, zn, zf) * view.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = (ext_hi(x + ex, zn, zf) * view.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - ext_hi(y + ey, zn, zf) * view.sy) * 0.5 * h - 0.5;
+        y1 = (1.0 - ext_lo(y - ey, zn, zf) * view.sy) * 0.5 * h - 0.5;
+        cx = (x * view.sx / z + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * view.sy / z) * 0.5 * h - 0.5;
+    } else {
+        if (z + ez <= view.near) {
+            return s;
+        }
+        x0 = ((x - ex) * view.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = ((x + ex) * view.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - (y + ey) * view.sy) * 0.5 * h - 0.5;
+        y1 = (1.0 - (y - ey) * view.sy) * 0.5 * h - 0.5;
+        cx = (x * view.sx + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * view.sy) * 0.5 * h - 0.5;
+    }
+    let half = MAX_FOOTPRINT * 0.5;
+    let fx0 = max(ceil(max(x0, cx - half)), 0.0);
+    let fx1 = min(floor(min(x1, cx + half)), w - 1.0);
+    let fy0 = max(ceil(max(y0, cy - half)), 0.0);
+    let fy1 = min(floor(min(y1, cy + half)), h - 1.0);
+    if (!(fx0 <= fx1 && fy0 <= fy1)) {
+        return s;
+    }
+    s.ok = true;
+    s.x0 = u32(fx0);
+    s.y0 = u32(fy0);
+    s.x1 = u32(fx1);
+    s.y1 = u32(fy1);
     let tf = tangent_frame(s.n);
     s.t1 = tf[0];
     s.t2 = tf[1];
     raster_setup(&s);
     return s;
+}
+
+// footprint's half-extent of a splat along camera axis a.
+fn footprint_ext(n: vec3<f32>, a: vec3<f32>, r: f32, hb: f32) -> f32 {
+    let c = min(abs(dot3(n, a)), 1.0);
+    return r * sqrt(max(1.0 - c * c, 0.0)) + hb * c;
+}
+
+fn ext_lo(c: f32, zn: f32, zf: f32) -> f32 {
+    if (c >= 0.0) {
+        return c / zf;
+    }
+    return c / zn;
+}
+
+fn ext_hi(c: f32, zn: f32, zf: f32) -> f32 {
+    if (c >= 0.0) {
+        return c / zn;
+    }
+    return c / zf;
 }
 
 fn proj(v0: vec3<f32>, vx: vec3<f32>, vy: vec3<f32>, axis: vec3<f32>) -> vec3<f32> {
