@@ -500,15 +500,16 @@ pub fn pca_normals(positions: &[Vec3], nb: &Neighbours) -> Vec<Vec3> {
 
 /// The share of neighbour pairs on smooth surface (|nᵢ·nⱼ| > 0.5) whose normals point
 /// opposite ways: about 0 for consistently oriented normals, about 0.5 for random signs.
-pub fn inconsistency(normals: &[Vec3], nb: &Neighbours) -> f32 {
+pub fn inconsistency(positions: &[Vec3], normals: &[Vec3], nb: &Neighbours) -> f32 {
     let (bad, all) = (0..normals.len())
         .into_par_iter()
         .map(|i| {
             let mut bad = 0u64;
             let mut all = 0u64;
             for &j in nb.of(i) {
-                let d = normals[i].dot(normals[j as usize]);
-                if d.abs() > 0.5 {
+                let j = j as usize;
+                let d = normals[i].dot(normals[j]);
+                if d.abs() > 0.5 && same_layer(positions, normals, i, j) {
                     all += 1;
                     bad += (d < 0.0) as u64;
                 }
@@ -521,6 +522,24 @@ pub fn inconsistency(normals: &[Vec3], nb: &Neighbours) -> f32 {
     } else {
         bad as f32 / all as f32
     }
+}
+
+/// Whether neighbours i and j lie on one surface layer: not when their normals point
+/// opposite ways and each lies behind the other's tangent plane by more than 2% of their
+/// distance: the two outward-facing sides of a sheet thinner than the sampling (a wall, a
+/// leaf, a thin plate). On one smooth surface, normals of random sign never do that: the
+/// offsets along the normals are d²κ/2 with one in front and one behind (convex or
+/// concave), or about zero (flat). Orientation does not propagate across layers, and
+/// opposite normals across layers are not inconsistent.
+#[inline]
+pub fn same_layer(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> bool {
+    let (ni, nj) = (normals[i], normals[j]);
+    if ni.dot(nj) >= -0.5 {
+        return true;
+    }
+    let d = positions[j] - positions[i];
+    let tol = 0.02 * d.length();
+    !(d.dot(ni) < -tol && d.dot(nj) > tol)
 }
 
 /// Orients `normals` consistently (see the module docs, step 3). Returns how many changed
@@ -539,7 +558,21 @@ pub fn orient_components(
     // Symmetric adjacency (CSR) of the TREE_K nearest neighbours: the tree only needs a
     // connected graph along the surface, and fewer edges both halve the time and make
     // shortcuts across thin parts rarer.
-    let of = |i: usize| &nb.of(i)[..nb.of(i).len().min(TREE_K)];
+    let layer_nb: Vec<Vec<u32>> = {
+        let nr: &[Vec3] = normals;
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let all = nb.of(i);
+                all[..all.len().min(TREE_K)]
+                    .iter()
+                    .copied()
+                    .filter(|&j| same_layer(positions, nr, i, j as usize))
+                    .collect()
+            })
+            .collect()
+    };
+    let of = |i: usize| &layer_nb[i][..];
     let mut deg = vec![0u32; n + 1];
     for i in 0..n {
         for &j in of(i) {
@@ -794,7 +827,7 @@ pub fn shapes(
                 nb,
                 i,
                 n,
-                jet(positions, i, n, nb),
+                jet(positions, i, n, nb, Some(normals)),
             )
         })
         .collect()
@@ -816,7 +849,7 @@ pub fn refine_and_shape(
         .enumerate()
         .map(|(i, n)| {
             let u = n.try_normalize().unwrap_or(Vec3::Z);
-            let j = jet(positions, i, u, nb);
+            let j = jet(positions, i, u, nb, Some(&before));
             if let Some(r) = j.and_then(|j| refined(u, j)) {
                 *n = r;
             }
@@ -877,15 +910,24 @@ fn shape_at(
 }
 
 /// The osculating quadric ("jet") of the surface at point i in the frame of the unit normal
-/// `n`: least squares of h = c₁u + c₂v + ½A u² + B uv + ½C v² over the neighbourhood
-/// (neighbours far off the tangent plane down-weighted, as in [`robust_normals`]),
-/// returned as [c₁, c₂, A, B, C]; None where it is ill-conditioned (fewer than five
-/// neighbours, a line, duplicates).
-fn jet(positions: &[Vec3], i: usize, n: Vec3, nb: &Neighbours) -> Option<[f64; 5]> {
+/// `n`: least squares of h = c₀ + c₁u + c₂v + ½A u² + B uv + ½C v² over the point and its
+/// neighbourhood (neighbours far off the tangent plane down-weighted, as in
+/// [`robust_normals`]; with `normals`, neighbours facing the other way are left out: the far
+/// side of a thin sheet), returned as [c₁, c₂, A, B, C]. The constant c₀ absorbs a second
+/// layer or noise that would otherwise bend the quadric. None where it is ill-conditioned
+/// (fewer than six neighbours, a line, duplicates).
+fn jet(
+    positions: &[Vec3],
+    i: usize,
+    n: Vec3,
+    nb: &Neighbours,
+    normals: Option<&[Vec3]>,
+) -> Option<[f64; 5]> {
+    const U: usize = 6;
     let (t1, t2) = tangent_frame(n);
     let p = positions[i];
     let ids = nb.of(i);
-    if ids.len() < 5 {
+    if ids.len() < U {
         return None;
     }
     // Unknowns scaled by the neighbourhood size s (u/s, v/s) for conditioning.
@@ -904,8 +946,14 @@ fn jet(positions: &[Vec3], i: usize, n: Vec3, nb: &Neighbours) -> Option<[f64; 5
         .sum::<f64>()
         / ids.len() as f64;
     let sigma = 0.25 * mean / s;
-    let mut m = [[0.0f64; 6]; 5];
+    let mut m = [[0.0f64; U + 1]; U];
+    // The point itself anchors the constant term.
+    m[0][0] += 1.0;
     for &j in ids {
+        // The other side of a thin sheet (normals facing the other way) is another layer.
+        if normals.is_some_and(|nm| nm[j as usize].dot(n) < 0.0) {
+            continue;
+        }
         let d = positions[j as usize] - p;
         let (u, v, h) = (
             d.dot(t1) as f64 / s,
@@ -913,39 +961,39 @@ fn jet(positions: &[Vec3], i: usize, n: Vec3, nb: &Neighbours) -> Option<[f64; 5
             d.dot(n) as f64 / s,
         );
         let w = (-(h / sigma) * (h / sigma)).exp();
-        let row = [u, v, 0.5 * u * u, u * v, 0.5 * v * v];
-        for r in 0..5 {
-            for c in 0..5 {
+        let row = [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v];
+        for r in 0..U {
+            for c in 0..U {
                 m[r][c] += w * row[r] * row[c];
             }
-            m[r][5] += w * row[r] * h;
+            m[r][U] += w * row[r] * h;
         }
     }
-    let scale = (0..5).map(|r| m[r][r]).fold(0.0, f64::max);
+    let scale = (0..U).map(|r| m[r][r]).fold(0.0, f64::max);
     // Gaussian elimination with partial pivoting.
-    for col in 0..5 {
-        let piv = (col..5).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs()))?;
+    for col in 0..U {
+        let piv = (col..U).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs()))?;
         if m[piv][col].abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
             return None;
         }
         m.swap(col, piv);
-        for r in col + 1..5 {
+        for r in col + 1..U {
             let f = m[r][col] / m[col][col];
-            for c in col..6 {
+            for c in col..=U {
                 m[r][c] -= f * m[col][c];
             }
         }
     }
-    let mut x = [0.0f64; 5];
-    for r in (0..5).rev() {
-        let mut acc = m[r][5];
-        for c in r + 1..5 {
+    let mut x = [0.0f64; U];
+    for r in (0..U).rev() {
+        let mut acc = m[r][U];
+        for c in r + 1..U {
             acc -= m[r][c] * x[c];
         }
         x[r] = acc / m[r][r];
     }
-    // Back to world units: h = c u + (A/s) u² ...
-    let out = [x[0], x[1], x[2] / s, x[3] / s, x[4] / s];
+    // Back to world units: h = c₀ + c u + (A/s) u² ... (c₀, a layer's offset, is dropped).
+    let out = [x[1], x[2], x[3] / s, x[4] / s, x[5] / s];
     out.iter().all(|v| v.is_finite()).then_some(out)
 }
 
@@ -1049,7 +1097,7 @@ pub fn refine_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
         let Some(u) = n.try_normalize() else {
             return;
         };
-        if let Some(r) = jet(positions, i, u, nb).and_then(|j| refined(u, j)) {
+        if let Some(r) = jet(positions, i, u, nb, None).and_then(|j| refined(u, j)) {
             *n = r;
         }
     });
@@ -1158,7 +1206,7 @@ pub fn estimate_from(
                     }
                 }
             }
-            let bad = inconsistency(&normals, &nb);
+            let bad = inconsistency(positions, &normals, &nb);
             let mut oriented = normals.clone();
             let differ = orient_given(positions, &mut oriented, &nb);
             // A consistent field differs from the propagated one only by noise (thin parts,

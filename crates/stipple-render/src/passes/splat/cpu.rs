@@ -210,7 +210,7 @@ pub fn splat(
                 let mut win = vec![u32::MAX; m * k_groups];
                 for (fi, &(k, li, fr)) in frags.iter().enumerate() {
                     let at = groups[ids[li as usize] as usize] as usize * m + k as usize;
-                    let key = q.key(fr.depth, fr.q);
+                    let key = q.key(fr.depth, fr.q, fr.front);
                     if key < gkey[at] {
                         gkey[at] = key;
                         win[at] = fi as u32;
@@ -224,25 +224,41 @@ pub fn splat(
                         .map(|g| win[g * m + k])
                         .filter(|&fi| fi != u32::MAX)
                         .map(|fi| frags[fi as usize]);
-                    let z = winners.clone().fold(f32::INFINITY, |z, f| z.min(f.2.depth));
+                    let (za, zf) =
+                        winners
+                            .clone()
+                            .fold((f32::INFINITY, f32::INFINITY), |(a, f), w| {
+                                let zf = if w.2.front { f.min(w.2.depth) } else { f };
+                                (a.min(w.2.depth), zf)
+                            });
+                    let (z, front_only) = super::reference(za, zf, s.epsilon);
                     for (_, li, fr) in winners {
-                        if fr.depth <= z + s.epsilon {
+                        if fr.depth <= z + s.epsilon && (fr.front || !front_only) {
                             let sid = ids[li as usize] as usize;
                             acc[k].add(fr, &discs[li as usize], sid, dir, lut_albedo(sid));
                         }
                     }
                 }
             } else {
-                let mut zmin = vec![f32::INFINITY; m];
+                let mut zall = vec![f32::INFINITY; m];
+                let mut zfront = vec![f32::INFINITY; m];
                 each(&mut |k, fr, _, _| {
-                    if fr.depth < zmin[k] {
-                        zmin[k] = fr.depth;
+                    zall[k] = zall[k].min(fr.depth);
+                    if fr.front {
+                        zfront[k] = zfront[k].min(fr.depth);
                     }
                 });
+                let refs: Vec<(f32, bool)> = (0..m)
+                    .map(|k| super::reference(zall[k], zfront[k], s.epsilon))
+                    .collect();
+                let counts = |k: usize, fr: &super::Frag| {
+                    let (z, front_only) = refs[k];
+                    fr.depth <= z + s.epsilon && (fr.front || !front_only)
+                };
                 if mode == SplatMode::Voronoi {
                     let mut best = vec![f32::INFINITY; m];
                     each(&mut |k, fr, _, sid| {
-                        if fr.depth <= zmin[k] + s.epsilon && fr.q < best[k] {
+                        if counts(k, &fr) && fr.q < best[k] {
                             best[k] = fr.q;
                             out.depth[k] = fr.depth;
                             out.id[k] = sid as u32;
@@ -251,7 +267,7 @@ pub fn splat(
                     return out;
                 }
                 each(&mut |k, fr, dsc, sid| {
-                    if fr.depth <= zmin[k] + s.epsilon {
+                    if counts(k, &fr) {
                         acc[k].add(fr, dsc, sid, ray(k).2, lut_albedo(sid));
                     }
                 });

@@ -281,7 +281,8 @@ impl SplatGpu {
         if self.scratch.as_ref().map(|s| s.pixels) != Some(pixels) {
             self.scratch = Some(Scratch {
                 pixels,
-                z: util::storage(d, "splat z", 4 * pixels),
+                // Two per pixel: nearest over all fragments and over eye-facing ones.
+                z: util::storage(d, "splat z", 8 * pixels),
                 q: util::storage(d, "splat q", 4 * pixels),
                 i: util::storage(d, "splat id", 4 * pixels),
                 acc: None,

@@ -8,7 +8,10 @@
 //!
 //! 1. **visibility**: the nearest fragment depth z_min;
 //! 2. **ε-z test**: only fragments with depth ≤ z_min + ε count (ε = the median splat
-//!    radius: fragments of one surface layer at a pixel differ by far less, see [`epsilon`]);
+//!    radius: fragments of one surface layer at a pixel differ by far less, see [`epsilon`]),
+//!    and where a fragment faces the eye and nothing lies more than ε in front of it, only
+//!    fragments facing the eye count ([`reference`]): the far side of a sheet thinner than ε
+//!    (walls, leaves, plates scanned from both sides) does not blend into its near side;
 //! 3. a choice among them, by mode ([`SplatMode`]):
 //!    - **Voronoi rasterization** (§5.1): the fragment with the smallest d/r wins the pixel
 //!      (ties: the smaller point index). The pixel shows that point, at the depth where its
@@ -135,8 +138,9 @@ impl Default for SplatSettings {
 /// The low-precision depth of Eq. 6 and the key of Eq. 10 that deferred blending's geometry
 /// pass z-tests with: level = ⌊(d − d_min)·n/(d_max − d_min)⌋ with n = ⌈(d_max − d_min)/ε⌉
 /// (at most 65 535 levels), so that fragments of one surface layer share a level or two and
-/// layers ε apart differ; the key is level · 2¹⁶ + ⌊(d/r)² · 2¹⁶⌋: the nearest layer first,
-/// then the splat whose centre is nearest (Voronoi rasterization inside a group).
+/// layers ε apart differ; the key is level · 2¹⁶ + facing away · 2¹⁵ + ⌊(d/r)² · 2¹⁵⌋: the
+/// nearest layer first, then the side facing the eye, then the splat whose centre is
+/// nearest (Voronoi rasterization inside a group).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DepthQuant {
     pub dmin: f32,
@@ -157,14 +161,15 @@ impl DepthQuant {
         }
     }
 
-    /// Written as the WGSL twin computes it.
+    /// Written as the WGSL twin computes it. Within a level, a fragment facing the eye wins
+    /// over one facing away (see [`reference`]): bit 15, then 15 bits of (d/r)².
     #[inline]
-    pub fn key(&self, depth: f32, q: f32) -> u32 {
+    pub fn key(&self, depth: f32, q: f32, front: bool) -> u32 {
         let level = ((depth - self.dmin) * self.scale)
             .floor()
             .clamp(0.0, 65535.0) as u32;
-        let vor = (q * 65536.0).floor().clamp(0.0, 65535.0) as u32;
-        (level << 16) | vor
+        let vor = (q * 32768.0).floor().clamp(0.0, 32767.0) as u32;
+        (level << 16) | ((!front as u32) << 15) | vor
     }
 }
 
@@ -299,13 +304,32 @@ impl Disc {
     }
 }
 
-/// A ray's hit on a splat: view depth, (d/r)² and the hit's tangent coordinates.
+/// A ray's hit on a splat: view depth, (d/r)² and the hit's tangent coordinates, and whether
+/// the splat faces the eye there (its normal against the ray).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frag {
     pub depth: f32,
     pub q: f32,
     pub u: f32,
     pub v: f32,
+    pub front: bool,
+}
+
+/// The ε-z test with a preference for surfaces that face the eye: `z_all` and `z_front` are
+/// the nearest fragment depth over all fragments of a pixel and over those facing the eye.
+/// Returns the reference depth and whether only eye-facing fragments count. Where an
+/// eye-facing fragment exists and nothing lies more than ε in front of it, only eye-facing
+/// fragments within ε of it count: the back face of a sheet thinner than ε (a wall, a leaf,
+/// a thin plate, both sides sampled) does not blend into its front. Where something lies
+/// further in front (a patch whose normals point the wrong way), everything counts, so
+/// wrong normals never uncover what is behind.
+#[inline]
+pub fn reference(z_all: f32, z_front: f32, epsilon: f32) -> (f32, bool) {
+    if z_front.is_finite() && z_all >= z_front - epsilon {
+        (z_front, true)
+    } else {
+        (z_all, false)
+    }
 }
 
 /// Where pixel (i, j)'s centre ray first meets the splat within its radius, or None when it
@@ -357,6 +381,7 @@ pub fn fragment(v: &ViewParams, i: u32, j: u32, s: &Disc) -> Option<Frag> {
                 q: d2 / s.r2,
                 u,
                 v: w,
+                front: dh < 0.0,
             });
         }
     }
@@ -454,29 +479,19 @@ impl Raster {
             }
             let (t0, t1) = (c / root, root / qd);
             let (t0, t1) = if t1 < t0 { (t1, t0) } else { (t0, t1) };
-            match self.hit(t0, au, av, du, dv, off, xf, yf) {
+            match self.hit(t0, [au, av, du, dv, dh, off], xf, yf) {
                 Some(f) => return Some(f),
                 None => t1,
             }
         } else {
             -ah / dh
         };
-        self.hit(t, au, av, du, dv, off, xf, yf)
+        self.hit(t, [au, av, du, dv, dh, off], xf, yf)
     }
 
     #[inline]
     #[allow(clippy::too_many_arguments)]
-    fn hit(
-        &self,
-        t: f32,
-        au: f32,
-        av: f32,
-        du: f32,
-        dv: f32,
-        off: f32,
-        x: f32,
-        y: f32,
-    ) -> Option<Frag> {
+    fn hit(&self, t: f32, [au, av, du, dv, dh, off]: [f32; 6], x: f32, y: f32) -> Option<Frag> {
         let depth = t + off;
         let (u, w) = (au + t * du, av + t * dv);
         let d2 = u * u + w * w;
@@ -494,6 +509,7 @@ impl Raster {
             q: d2 / self.r2,
             u,
             v: w,
+            front: dh < 0.0,
         })
     }
 }

@@ -1,12 +1,14 @@
 // splat (Voronoi mode): GPU twin of passes/splat/cpu.rs; the maths of passes/splat/mod.rs,
 // operation for operation. One thread per splat, four dispatches over the points:
-//   splat_depth  : z_min per pixel (atomicMax of the complemented depth bits; buffers start 0)
-//   splat_select : among fragments with depth <= z_min + eps, the smallest (d/r)^2 (bits)
+//   splat_depth  : the nearest depth per pixel over all fragments and over those facing the
+//                  eye (atomicMax of the complemented depth bits; buffers start 0); mod.rs
+//                  reference turns the two into the ε-z test's reference depth
+//   splat_select : among the fragments that count (mod.rs reference), the smallest (d/r)^2
 //   splat_index  : among those at exactly that (d/r)^2, the smallest point index
 //   splat_write  : the winning splat writes its depth and index into the G-buffer
 // The result equals the CPU's lexicographic minimum of ((d/r)^2, index).
 // Blend mode adds two:
-//   splat_accum  : per splat, fragments within z_min + eps add their Gaussian weight, weighted
+//   splat_accum  : per splat, the fragments that count add their Gaussian weight, weighted
 //                  depth offset, eye-facing normal and linear albedo into per-pixel
 //                  fixed-point sums (integer atomics: exact and order-independent)
 //   splat_resolve: per pixel, after shade's gather, the normalised sums replace the pixel's
@@ -51,7 +53,7 @@ const MAX_FOOTPRINT: f32 = 256.0;
 // Blend mode.
 @group(0) @binding(10) var<storage, read> albedo: array<u32>;
 @group(0) @binding(11) var<storage, read> to_linear: array<f32, 256>;
-// Per pixel 8 fixed-point sums: weight, weight × (depth − z_min) / eps, weight × normal (xyz,
+// Per pixel 8 fixed-point sums: weight, weight × (depth − reference) / eps, weight × normal (xyz,
 // two's complement), weight × linear albedo (rgb).
 @group(0) @binding(12) var<storage, read_write> acc: array<atomic<u32>>;
 @group(0) @binding(13) var<storage, read_write> attr_pos: array<vec4<f32>>;
@@ -105,6 +107,7 @@ struct Frag {
     q: f32,
     u: f32,
     v: f32,
+    front: bool,
 }
 
 // stipple_core::normals::tangent_frame.
@@ -317,7 +320,7 @@ fn affine(c: vec3<f32>, x: f32, y: f32) -> f32 {
 }
 
 // mod.rs Raster::hit.
-fn raster_hit(s: Splat, t: f32, au: f32, av: f32, du: f32, dv: f32, off: f32, x: f32, y: f32) -> Frag {
+fn raster_hit(s: Splat, t: f32, au: f32, av: f32, du: f32, dv: f32, dh: f32, off: f32, x: f32, y: f32) -> Frag {
     var f: Frag;
     f.ok = false;
     let depth = t + off;
@@ -338,6 +341,7 @@ fn raster_hit(s: Splat, t: f32, au: f32, av: f32, du: f32, dv: f32, off: f32, x:
     f.q = d2 / s.r2;
     f.u = u;
     f.v = w;
+    f.front = dh < 0.0;
     return f;
 }
 
@@ -353,7 +357,7 @@ fn fragment(s: Splat, i: u32, j: u32) -> Frag {
     let dh = affine(s.l_dh, x, y);
     let off = affine(s.l_off, x, y);
     if (!s.bent) {
-        return raster_hit(s, -ah / dh, au, av, du, dv, off, x, y);
+        return raster_hit(s, -ah / dh, au, av, du, dv, dh, off, x, y);
     }
     var f: Frag;
     f.ok = false;
@@ -384,19 +388,31 @@ fn fragment(s: Splat, i: u32, j: u32) -> Frag {
         ta = tb;
         tb = tmp;
     }
-    let first = raster_hit(s, ta, au, av, du, dv, off, x, y);
+    let first = raster_hit(s, ta, au, av, du, dv, dh, off, x, y);
     if (first.ok) {
         return first;
     }
-    return raster_hit(s, tb, au, av, du, dv, off, x, y);
+    return raster_hit(s, tb, au, av, du, dv, dh, off, x, y);
 }
 
 fn splat_index_of(wg: vec3<u32>, groups: vec3<u32>, li: u32) -> u32 {
     return group_index(wg, groups) * 64u + li;
 }
 
-fn z_min(pixel: u32) -> f32 {
-    return bitcast<f32>(~atomicLoad(&zbuf[pixel]));
+// mod.rs reference: (reference depth, 1 when only eye-facing fragments count) of a pixel,
+// from the nearest depth over all fragments (zbuf[2k]) and over eye-facing ones (zbuf[2k+1]).
+fn reference(pixel: u32) -> vec2<f32> {
+    let za = bitcast<f32>(~atomicLoad(&zbuf[2u * pixel]));
+    let zf = bitcast<f32>(~atomicLoad(&zbuf[2u * pixel + 1u]));
+    if (is_finite(zf) && za >= zf - blk.epsilon) {
+        return vec2<f32>(zf, 1.0);
+    }
+    return vec2<f32>(za, 0.0);
+}
+
+fn counts(f: Frag, pixel: u32) -> bool {
+    let r = reference(pixel);
+    return f.ok && f.depth <= r.x + blk.epsilon && (f.front || r.y == 0.0);
 }
 
 @compute @workgroup_size(64)
@@ -416,8 +432,11 @@ fn splat_depth(
             if (f.ok) {
                 let key = ~bitcast<u32>(f.depth);
                 let k = y * view.width + x;
-                if (key > atomicLoad(&zbuf[k])) {
-                    atomicMax(&zbuf[k], key);
+                if (key > atomicLoad(&zbuf[2u * k])) {
+                    atomicMax(&zbuf[2u * k], key);
+                }
+                if (f.front && key > atomicLoad(&zbuf[2u * k + 1u])) {
+                    atomicMax(&zbuf[2u * k + 1u], key);
                 }
             }
         }
@@ -439,7 +458,7 @@ fn splat_select(
         for (var x = s.x0; x <= s.x1; x++) {
             let f = fragment(s, x, y);
             let k = y * view.width + x;
-            if (f.ok && f.depth <= z_min(k) + blk.epsilon) {
+            if (counts(f, k)) {
                 atomicMax(&qbuf[k], ~bitcast<u32>(f.q));
             }
         }
@@ -461,8 +480,7 @@ fn splat_index(
         for (var x = s.x0; x <= s.x1; x++) {
             let f = fragment(s, x, y);
             let k = y * view.width + x;
-            if (f.ok && f.depth <= z_min(k) + blk.epsilon
-                && ~bitcast<u32>(f.q) == atomicLoad(&qbuf[k])) {
+            if (counts(f, k) && ~bitcast<u32>(f.q) == atomicLoad(&qbuf[k])) {
                 atomicMax(&ibuf[k], ~(blk.base + local));
             }
         }
@@ -556,13 +574,10 @@ fn splat_accum(
         for (var x = s.x0; x <= s.x1; x++) {
             let f = fragment(s, x, y);
             let k = y * view.width + x;
-            if (!f.ok) {
+            if (!counts(f, k)) {
                 continue;
             }
-            let z0 = z_min(k);
-            if (!(f.depth <= z0 + blk.epsilon)) {
-                continue;
-            }
+            let z0 = reference(k).x;
             // mod.rs weight
             let wt = exp(-3.0 * f.q);
             let n = blend_normal(s, f, x, y);
@@ -614,7 +629,7 @@ fn splat_resolve(
     }
     let wf = f32(w);
     if (blk.mode != 2u) {
-        depth_out[k] = z_min(k) + blk.epsilon * (f32(atomicLoad(&acc[b + 1u])) / wf);
+        depth_out[k] = reference(k).x + blk.epsilon * (f32(atomicLoad(&acc[b + 1u])) / wf);
     }
     let n = vec3<f32>(
         f32(bitcast<i32>(atomicLoad(&acc[b + 2u]))),
@@ -635,10 +650,14 @@ fn splat_resolve(
 }
 
 // DepthQuant::key (mod.rs).
-fn quant_key(depth: f32, q: f32) -> u32 {
+fn quant_key(depth: f32, q: f32, front: bool) -> u32 {
     let level = u32(clamp(floor((depth - blk.qmin) * blk.qscale), 0.0, 65535.0));
-    let vor = u32(clamp(floor(q * 65536.0), 0.0, 65535.0));
-    return (level << 16u) | vor;
+    let vor = u32(clamp(floor(q * 32768.0), 0.0, 32767.0));
+    var back = 1u;
+    if (front) {
+        back = 0u;
+    }
+    return (level << 16u) | (back << 15u) | vor;
 }
 
 fn group_image(local: u32, pixel: u32) -> u32 {
@@ -662,7 +681,7 @@ fn splat_group_key(
             let f = fragment(s, x, y);
             if (f.ok) {
                 let at = group_image(local, y * view.width + x);
-                let key = ~quant_key(f.depth, f.q);
+                let key = ~quant_key(f.depth, f.q, f.front);
                 if (key > atomicLoad(&gkey[at])) {
                     atomicMax(&gkey[at], key);
                 }
@@ -687,7 +706,7 @@ fn splat_group_id(
             let f = fragment(s, x, y);
             if (f.ok) {
                 let at = group_image(local, y * view.width + x);
-                if (~quant_key(f.depth, f.q) == atomicLoad(&gkey[at])) {
+                if (~quant_key(f.depth, f.q, f.front) == atomicLoad(&gkey[at])) {
                     atomicMax(&gid[at], ~(blk.base + local));
                 }
             }
@@ -707,15 +726,26 @@ fn splat_group_composite(@builtin(global_invocation_id) gid3: vec3<u32>) {
     let k = gid3.y * view.width + gid3.x;
     let pixels = view.width * view.height;
     // z: the nearest depth over the groups' winners.
-    var z = infinity();
+    var za = infinity();
+    var zf = infinity();
     for (var g = 0u; g < blk.groups; g++) {
         let w = atomicLoad(&gid[g * pixels + k]);
         if (w != 0u) {
             let f = fragment(load_splat(~w - blk.base), gid3.x, gid3.y);
             if (f.ok) {
-                z = min(z, f.depth);
+                za = min(za, f.depth);
+                if (f.front) {
+                    zf = min(zf, f.depth);
+                }
             }
         }
+    }
+    // mod.rs reference.
+    var z = za;
+    var front_only = false;
+    if (is_finite(zf) && za >= zf - blk.epsilon) {
+        z = zf;
+        front_only = true;
     }
     var sw = 0.0;
     var sd = 0.0;
@@ -732,7 +762,7 @@ fn splat_group_composite(@builtin(global_invocation_id) gid3: vec3<u32>) {
         let local = id - blk.base;
         let s = load_splat(local);
         let f = fragment(s, gid3.x, gid3.y);
-        if (!f.ok || !(f.depth <= z + blk.epsilon)) {
+        if (!f.ok || !(f.depth <= z + blk.epsilon) || (front_only && !f.front)) {
             continue;
         }
         let wt = exp(-3.0 * f.q);
