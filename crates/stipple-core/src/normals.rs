@@ -810,6 +810,8 @@ pub struct SplatShape {
 ///   one, across a crease from the first). A disc on one face of a box
 ///   then ends at the edge instead of sticking out of the silhouette by up to its radius.
 ///   Inward normals and concave creases clip nothing (the other face hides the overhang).
+///   Away from creases, a splat at an open boundary (the rim of a sheet, a scan's edge) is
+///   cut just beyond its point ([`BOUNDARY_REACH`]; see `boundary_plane`).
 pub fn shapes(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -858,6 +860,57 @@ pub fn refine_and_shape(
         .collect()
 }
 
+/// Neighbourhoods this lopsided (centroid offset in the tangent plane over mean distance)
+/// are at an open boundary: about 0.64 on a straight rim, more at a corner. Inside a random
+/// sample with k = 16 the ratio exceeds 0.45 for 4.5% of points and 0.55 for 0.7%; none of
+/// 4000 on a sphere reach 0.6 (measured).
+pub const BOUNDARY_LOPSIDED: f32 = 0.6;
+/// How far beyond an open boundary's outermost point its splat reaches, in nearest-neighbour
+/// distances.
+pub const BOUNDARY_REACH: f32 = 0.5;
+
+/// The clip plane of a point at an open boundary (the rim of a sheet, a scan's edge), or
+/// None inside the surface: its neighbours on its own layer, projected onto its tangent
+/// plane, lie mostly to one side ([`BOUNDARY_LOPSIDED`]); the splat is then cut
+/// [`BOUNDARY_REACH`] nearest-neighbour distances beyond the point, away from them, instead
+/// of reaching a whole radius past the surface's end. A false alarm inside the surface only
+/// trims a splat that its neighbours' splats overlap anyway.
+fn boundary_plane(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    nb: &Neighbours,
+    i: usize,
+    n: Vec3,
+) -> Option<[f32; 4]> {
+    let p = positions[i];
+    let (mut c, mut dist, mut near, mut count) = (Vec3::ZERO, 0.0f32, f32::INFINITY, 0);
+    for &j in nb.of(i) {
+        let j = j as usize;
+        if normals[j].dot(n) < 0.0 {
+            continue;
+        }
+        let d = positions[j] - p;
+        let len = d.length();
+        // Neighbours well off the tangent plane (another face) do not count.
+        if d.dot(n).abs() > 0.5 * len {
+            continue;
+        }
+        c += d - n * d.dot(n);
+        dist += len;
+        near = near.min(len);
+        count += 1;
+    }
+    if count < 6 {
+        return None;
+    }
+    let (c, dist) = (c / count as f32, dist / count as f32);
+    if c.length().is_nan() || c.length() <= BOUNDARY_LOPSIDED * dist {
+        return None;
+    }
+    let out = -c.normalize();
+    Some([out.x, out.y, out.z, out.dot(p) + BOUNDARY_REACH * near])
+}
+
 /// The shape of point i's splat from its unit normal `n` and quadric fit (see [`shapes`]).
 fn shape_at(
     positions: &[Vec3],
@@ -892,6 +945,8 @@ fn shape_at(
         if let Some(&(_, m1, c1)) = planes.iter().find(|e| e.1.dot(m0) < CREASE_COS) {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
         }
+    } else if let Some(plane) = boundary_plane(positions, normals, nb, i, n) {
+        out.clip[0] = plane;
     }
     let Some(j) = fit else {
         return out;
@@ -1414,10 +1469,15 @@ mod tests {
             "median bend error {}",
             errs[errs.len() / 2]
         );
+        // No crease; an open-boundary clip only where a random sample leaves a neighbourhood
+        // lopsided (rare).
+        let clipped = sh.iter().filter(|s| s.clip != [[0.0; 4]; 2]).count();
         assert!(
-            sh.iter().all(|s| s.clip == [[0.0; 4]; 2]),
-            "a sphere has no crease"
+            clipped * 200 <= sh.len(),
+            "{clipped} of {} clipped",
+            sh.len()
         );
+        assert!(sh.iter().all(|s| s.clip[1] == [0.0; 4]));
         // Two faces of a box meeting at x = 0: the top face (y = 0, normal +y) for x < 0,
         // the side face (x = 0, normal +x) for y < 0. A top point next to the edge is cut by
         // the side's plane x ≤ 0.
