@@ -246,14 +246,51 @@ impl RenderArgs {
 }
 
 /// Refuses to write over any input.
+/// Refuses an output that is one of the inputs: the same path after resolving symbolic
+/// links, or (Unix) the same file under another name (a hard link: same device and inode).
 fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
     let canon = |p: &Path| std::fs::canonicalize(p).ok();
-    if let Some(o) = canon(out) {
-        for i in inputs {
-            if canon(i).as_ref() == Some(&o) {
+    let same_file = |a: &Path, b: &Path| -> bool {
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            if let (Ok(x), Ok(y)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+                return x.dev() == y.dev() && x.ino() == y.ino();
+            }
+        }
+        match (canon(a), canon(b)) {
+            (Some(x), Some(y)) => x == y,
+            _ => false,
+        }
+    };
+    for i in inputs {
+        if same_file(out, i) {
+            return Err(format!(
+                "{}: refusing to overwrite an input file ({})",
+                out.display(),
+                i.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses two outputs of one command at the same place (they would overwrite each other):
+/// compared by their absolute path with `.` and `..` resolved in the directory part.
+fn distinct_outputs(outs: &[&Path]) -> Result<()> {
+    let key = |p: &Path| -> PathBuf {
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty());
+        let dir = dir
+            .map(|d| std::fs::canonicalize(d).unwrap_or_else(|_| d.to_path_buf()))
+            .unwrap_or_else(|| std::env::current_dir().unwrap_or_default());
+        dir.join(p.file_name().unwrap_or_default())
+    };
+    for (k, a) in outs.iter().enumerate() {
+        for b in &outs[k + 1..] {
+            if key(a) == key(b) {
                 return Err(format!(
-                    "{}: refusing to overwrite an input file",
-                    out.display()
+                    "{}: given for two outputs of this command; each output needs its own file",
+                    a.display()
                 ));
             }
         }
@@ -300,13 +337,35 @@ fn render(a: RenderArgs) -> Result<()> {
             ));
         }
     }
-    let inputs: Vec<&Path> = a.source.input.iter().map(PathBuf::as_path).collect();
+    let mut inputs: Vec<&Path> = a.source.input.iter().map(PathBuf::as_path).collect();
+    if let Some(s) = &scene {
+        inputs.extend(s.files.iter().map(PathBuf::as_path));
+    }
     for o in [Some(&output), a.depth_out.as_ref(), a.camera_out.as_ref()]
         .into_iter()
         .flatten()
     {
         check_output(o, &inputs)?;
     }
+    let layer_outs: Vec<PathBuf> = match &a.layer_images {
+        Some(prefix) => (1..=stipple_render::pipeline::MAX_LAYERS as usize)
+            .map(|k| PathBuf::from(format!("{}-{k}.png", prefix.display())))
+            .collect(),
+        None => vec![],
+    };
+    let all_outs: Vec<&Path> = [
+        Some(&output),
+        a.depth_out.as_ref(),
+        a.camera_out.as_ref(),
+        a.normal_out.as_ref(),
+        a.save_normals.as_ref(),
+    ]
+    .into_iter()
+    .flatten()
+    .map(PathBuf::as_path)
+    .chain(layer_outs.iter().map(PathBuf::as_path))
+    .collect();
+    distinct_outputs(&all_outs)?;
     let layer_paths = |n: usize| -> Vec<PathBuf> {
         let prefix = a.layer_images.as_ref().expect("asked for");
         (1..=n)

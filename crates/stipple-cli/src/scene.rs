@@ -114,6 +114,8 @@ pub struct LoadedScene {
     /// Size of the first object (the unit the placement key is quantised in).
     unit: f64,
     pub label: String,
+    /// The cloud files the scene reads (resolved against its directory).
+    pub files: Vec<PathBuf>,
 }
 
 /// Whether a path names a scene file.
@@ -246,6 +248,18 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
             lights,
             camera: spec.camera,
             render: spec.render,
+            files: spec
+                .clouds
+                .iter()
+                .filter_map(|c| c.file.as_ref())
+                .map(|f| {
+                    if f.is_absolute() {
+                        f.clone()
+                    } else {
+                        dir.join(f)
+                    }
+                })
+                .collect(),
             dir,
             objects,
             unit,
