@@ -249,6 +249,7 @@ impl RenderArgs {
 /// Refuses an output that is one of the inputs: the same path after resolving symbolic
 /// links, or (Unix) the same file under another name (a hard link: same device and inode).
 fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
+    not_special(out)?;
     let canon = |p: &Path| std::fs::canonicalize(p).ok();
     let same_file = |a: &Path, b: &Path| -> bool {
         #[cfg(unix)]
@@ -275,6 +276,20 @@ fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
+/// Refuses an output path that exists and is not a regular file (a device such as
+/// /dev/full, a directory, a pipe): outputs are written beside it and renamed over it, which
+/// would replace the device itself.
+fn not_special(out: &Path) -> Result<()> {
+    match std::fs::metadata(out) {
+        Ok(m) if !m.is_file() => Err(format!(
+            "{}: exists and is not a regular file (a device, directory or pipe); outputs are \
+             written as regular files only",
+            out.display()
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Refuses two outputs of one command at the same place (they would overwrite each other):
 /// compared by their absolute path with `.` and `..` resolved in the directory part.
 fn distinct_outputs(outs: &[&Path]) -> Result<()> {
@@ -296,6 +311,59 @@ fn distinct_outputs(outs: &[&Path]) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Outputs of one command, written to temporary files beside their places and renamed into
+/// place together by [`Staged::commit`]; dropped uncommitted (an error on the way), the
+/// temporary files are removed and no output appears or changes.
+#[derive(Default)]
+struct Staged {
+    files: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Staged {
+    fn write(
+        &mut self,
+        path: &Path,
+        f: impl FnOnce(&Path) -> std::result::Result<(), stipple_io::IoError>,
+    ) -> Result<()> {
+        let name = path
+            .file_name()
+            .ok_or_else(|| format!("{}: the output path has no file name", path.display()))?;
+        let mut tmp = std::ffi::OsString::from(".");
+        tmp.push(name);
+        tmp.push(format!(".{}.stipple-tmp", std::process::id()));
+        let tmp = path.with_file_name(tmp);
+        not_special(path)?;
+        self.files.push((tmp.clone(), path.to_path_buf()));
+        f(&tmp).map_err(|e| match e {
+            stipple_io::IoError::Io { source, .. } => format!("{}: {source}", path.display()),
+            other => other
+                .to_string()
+                .replace(&*tmp.to_string_lossy(), &path.to_string_lossy()),
+        })
+    }
+
+    fn commit(mut self) -> Result<()> {
+        let files = std::mem::take(&mut self.files);
+        for (k, (tmp, path)) in files.iter().enumerate() {
+            if let Err(e) = std::fs::rename(tmp, path) {
+                for (t, _) in &files[k..] {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(format!("{}: {e}", path.display()));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.files {
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
 }
 
 fn render(a: RenderArgs) -> Result<()> {
@@ -438,36 +506,43 @@ fn render(a: RenderArgs) -> Result<()> {
         .render(&cloud, &camera, &pipe)
         .map_err(|e| e.to_string())?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
-    stipple_io::image::write_png(&output, frame.width, frame.height, &frame.rgba)
-        .map_err(|e| e.to_string())?;
+    if let (Some(d), None) = (&a.save_normals, &cloud.cloud.normals) {
+        return Err(format!(
+            "{}: not written: this render estimated no normals (--no-estimate-normals, \
+             --no-lighting or --raw)",
+            d.display()
+        ));
+    }
+    // All or nothing: every output goes to a temporary file beside it first, and only when
+    // all of them are written are they renamed into place.
+    let mut staged = Staged::default();
+    staged.write(&output, |t| {
+        stipple_io::image::write_png(t, frame.width, frame.height, &frame.rgba)
+    })?;
     if let Some(d) = &a.depth_out {
-        stipple_io::image::write_npy(d, frame.width, frame.height, &frame.depth)
-            .map_err(|e| e.to_string())?;
+        staged.write(d, |t| {
+            stipple_io::image::write_npy(t, frame.width, frame.height, &frame.depth)
+        })?;
     }
     if let Some(c) = &a.camera_out {
-        std::fs::write(c, camera.to_json()).map_err(|e| format!("{}: {e}", c.display()))?;
+        staged.write(c, |t| {
+            std::fs::write(t, camera.to_json()).map_err(|e| stipple_io::IoError::io(t, e))
+        })?;
     }
     if let Some(d) = &a.save_normals {
-        if cloud.cloud.normals.is_none() {
-            return Err(format!(
-                "{}: not written: this render estimated no normals (--no-estimate-normals, \
-                 --no-lighting or --raw)",
-                d.display()
-            ));
-        }
-        stipple_io::write_atomically(d, |tmp| {
+        staged.write(d, |t| {
             stipple_io::ply::write_ply(
-                tmp,
+                t,
                 &cloud.cloud,
                 stipple_io::ply::Encoding::BinaryLittleEndian,
             )
-        })
-        .map_err(|e| e.to_string())?;
+        })?;
     }
     if let Some(d) = &a.normal_out {
         let normals = frame.normal_image(&cloud, &camera);
-        stipple_io::image::write_npy3(d, frame.width, frame.height, &normals)
-            .map_err(|e| e.to_string())?;
+        staged.write(d, |t| {
+            stipple_io::image::write_npy3(t, frame.width, frame.height, &normals)
+        })?;
     }
     let layer_files = if a.layer_images.is_some() {
         layer_paths(frame.layers.len())
@@ -475,9 +550,11 @@ fn render(a: RenderArgs) -> Result<()> {
         vec![]
     };
     for (p, img) in layer_files.iter().zip(&frame.layers) {
-        stipple_io::image::write_png(p, frame.width, frame.height, img)
-            .map_err(|e| e.to_string())?;
+        staged.write(p, |t| {
+            stipple_io::image::write_png(t, frame.width, frame.height, img)
+        })?;
     }
+    staged.commit()?;
     if let Some(line) = &shadow_line {
         println!("{line}");
     }

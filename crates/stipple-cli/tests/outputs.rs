@@ -73,6 +73,31 @@ fn render_outputs_never_clobber_inputs_or_each_other() {
     );
     assert!(!o.status.success(), "scene input overwritten: {}", text(&o));
     assert_eq!(std::fs::read(dir.join("in.xyz")).unwrap(), before);
+    // All or nothing: a failing later output leaves no earlier one behind.
+    refused(
+        &["-o", "early.png", "--depth-out", "no-such-dir/x.npy"],
+        "later output fails",
+    );
+    assert!(
+        !dir.join("early.png").exists(),
+        "the image stayed after a failed output"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains("stipple-tmp"))
+        .collect();
+    assert!(leftovers.is_empty(), "temporary files left: {leftovers:?}");
+    // A device is never replaced by a file.
+    let full = std::path::Path::new("/dev/full");
+    if full.exists() {
+        refused(&["-o", "dev.png", "--camera-out", "/dev/full"], "/dev/full");
+        assert!(
+            !std::fs::metadata(full).unwrap().is_file(),
+            "/dev/full was replaced"
+        );
+        assert!(!dir.join("dev.png").exists());
+    }
     // Distinct outputs are fine.
     let o = stipple(
         &dir,
