@@ -10,6 +10,9 @@
 //!   range) on ≤ 2% of them;
 //! * normal error median ≤ 5°, 90th percentile ≤ 15°.
 //!
+//! `SPLAT_DEBUG=1` prints each scene's surface report and writes depth-error maps (green
+//! within 0.5%, red nearer, blue deeper) beside the renders in `target/test-output/`.
+//!
 //! The GPU twin of the splat pass must agree with the CPU (Voronoi ids on ≥ 99% of pixels:
 //! GPUs may fuse multiply-adds, so a near tie between two splats can go either way).
 
