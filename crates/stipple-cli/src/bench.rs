@@ -129,11 +129,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     if a.zhang {
         return zhang(&a, cloud, &label, &mut r);
     }
-    let peeled = a
-        .look
-        .layers
-        .or(scene.as_ref().and_then(|s| s.render.layers))
-        > Some(1);
+    let peeled = crate::look::layers(&a.look, scene.as_ref()) > 1;
     let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, false, peeled)?;
     for n in &notes {
         println!("  {n}");

@@ -38,6 +38,13 @@ pub fn aim_area_lights(lights: &mut [Light], cloud: &PreparedCloud) {
     }
 }
 
+/// The peeled layers asked for: `--layers`, else the scene's `layers`, else 1.
+pub fn layers(look: &LookArgs, scene: Option<&LoadedScene>) -> u32 {
+    look.layers
+        .or(scene.and_then(|s| s.render.layers))
+        .unwrap_or(1)
+}
+
 /// Applies the look: the scene's lights and background, layers, opacity, and the shadow
 /// texture (computed, refined or loaded from the cache). Returns a line describing the
 /// shadows, if any were made.
@@ -59,10 +66,7 @@ pub fn apply(
     }
     aim_area_lights(&mut pipe.lights, cloud);
     shadow::validate_lights(&pipe.lights).map_err(|e| format!("--light: {e}"))?;
-    pipe.layers = look
-        .layers
-        .or(scene.and_then(|s| s.render.layers))
-        .unwrap_or(1);
+    pipe.layers = layers(look, scene);
     if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&pipe.layers) {
         return Err(format!(
             "--layers {}: 1 to {}",

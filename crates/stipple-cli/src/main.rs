@@ -475,11 +475,7 @@ fn render(a: RenderArgs) -> Result<()> {
             ));
         }
     }
-    let peeled = a
-        .look
-        .layers
-        .or(scene.as_ref().and_then(|s| s.render.layers))
-        > Some(1);
+    let peeled = crate::look::layers(&a.look, scene.as_ref()) > 1;
     let (mut pipe, notes) = a
         .pipeline
         .choose(&mut cloud, &camera, tree.is_some(), peeled)?;

@@ -169,23 +169,8 @@ pub fn grouping(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
 
-    fn sphere(n: usize, seed: u64) -> Vec<Vec3> {
-        let mut r = Rng::new(seed);
-        (0..n)
-            .map(|_| loop {
-                let v = Vec3::new(
-                    r.f32() * 2.0 - 1.0,
-                    r.f32() * 2.0 - 1.0,
-                    r.f32() * 2.0 - 1.0,
-                );
-                if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
-                    break v.normalize();
-                }
-            })
-            .collect()
-    }
+    use crate::normals::random_sphere as sphere;
 
     /// No two overlapping splats (by the relaxed rule) share a group unless reported as a
     /// conflict; smaller c gives fewer groups (the trend of the paper's Table 1).

@@ -785,6 +785,13 @@ pub const MAX_BEND: f32 = 1.0;
 /// Neighbours whose normals differ by more than this (cosine: 37°) are across a crease.
 pub const CREASE_COS: f32 = 0.8;
 
+/// The largest principal curvature magnitude of a bend (A, B, C):
+/// |A + C|/2 + √(((A − C)/2)² + B²).
+#[inline]
+pub fn max_curvature([a, b, c]: [f32; 3]) -> f32 {
+    (0.5 * (a + c)).abs() + (0.25 * (a - c) * (a - c) + b * b).sqrt()
+}
+
 /// How a splat departs from a flat disc (see [`shapes`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SplatShape {
@@ -952,10 +959,7 @@ fn shape_at(
         return out;
     };
     let (a, b, c) = (j[2] as f32, j[3] as f32, j[4] as f32);
-    // Largest principal curvature magnitude.
-    let mean = 0.5 * (a + c);
-    let dev = (0.25 * (a - c) * (a - c) + b * b).sqrt();
-    let kmax = mean.abs() + dev;
+    let kmax = max_curvature([a, b, c]);
     let limit = MAX_BEND / radii[i].max(f32::MIN_POSITIVE);
     if kmax.is_finite() {
         let f = if kmax > limit { limit / kmax } else { 1.0 };
@@ -1300,25 +1304,31 @@ pub fn estimate_from(
     }
 }
 
+/// `n` random points on the unit sphere (tests).
+#[cfg(test)]
+pub(crate) fn random_sphere(n: usize, seed: u64) -> Vec<Vec3> {
+    let mut r = crate::rng::Rng::new(seed);
+    (0..n)
+        .map(|_| loop {
+            let v = Vec3::new(
+                r.f32() * 2.0 - 1.0,
+                r.f32() * 2.0 - 1.0,
+                r.f32() * 2.0 - 1.0,
+            );
+            if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
+                break v.normalize();
+            }
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::rng::Rng;
 
     fn sphere(n: usize, seed: u64) -> Vec<Vec3> {
-        let mut r = Rng::new(seed);
-        (0..n)
-            .map(|_| loop {
-                let v = Vec3::new(
-                    r.f32() * 2.0 - 1.0,
-                    r.f32() * 2.0 - 1.0,
-                    r.f32() * 2.0 - 1.0,
-                );
-                if v.length_squared() > 0.01 && v.length_squared() <= 1.0 {
-                    break v.normalize();
-                }
-            })
-            .collect()
+        random_sphere(n, seed)
     }
 
     fn torus(n: usize, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {

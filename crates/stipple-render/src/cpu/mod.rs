@@ -328,7 +328,7 @@ impl CpuRenderer {
 
         self.blended_valid = false;
         if let Some(sp) = &pipe.splat {
-            let radii: Vec<f32> = cloud.splat_radii().iter().map(|r| r * sp.scale).collect();
+            let radii = cloud.splat_radii();
             let epsilon = cloud.splat_epsilon(sp);
             let deferred = sp.mode == crate::SplatMode::Deferred;
             let groups = deferred.then(|| cloud.groups(sp.c));
@@ -342,6 +342,7 @@ impl CpuRenderer {
                 positions: &c.positions,
                 normals: c.normals.as_deref(),
                 radii: &radii,
+                scale: sp.scale,
                 shapes: cloud
                     .shapes
                     .as_deref()

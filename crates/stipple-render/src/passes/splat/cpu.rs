@@ -17,8 +17,10 @@ const TILE: u32 = 32;
 pub struct SplatInput<'a> {
     pub positions: &'a [Vec3],
     pub normals: Option<&'a [Vec3]>,
-    /// Radius per point, already scaled.
+    /// Radius per point, unscaled.
     pub radii: &'a [f32],
+    /// Multiplies every radius.
+    pub scale: f32,
     /// Shape per point (quadric splats; used only with normals).
     pub shapes: Option<&'a [super::SplatShape]>,
     /// Deferred blending: the group of every point and the number of groups.
@@ -95,7 +97,7 @@ pub fn splat(
             v,
             s.positions[i],
             s.normals.map(|n| n[i]),
-            s.radii[i],
+            s.radii[i] * s.scale,
             s.shapes.map(|k| k[i]),
         )
     };
@@ -339,6 +341,7 @@ mod tests {
             positions: &pos,
             normals: Some(&normals),
             radii: &radii,
+            scale: 1.0,
             shapes: None,
             groups: None,
             quant: None,
@@ -386,6 +389,7 @@ mod tests {
             positions: &pos,
             normals: None,
             radii: &radii,
+            scale: 1.0,
             shapes: None,
             groups: None,
             quant: None,
@@ -423,6 +427,7 @@ mod tests {
             positions: &pos,
             normals: Some(&nrm),
             radii: &radii,
+            scale: 1.0,
             shapes: None,
             groups: None,
             quant: None,
@@ -460,6 +465,7 @@ mod tests {
             positions: &pos,
             normals: Some(&normals),
             radii: &radii,
+            scale: 1.0,
             shapes: None,
             groups: Some((&groups, 4)),
             quant: Some(super::super::DepthQuant::new(5.0, 8.0, 0.3)),

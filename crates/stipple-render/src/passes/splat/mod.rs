@@ -3,7 +3,7 @@
 //! How it works: every point is a splat of radius r (its `radius`, see
 //! `stipple_core::normals`): a disc in the plane through it normal to its normal, bent to the
 //! surface's curvature and cut at creases ([`Disc`], `stipple_core::normals::shapes`). A splat
-//! covers the pixels whose centre ray meets it within r of the point ([`fragment`]). Per
+//! covers the pixels whose centre ray meets it within r of the point ([`Raster`]). Per
 //! pixel:
 //!
 //! 1. **visibility**: the nearest fragment depth z_min;
@@ -194,7 +194,7 @@ pub fn footprint(v: &ViewParams, s: &Disc) -> Option<[u32; 4]> {
     let d = s.p - Vec3::from(v.eye);
     let (x, y, z) = (d.dot(right), d.dot(up), d.dot(fwd));
     let r = s.r2.sqrt();
-    let h = 0.5 * s.max_curvature() * s.r2;
+    let h = 0.5 * stipple_core::normals::max_curvature(s.shape) * s.r2;
     let ext = |a: Vec3| {
         let c = s.n.dot(a).abs().min(1.0);
         r * (1.0 - c * c).max(0.0).sqrt() + h * c
@@ -289,13 +289,6 @@ impl Disc {
         }
     }
 
-    /// The largest principal curvature magnitude of the bend, |A + C|/2 + √(((A − C)/2)² + B²).
-    #[inline]
-    pub fn max_curvature(&self) -> f32 {
-        let [a, b, c] = self.shape;
-        (0.5 * (a + c)).abs() + (0.25 * (a - c) * (a - c) + b * b).sqrt()
-    }
-
     /// The patch's unit normal at tangent coordinates (u, v) (on the side of `n`).
     #[inline]
     pub fn normal_at(&self, u: f32, w: f32) -> Vec3 {
@@ -332,67 +325,15 @@ pub fn reference(z_all: f32, z_front: f32, epsilon: f32) -> (f32, bool) {
     }
 }
 
-/// Where pixel (i, j)'s centre ray first meets the splat within its radius, or None when it
-/// misses. The ray o + t·dir meets the patch where
+/// A splat set up for the pixel rays of a frame ([`Raster::eval`] gives the fragment of a
+/// pixel). The ray o + t·dir meets the patch where
 /// Q(d) t² + (L − d_h) t + (Q(a) − a_h) = 0, with a = o − p and d = dir in the splat's frame,
-/// Q the shape's quadratic form and L its polar form of a and d; the numerically stable
-/// root pair, nearer first; a hit beyond the clip plane does not count. Written as the WGSL
-/// twin computes it.
-#[inline]
-pub fn fragment(v: &ViewParams, i: u32, j: u32, s: &Disc) -> Option<Frag> {
-    let (o, dir) = v.pixel_ray(i, j);
-    let a = o - s.p;
-    let (au, av, ah) = (a.dot(s.t1), a.dot(s.t2), a.dot(s.n));
-    let (du, dv, dh) = (dir.dot(s.t1), dir.dot(s.t2), dir.dot(s.n));
-    let [ka, kb, kc] = s.shape;
-    let qd = 0.5 * (ka * du * du + kc * dv * dv) + kb * du * dv;
-    let l = ka * au * du + kb * (au * dv + av * du) + kc * av * dv;
-    let qa = 0.5 * (ka * au * au + kc * av * av) + kb * au * av;
-    let b = l - dh;
-    let c = qa - ah;
-    let disc = b * b - 4.0 * qd * c;
-    // NaN (a degenerate disc) misses too.
-    if disc.is_nan() || disc < 0.0 {
-        return None;
-    }
-    let root = -0.5 * (b + if b >= 0.0 { disc.sqrt() } else { -disc.sqrt() });
-    if root == 0.0 {
-        return None;
-    }
-    let (t0, t1) = (c / root, root / qd);
-    let (t0, t1) = if t1 < t0 { (t1, t0) } else { (t0, t1) };
-    let off = if v.perspective == 1 {
-        0.0
-    } else {
-        (o - Vec3::from(v.eye)).dot(Vec3::from(v.forward))
-    };
-    for t in [t0, t1] {
-        let depth = t + off;
-        let (u, w) = (au + t * du, av + t * dv);
-        let d2 = u * u + w * w;
-        let x = o + dir * t;
-        let cut = s
-            .clip
-            .iter()
-            .any(|c| c[0] * x.x + c[1] * x.y + c[2] * x.z > c[3]);
-        if depth > v.near && d2 < s.r2 && !cut {
-            return Some(Frag {
-                depth,
-                q: d2 / s.r2,
-                u,
-                v: w,
-                front: dh < 0.0,
-            });
-        }
-    }
-    None
-}
-
-/// A splat set up for many pixel rays (the CPU kernel): every quantity [`fragment`] takes
-/// from the ray (the ray's origin and direction in the splat's frame, the clip planes'
-/// m·o and m·dir, the orthographic depth offset) is affine in the pixel coordinates, so it
-/// is c₀ + c_x·x + c_y·y here, and a flat splat's hit is one division. Same results as
-/// [`fragment`] up to rounding.
+/// Q the shape's quadratic form and L its polar form of a and d: the numerically stable root
+/// pair, nearer first, within the radius and not beyond a clip plane. Every quantity taken
+/// from the ray (its origin and direction in the splat's frame, the clip planes' m·o and
+/// m·dir, the orthographic depth offset) is affine in the pixel coordinates, c₀ + c_x·x +
+/// c_y·y, so the set-up is per splat and a flat splat's hit is one division per pixel. The
+/// WGSL twin (`raster_setup`, `fragment` in splat.wgsl) computes it operation for operation.
 #[derive(Clone, Copy, Debug)]
 pub struct Raster {
     /// au, av, ah, du, dv, dh, off as [c₀, c_x, c_y].
@@ -456,7 +397,7 @@ impl Raster {
         }
     }
 
-    /// [`fragment`] for pixel (x, y).
+    /// The fragment of pixel (x, y)'s centre ray, or None when it misses.
     #[inline]
     pub fn eval(&self, x: u32, y: u32) -> Option<Frag> {
         let (xf, yf) = (x as f32, y as f32);
@@ -545,8 +486,10 @@ mod tests {
             let c = p + Vec3::Z;
             let (x, y) = (o.x - c.x, o.y - c.y);
             let truth = c.z - (1.0 - x * x - y * y).sqrt();
-            let a = fragment(&v, i, 32, &d).expect("inside the radius");
-            let b = fragment(&v, i, 32, &flat).expect("inside the radius");
+            let a = Raster::new(&v, &d).eval(i, 32).expect("inside the radius");
+            let b = Raster::new(&v, &flat)
+                .eval(i, 32)
+                .expect("inside the radius");
             worst_bent = worst_bent.max((a.depth - truth).abs());
             worst_flat = worst_flat.max((b.depth - truth).abs());
         }
@@ -571,7 +514,7 @@ mod tests {
         );
         for i in 4..60 {
             let (o, _) = v.pixel_ray(i, 32);
-            assert_eq!(fragment(&v, i, 32, &clipped).is_some(), o.x <= 0.05);
+            assert_eq!(Raster::new(&v, &clipped).eval(i, 32).is_some(), o.x <= 0.05);
         }
     }
 }

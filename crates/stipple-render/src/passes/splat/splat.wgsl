@@ -345,7 +345,7 @@ fn raster_hit(s: Splat, t: f32, au: f32, av: f32, du: f32, dv: f32, dh: f32, off
     return f;
 }
 
-// mod.rs Raster::eval (the CPU kernel's form of mod.rs fragment).
+// mod.rs Raster::eval.
 fn fragment(s: Splat, i: u32, j: u32) -> Frag {
     let x = f32(i);
     let y = f32(j);
