@@ -10,7 +10,7 @@ use stipple_render::{PreparedCloud, Renderer};
 #[derive(clap::Args)]
 pub struct BenchArgs {
     #[command(flatten)]
-    source: SourceArgs,
+    pub source: SourceArgs,
     #[command(flatten)]
     camera: CameraArgs,
     #[command(flatten)]
@@ -64,6 +64,8 @@ pub fn median(v: &mut [f64]) -> f64 {
 }
 
 type PassTimes = Vec<(&'static str, Vec<f64>, u32, u64)>;
+/// Host-side steps of a frame outside the passes (see `Frame::host_ms`), per frame.
+type HostTimes = Vec<(&'static str, Vec<f64>)>;
 
 /// Times `frames` frames after `warmup`: per-pass times and whole-frame wall times.
 fn time_frames(
@@ -73,12 +75,13 @@ fn time_frames(
     pipe: &stipple_render::Pipeline,
     warmup: usize,
     frames: usize,
-) -> Result<(PassTimes, Vec<f64>)> {
+) -> Result<(PassTimes, Vec<f64>, HostTimes)> {
     for _ in 0..warmup {
         r.render(cloud, camera, pipe).map_err(|e| e.to_string())?;
     }
     let mut per_pass: PassTimes = Vec::new();
     let mut totals = Vec::new();
+    let mut host: HostTimes = Vec::new();
     for _ in 0..frames {
         let t = Instant::now();
         let f = r.render(cloud, camera, pipe).map_err(|e| e.to_string())?;
@@ -89,8 +92,14 @@ fn time_frames(
             }
             per_pass[k].1.push(s.ms);
         }
+        for (k, &(name, ms)) in f.host_ms.iter().enumerate() {
+            if host.len() <= k {
+                host.push((name, Vec::new()));
+            }
+            host[k].1.push(ms);
+        }
     }
-    Ok((per_pass, totals))
+    Ok((per_pass, totals, host))
 }
 
 pub fn run(a: BenchArgs) -> Result<()> {
@@ -144,7 +153,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     )? {
         println!("  {line}");
     }
-    let (mut per_pass, mut totals) =
+    let (mut per_pass, mut totals, mut host) =
         time_frames(&mut r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
     let n = cloud.cloud.len();
     println!(
@@ -177,7 +186,14 @@ pub fn run(a: BenchArgs) -> Result<()> {
         t,
         1e3 / t
     );
-    if let Some(g) = r.gpu_mut() {
+    if !host.is_empty() {
+        let steps: Vec<String> = host
+            .iter_mut()
+            .map(|(name, ms)| format!("{name} {:.2}", median(ms)))
+            .collect();
+        println!("  of which host    {} ms (medians)", steps.join(", "));
+    }
+    if let (Some(g), true) = (r.gpu_mut(), project_ms.is_finite()) {
         // The other projection path, for comparison.
         let other = match g.projection {
             ProjectionPath::Compute => ProjectionPath::Hardware,
@@ -185,8 +201,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
         };
         let this = g.projection;
         g.projection = other;
-        let (mut pp, _) = time_frames(&mut r, &cloud, &camera, &pipe, 1, a.frames)?;
-        let m = median(&mut pp[0].1);
+        let (mut pp, _, _) = time_frames(&mut r, &cloud, &camera, &pipe, 1, a.frames)?;
+        let Some(p) = pp.iter_mut().find(|p| p.0 == "project") else {
+            return Ok(());
+        };
+        let m = median(&mut p.1);
         println!(
             "  project ({other:?}) {m:>9.3} ms   {:.1} M points/s   ({this:?} is {:.1}× faster)",
             n as f64 / m / 1e3,
@@ -241,6 +260,7 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
                 pipe.lights = vec![light];
             }
             let settings = stipple_render::shadow::ShadowSettings::default();
+            let mut last_host = Vec::new();
             let mut frame = |cloud: &mut PreparedCloud| -> Result<f64> {
                 let t = Instant::now();
                 if samples > 0 {
@@ -256,7 +276,8 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
                         .map_err(|e| e.to_string())?;
                     cloud.set_lit(Some(lit)).map_err(|e| e.to_string())?;
                 }
-                r.render(cloud, &camera, &pipe).map_err(|e| e.to_string())?;
+                let f = r.render(cloud, &camera, &pipe).map_err(|e| e.to_string())?;
+                last_host = f.host_ms;
                 Ok(t.elapsed().as_secs_f64() * 1e3)
             };
             for _ in 0..a.warmup.min(1) {
@@ -268,7 +289,18 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
             }
             cloud.set_lit(None).map_err(|e| e.to_string())?;
             let m = median(&mut ms);
-            eprintln!("  {size}² {name}: {m:.1} ms");
+            let host: Vec<String> = last_host
+                .iter()
+                .map(|(step, ms)| format!("{step} {ms:.2}"))
+                .collect();
+            if host.is_empty() {
+                eprintln!("  {size}² {name}: {m:.1} ms");
+            } else {
+                eprintln!(
+                    "  {size}² {name}: {m:.1} ms (host steps: {} ms)",
+                    host.join(", ")
+                );
+            }
             col.push(1e3 / m);
         }
         cols.push(col);
@@ -339,9 +371,23 @@ fn zhang(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer)
             if let Some(bg) = a.pipeline.background {
                 pipe.background = bg;
             }
-            let (_, mut totals) = time_frames(r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
+            let (_, mut totals, mut host_t) =
+                time_frames(r, &cloud, &camera, &pipe, a.warmup, a.frames)?;
             let m = median(&mut totals);
-            eprintln!("  {size}² {name}: {m:.1} ms");
+            let last_host: Vec<(&str, f64)> =
+                host_t.iter_mut().map(|(n, v)| (*n, median(v))).collect();
+            let host: Vec<String> = last_host
+                .iter()
+                .map(|(step, ms)| format!("{step} {ms:.2}"))
+                .collect();
+            if host.is_empty() {
+                eprintln!("  {size}² {name}: {m:.1} ms");
+            } else {
+                eprintln!(
+                    "  {size}² {name}: {m:.1} ms (host steps: {} ms)",
+                    host.join(", ")
+                );
+            }
             col.push(1e3 / m);
         }
         cols.push(col);

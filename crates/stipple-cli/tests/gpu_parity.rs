@@ -167,3 +167,38 @@ samples = 4
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `stipple bench --backend gpu` prints the host-side steps of a frame beside the passes'
+/// GPU times, and compares the projection paths only where the pipeline projects points
+/// (a splat frame has no projection pass: this once printed "NaN× faster").
+#[test]
+fn gpu_bench_reports_host_steps_and_compares_projections_only_when_projecting() {
+    if !gpu_available() {
+        return;
+    }
+    let bench = |extra: &[&str]| -> String {
+        let out = Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .args([
+                "bench", "--demo", "sphere", "--points", "20000", "--size", "96",
+            ])
+            .args(["--frames", "2", "--warmup", "0", "--backend", "gpu"])
+            .args(extra)
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert!(out.status.success(), "{text}");
+        assert!(!text.contains("NaN"), "{text}");
+        for step in ["of which host", "submit + wait", "read back"] {
+            assert!(text.contains(step), "missing {step:?}: {text}");
+        }
+        text
+    };
+    let dobrev = bench(&["--pipeline", "dobrev"]);
+    assert!(dobrev.contains("project (Hardware)"), "{dobrev}");
+    let splat = bench(&["--pipeline", "splat"]);
+    assert!(!splat.contains("project ("), "{splat}");
+}

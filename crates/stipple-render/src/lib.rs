@@ -115,6 +115,9 @@ pub struct PreparedCloud {
     /// Deferred blending's splat groups, computed on first use (see
     /// [`PreparedCloud::groups`]), with the key and c they were made for.
     groups: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<stipple_core::grouping::Grouping>)>>,
+    /// The cloud's bounds, computed on first use for the key they were made for (a frame
+    /// needs them; recomputing them read every point, 30 ms a frame at 100 M points).
+    bounds: std::sync::Mutex<Option<(u64, stipple_core::Bounds)>>,
     /// The shadow texture in use (see [`PreparedCloud::set_lit`]).
     lit: Option<LitTexture>,
     /// Unique per preparation: the GPU backend re-uploads when it changes.
@@ -158,6 +161,7 @@ impl PreparedCloud {
             objects: None,
             shapes: None,
             groups: Default::default(),
+            bounds: Default::default(),
             lit: None,
             key: next_key(),
             lit_key: next_key(),
@@ -251,7 +255,7 @@ impl PreparedCloud {
 
     /// View depth of the centre of the cloud's bounds.
     fn centre_depth(&self, v: &ViewParams) -> f32 {
-        let c = self.cloud.bounds().center();
+        let c = self.bounds().center();
         (c - glam::Vec3::from(v.eye)).dot(glam::Vec3::from(v.forward))
     }
 
@@ -381,9 +385,23 @@ impl PreparedCloud {
         gr
     }
 
+    /// The cloud's bounds (local coordinates), cached per [`PreparedCloud::key`]: code that
+    /// moves points must give the cloud a new key, as the GPU copy needs anyway.
+    pub fn bounds(&self) -> stipple_core::Bounds {
+        let mut b = self.bounds.lock().unwrap_or_else(|e| e.into_inner());
+        match *b {
+            Some((key, bounds)) if key == self.key => bounds,
+            _ => {
+                let bounds = self.cloud.bounds();
+                *b = Some((self.key, bounds));
+                bounds
+            }
+        }
+    }
+
     /// The view-depth range [min, max] of the cloud's bounds (min at least the near plane).
     pub fn depth_range(&self, v: &ViewParams) -> (f32, f32) {
-        let b = self.cloud.bounds();
+        let b = self.bounds();
         let (eye, fwd) = (glam::Vec3::from(v.eye), glam::Vec3::from(v.forward));
         let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
         for i in 0..8 {
@@ -437,6 +455,10 @@ pub struct Frame {
     /// Per-pixel unit normals where the frame blended them (splat blend mode); otherwise
     /// [`Frame::normal_image`] derives them from the points shown.
     pub normals: Option<Vec<[f32; 3]>>,
+    /// Host-side wall time of the frame outside the passes, in ms, by step (GPU backend:
+    /// recording, waiting for the device, reading back; empty on the CPU backend, whose
+    /// passes are all of its time). `stipple bench` prints them.
+    pub host_ms: Vec<(&'static str, f64)>,
 }
 
 impl Frame {
@@ -612,6 +634,7 @@ impl Renderer {
             return Err(RenderError::EmptyCloud);
         }
         pipe.validate().map_err(RenderError::Invalid)?;
+        let t0 = std::time::Instant::now();
         let v = ViewParams::new(camera, cloud.cloud.origin);
         let pipe = &cloud.resolve(pipe, &v);
         match &mut self.inner {
@@ -628,7 +651,10 @@ impl Renderer {
                         renderer.set_splat_groups(up, &cloud.groups(sp.c))?;
                     }
                 }
-                Ok(renderer.render(up, &v, pipe)?)
+                let before = t0.elapsed().as_secs_f64() * 1e3;
+                let mut f = renderer.render(up, &v, pipe)?;
+                f.host_ms.insert(0, ("resolve + upload", before));
+                Ok(f)
             }
         }
     }
@@ -662,7 +688,7 @@ impl Renderer {
         let gap = settings
             .layer_gap
             .unwrap_or_else(|| cloud.layer_gap(&Pipeline::default()));
-        let bounds = cloud.cloud.bounds();
+        let bounds = cloud.bounds();
         let mut todo = Vec::new();
         for (l, light) in lights.iter().enumerate() {
             let target = shadow::light_samples(light).min(max_samples);
@@ -761,4 +787,27 @@ pub fn render(
     backend: Backend,
 ) -> Result<Frame, RenderError> {
     Renderer::new(backend, gpu::GpuOptions::default())?.render(cloud, camera, pipe)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cached bounds are the cloud's, and a new key (what moving points requires, for
+    /// the GPU copy too) recomputes them.
+    #[test]
+    fn cached_bounds_follow_the_key() {
+        let positions: Vec<glam::Vec3> = (0..1000)
+            .map(|i| glam::Vec3::new(i as f32 * 0.01, (i % 7) as f32, -((i % 13) as f32)))
+            .collect();
+        let mut p = PreparedCloud::with_spacing(PointCloud::from_positions(positions), 0.01);
+        let b = p.bounds();
+        assert_eq!(b, p.cloud.bounds());
+        p.cloud.positions[3] = glam::Vec3::splat(100.0);
+        assert_eq!(p.bounds(), b, "same key: the cached bounds");
+        p.key = next_key();
+        let moved = p.bounds();
+        assert_eq!(moved, p.cloud.bounds());
+        assert_eq!(moved.max, glam::Vec3::splat(100.0));
+    }
 }

@@ -104,6 +104,7 @@ impl CpuRenderer {
                 normals: self
                     .blended_valid
                     .then(|| self.blended.normal.iter().map(|n| n.to_array()).collect()),
+                host_ms: Vec::new(),
             };
         }
         // Back faces are kept: the back of a closed surface is a layer of its own.
@@ -161,6 +162,7 @@ impl CpuRenderer {
             layers,
             layers_peeled: peeled,
             normals: None,
+            host_ms: Vec::new(),
         }
     }
 

@@ -593,6 +593,17 @@ fn wait(ctx: &GpuContext) -> Result<(), GpuError> {
 
 /// Reads a mappable buffer's first `bytes` bytes.
 fn read_back(ctx: &GpuContext, buf: &Buffer, bytes: u64) -> Result<Vec<u8>, GpuError> {
+    read_back_with(ctx, buf, bytes, |b| b.to_vec())
+}
+
+/// Maps a mappable buffer's first `bytes` bytes and hands them to `take` (which copies out
+/// what it needs: one copy instead of two for a frame's images).
+fn read_back_with<T>(
+    ctx: &GpuContext,
+    buf: &Buffer,
+    bytes: u64,
+    take: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
     let slice = buf.slice(..bytes);
     let status = Arc::new(std::sync::Mutex::new(None));
     let s = status.clone();
@@ -606,10 +617,11 @@ fn read_back(ctx: &GpuContext, buf: &Buffer, bytes: u64) -> Result<Vec<u8>, GpuE
             )))
         }
     }
-    let out = slice
-        .get_mapped_range()
-        .map_err(|e| GpuError::Wgpu(e.to_string()))?
-        .to_vec();
+    let out = take(
+        &slice
+            .get_mapped_range()
+            .map_err(|e| GpuError::Wgpu(e.to_string()))?,
+    );
     buf.unmap();
     Ok(out)
 }
@@ -890,6 +902,7 @@ impl GpuRenderer {
         v: &ViewParams,
         pipe: &Pipeline,
     ) -> Result<Frame, GpuError> {
+        let t_start = Instant::now();
         self.prepare(v)?;
         let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
         let (shade_block, materials) = ShadeBlock::for_cloud(cloud, pipe);
@@ -977,8 +990,18 @@ impl GpuRenderer {
             }
             record_output(&mut rec, kit, &f, &cur)?;
             rec.enc.copy_buffer_to_buffer(&f.rgba, 0, &f.read, 0, 4 * n);
+            let t_record = Instant::now();
             let sections = finish(rec, kit)?;
-            let bytes = read_back(&self.ctx, &f.read, 12 * n)?;
+            let t_wait = Instant::now();
+            let nu = n as usize;
+            let (rgba, depth, id) = read_back_with(&self.ctx, &f.read, 12 * n, |b| {
+                (
+                    b[..4 * nu].to_vec(),
+                    bytemuck::pod_collect_to_vec::<u8, f32>(&b[4 * nu..8 * nu]),
+                    bytemuck::pod_collect_to_vec::<u8, u32>(&b[8 * nu..12 * nu]),
+                )
+            })?;
+            let t_read = Instant::now();
             let stats = stats(&self.ctx, kit, &sections)?;
             let peeled = stats
                 .iter()
@@ -994,17 +1017,26 @@ impl GpuRenderer {
                     .map(|c| c.to_vec())
                     .collect();
             }
-            let n = n as usize;
             Ok(Frame {
                 width: v.width,
                 height: v.height,
-                rgba: bytes[..4 * n].to_vec(),
-                depth: bytemuck::cast_slice(&bytes[4 * n..8 * n]).to_vec(),
-                id: bytemuck::cast_slice(&bytes[8 * n..12 * n]).to_vec(),
+                rgba,
+                depth,
+                id,
                 stats,
                 layers: layer_images,
                 layers_peeled: if layers > 1 { peeled } else { 1 },
                 normals: None,
+                host_ms: {
+                    let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
+                    let t_end = Instant::now();
+                    vec![
+                        ("record", ms(t_start, t_record)),
+                        ("submit + wait", ms(t_record, t_wait)),
+                        ("read back", ms(t_wait, t_read)),
+                        ("stats + copy", ms(t_read, t_end)),
+                    ]
+                },
             })
         })();
         self.frame = Some(f);

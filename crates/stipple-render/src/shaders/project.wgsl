@@ -32,8 +32,12 @@ const BATCH: u32 = 8u;
 
 var<workgroup> kept: atomic<u32>;
 
-// Adds the workgroup's kept points to the frame's counter (call in uniform control flow).
-fn count_kept(li: u32) {
+// Adds the workgroup's kept points (`mine`: this thread's) to the frame's counter (call in
+// uniform control flow). One shared atomic per thread, not per point.
+fn count_kept(li: u32, mine: u32) {
+    if (mine > 0u) {
+        atomicAdd(&kept, mine);
+    }
     workgroupBarrier();
     if (li == 0u) {
         atomicAdd(&counters[chunk.slot], atomicLoad(&kept));

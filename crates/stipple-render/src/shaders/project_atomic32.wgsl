@@ -12,18 +12,19 @@ fn project_depth(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    var mine = 0u;
     for (var k = 0u; k < BATCH; k++) {
         let h = visible_point(wg, groups, li, k);
         if (!h.ok) {
             continue;
         }
-        atomicAdd(&kept, 1u);
+        mine += 1u;
         let key = ~bitcast<u32>(h.depth);
         if (key > atomicLoad(&vis_depth[h.pixel])) {
             atomicMax(&vis_depth[h.pixel], key);
         }
     }
-    count_kept(li);
+    count_kept(li, mine);
 }
 
 @compute @workgroup_size(256)

@@ -11,16 +11,17 @@ fn project(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    var mine = 0u;
     for (var k = 0u; k < BATCH; k++) {
         let h = visible_point(wg, groups, li, k);
         if (!h.ok) {
             continue;
         }
-        atomicAdd(&kept, 1u);
+        mine += 1u;
         let key = ~((u64(bitcast<u32>(h.depth)) << 32u) | u64(h.index));
         if (key > atomicLoad(&vis[h.pixel])) {
             atomicMax(&vis[h.pixel], key);
         }
     }
-    count_kept(li);
+    count_kept(li, mine);
 }
