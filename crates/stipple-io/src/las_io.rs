@@ -121,6 +121,7 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         positions: Vec::with_capacity(cap),
         intensity: Some(Vec::with_capacity(cap)),
         classification: Some(Vec::with_capacity(cap)),
+        z_up: true,
         ..Default::default()
     };
     let mut rgb16: Option<Vec<[u16; 3]>> = fmt.has_color.then(|| Vec::with_capacity(cap));

@@ -63,7 +63,8 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
         read_up_to(&mut f, &mut head).map_err(|e| IoError::io(path, e))?
     };
     let head = &head[..n];
-    let cloud = if head.starts_with(b"ply") || head.starts_with(&[0x1f, 0x8b]) {
+    let gz = head.starts_with(&[0x1f, 0x8b]);
+    let cloud = if head.starts_with(b"ply") || (gz && gz_holds_ply(path)?) {
         ply::read_ply(path)?
     } else if head.starts_with(b"LASF") {
         las_io::read_las(path)?
@@ -180,6 +181,16 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 }
 
 /// Reads a whole file, transparently decompressing gzip.
+/// Whether a gzip-compressed file starts with the PLY magic once inflated (a `.nii.gz`
+/// volume must not be reported as a broken PLY file).
+fn gz_holds_ply(path: &Path) -> Result<bool, IoError> {
+    let f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let mut head = [0u8; 3];
+    let n = read_up_to(&mut flate2::read::MultiGzDecoder::new(f), &mut head)
+        .map_err(|e| IoError::invalid(path, format!("gzip data is corrupt or truncated: {e}")))?;
+    Ok(&head[..n] == b"ply")
+}
+
 pub(crate) fn read_maybe_gz(path: &Path) -> Result<Vec<u8>, IoError> {
     let raw = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
     if raw.starts_with(&[0x1f, 0x8b]) {

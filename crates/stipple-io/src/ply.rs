@@ -157,19 +157,22 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
             ["ply"] if line_no == 1 => {}
             ["format", f, v] => {
                 if *v != "1.0" {
-                    return Err(format!("unsupported PLY version {v}"));
+                    return Err(format!("unsupported PLY version {}", shown(v)));
                 }
                 encoding = Some(match *f {
                     "ascii" => Encoding::Ascii,
                     "binary_little_endian" => Encoding::BinaryLittleEndian,
                     "binary_big_endian" => Encoding::BinaryBigEndian,
-                    _ => return Err(format!("unknown PLY format `{f}`")),
+                    _ => return Err(format!("unknown PLY format `{}`", shown(f))),
                 });
             }
             ["comment", ..] | ["obj_info", ..] | [] => {}
             ["element", name, count] => {
                 let count: u64 = count.parse().map_err(|_| {
-                    format!("header line {line_no}: element count `{count}` is not a number")
+                    format!(
+                        "header line {line_no}: element count `{}` is not a number",
+                        shown(count)
+                    )
                 })?;
                 elements.push(Element {
                     name: name.to_string(),
@@ -182,9 +185,9 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
                     .last_mut()
                     .ok_or_else(|| format!("header line {line_no}: property before any element"))?;
                 let count = Scalar::parse(c)
-                    .ok_or_else(|| format!("header line {line_no}: unknown type `{c}`"))?;
+                    .ok_or_else(|| format!("header line {line_no}: unknown type `{}`", shown(c)))?;
                 let item = Scalar::parse(i)
-                    .ok_or_else(|| format!("header line {line_no}: unknown type `{i}`"))?;
+                    .ok_or_else(|| format!("header line {line_no}: unknown type `{}`", shown(i)))?;
                 if matches!(count, Scalar::F32 | Scalar::F64) {
                     return Err(format!(
                         "header line {line_no}: a list count cannot be `{c}`"
@@ -201,14 +204,19 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
                     .last_mut()
                     .ok_or_else(|| format!("header line {line_no}: property before any element"))?;
                 let ty = Scalar::parse(t)
-                    .ok_or_else(|| format!("header line {line_no}: unknown type `{t}`"))?;
+                    .ok_or_else(|| format!("header line {line_no}: unknown type `{}`", shown(t)))?;
                 el.props.push(Property::Scalar {
                     name: name.to_string(),
                     ty,
                 });
             }
             ["end_header"] => break,
-            _ => return Err(format!("header line {line_no} is not understood: `{line}`")),
+            _ => {
+                return Err(format!(
+                    "header line {line_no} is not understood: `{}`",
+                    shown(line)
+                ))
+            }
         }
     }
     let encoding = encoding.ok_or("the header has no `format` line")?;
@@ -340,18 +348,37 @@ impl RecordSource for Binary<'_> {
     }
 }
 
+/// ASCII records, one per line (as the format defines them): a line with more or fewer
+/// values than its element's record is an error naming the line, so one stray value cannot
+/// shift every later vertex.
 struct Ascii<'a> {
-    tokens: std::str::SplitAsciiWhitespace<'a>,
+    lines: std::str::Lines<'a>,
+    /// 1-based number of the last line read (the header's lines included).
+    line_no: usize,
 }
 
-impl Ascii<'_> {
-    fn number(&mut self, what: &str) -> Result<f64, String> {
-        let t = self
-            .tokens
-            .next()
-            .ok_or_else(|| format!("the data ends in the middle of {what} (truncated file?)"))?;
-        t.parse::<f64>()
-            .map_err(|_| format!("`{t}` in {what} is not a number"))
+/// A token of the user's file as an error message shows it: escaped, at most 32 characters.
+pub(crate) fn shown(t: &str) -> String {
+    const MAX: usize = 32;
+    let mut out: String = t.chars().take(MAX).flat_map(char::escape_debug).collect();
+    if t.chars().nth(MAX).is_some() {
+        out.push('…');
+    }
+    out
+}
+
+impl<'a> Ascii<'a> {
+    /// The next line that holds anything.
+    fn next_line(&mut self, what: &str) -> Result<&'a str, String> {
+        loop {
+            let line = self.lines.next().ok_or_else(|| {
+                format!("the data ends before all `{what}` records (truncated file?)")
+            })?;
+            self.line_no += 1;
+            if !line.trim().is_empty() {
+                return Ok(line);
+            }
+        }
     }
 }
 
@@ -362,13 +389,42 @@ impl RecordSource for Ascii<'_> {
         vals: &mut [f64],
         mut list: Option<(usize, &mut Vec<u32>)>,
     ) -> Result<(), String> {
+        let line = self.next_line(&el.name)?;
+        let at = self.line_no;
+        let mut tokens = line.split_ascii_whitespace();
+        let expected = || {
+            el.props
+                .iter()
+                .map(|p| p.name())
+                .collect::<Vec<_>>()
+                .join(" ")
+        };
+        let number = |tokens: &mut std::str::SplitAsciiWhitespace| -> Result<f64, String> {
+            let t = tokens.next().ok_or_else(|| {
+                format!(
+                    "line {at}: too few values for a `{}` record ({})",
+                    el.name,
+                    expected()
+                )
+            })?;
+            t.parse::<f64>().map_err(|_| {
+                format!(
+                    "line {at}: `{}` in a `{}` record is not a number",
+                    shown(t),
+                    el.name
+                )
+            })
+        };
         for (k, p) in el.props.iter().enumerate() {
             match p {
-                Property::Scalar { .. } => vals[k] = self.number(&el.name)?,
+                Property::Scalar { .. } => vals[k] = number(&mut tokens)?,
                 Property::List { .. } => {
-                    let n = self.number(&el.name)?;
+                    let n = number(&mut tokens)?;
                     if !(0.0..=1e6).contains(&n) || n.fract() != 0.0 {
-                        return Err(format!("list `{}` has an invalid length `{n}`", p.name()));
+                        return Err(format!(
+                            "line {at}: list `{}` has an invalid length `{n}`",
+                            p.name()
+                        ));
                     }
                     let keep = matches!(list.as_ref(), Some((lk, _)) if *lk == k);
                     if let Some((_, out)) = list.as_mut() {
@@ -377,11 +433,13 @@ impl RecordSource for Ascii<'_> {
                         }
                     }
                     for _ in 0..n as usize {
-                        let v = self.number(&el.name)?;
+                        let v = number(&mut tokens)?;
                         if keep {
                             if let Some((_, out)) = list.as_mut() {
                                 if v < 0.0 || v.fract() != 0.0 || v > u32::MAX as f64 {
-                                    return Err(format!("face index `{v}` is not a valid index"));
+                                    return Err(format!(
+                                        "line {at}: face index `{v}` is not a valid index"
+                                    ));
                                 }
                                 out.push(v as u32);
                             }
@@ -389,6 +447,14 @@ impl RecordSource for Ascii<'_> {
                     }
                 }
             }
+        }
+        if let Some(t) = tokens.next() {
+            return Err(format!(
+                "line {at}: more values than a `{}` record has ({}); the first extra one is `{}`",
+                el.name,
+                expected(),
+                shown(t)
+            ));
         }
         Ok(())
     }
@@ -423,7 +489,8 @@ pub fn parse_ply(data: &[u8]) -> Result<PointCloud, String> {
             read_elements(
                 &h,
                 &mut Ascii {
-                    tokens: text.split_ascii_whitespace(),
+                    lines: text.lines(),
+                    line_no: data[..h.data_start].iter().filter(|&&b| b == b'\n').count(),
                 },
                 body.len(),
             )

@@ -134,7 +134,10 @@ pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
                     continue;
                 }
                 let bad = toks.iter().find(|s| s.parse::<f64>().is_err()).unwrap();
-                return Err(format!("line {line_no}: `{bad}` is not a number"));
+                return Err(format!(
+                    "line {line_no}: `{}` is not a number",
+                    crate::ply::shown(bad)
+                ));
             }
         }
     }

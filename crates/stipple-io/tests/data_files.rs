@@ -93,6 +93,7 @@ fn unsupported_data_files_say_so() {
     for name in [
         "colored/milk_color.pcd",
         "stanford/bunny_e57/bunnyDouble.e57",
+        "volume/ch2.nii.gz",
     ] {
         let e = stipple_io::read_cloud(&dir.join(name))
             .unwrap_err()

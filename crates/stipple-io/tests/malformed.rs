@@ -20,7 +20,27 @@ const CASES: &[(&str, &str)] = &[
     ("inf_binary_be.ply", "vertex 1 has a non-finite coordinate"),
     ("empty_cloud.ply", "no points"),
     ("no_end_header.ply", "end_header"),
-    ("bad_number.ply", "`abc` in vertex is not a number"),
+    (
+        "bad_number.ply",
+        "`abc` in a `vertex` record is not a number",
+    ),
+    // One value too many or too few on a line is an error there, not a shift of every
+    // later vertex.
+    (
+        "extra_value.ply",
+        "line 9: more values than a `vertex` record has (x y z)",
+    ),
+    (
+        "missing_value.ply",
+        "line 9: too few values for a `vertex` record (x y z)",
+    ),
+    // A gzip-compressed file that is not PLY inside is named by its extension.
+    ("volume.nii.gz", ".nii files are not supported yet"),
+    // An offending token is shown escaped and cut at 32 characters.
+    (
+        "long_token.xyz",
+        "line 2: `77777777777777777777777777777777…` is not a number",
+    ),
     ("truncated_ascii.ply", "truncated"),
     ("bad_face_index.ply", "face 0 refers to vertex 10"),
     ("no_xyz.ply", "lacks x, y or z"),
