@@ -28,6 +28,11 @@ pub struct SourceArgs {
     /// Demo seed.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Memory budget (e.g. 16G): demo scenes, scene files and image sizes needing more are
+    /// refused before any work. Default: the memory available (free memory, within
+    /// `ulimit -v`).
+    #[arg(long, value_parser = stipple_lod::mem::parse_size, value_name = "SIZE")]
+    pub memory: Option<u64>,
 }
 
 impl SourceArgs {
@@ -40,6 +45,11 @@ impl SourceArgs {
                 if n == 0 {
                     return Err("--points must be at least 1".into());
                 }
+                crate::memory::check_points(
+                    &format!("--points {n}"),
+                    n as u64,
+                    crate::memory::BYTES_PER_POINT,
+                )?;
                 (
                     demo::generate(self.demo, n, self.seed),
                     format!("demo scene `{}`", self.demo.name()),
@@ -118,14 +128,15 @@ pub struct CameraArgs {
     /// Point looked at, x,y,z. Default: the centre of the cloud's bounds.
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub target: Option<DVec3>,
-    /// Up vector x,y,z. Default: +Y, or +Z for flat (LiDAR-like) clouds.
+    /// Up vector x,y,z. Default: +Z for LAS/LAZ/COPC (Z is elevation) and for clouds flat in
+    /// Z; +Y for other files (scanned objects).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<DVec3>,
     /// Vertical field of view in degrees [default: 45, or a scene's].
-    #[arg(long)]
+    #[arg(long, value_parser = parse_fov)]
     pub fov: Option<f64>,
     /// Orthographic projection with this view height (world units) instead of perspective.
-    #[arg(long, value_name = "HEIGHT")]
+    #[arg(long, value_parser = positive_f64, value_name = "HEIGHT")]
     pub ortho: Option<f64>,
 }
 
@@ -134,13 +145,14 @@ impl CameraArgs {
     /// come from the cloud's bounds.
     pub fn build(&self, cloud: &PointCloud) -> Result<Camera> {
         let (lo, hi) = cloud.world_bounds();
-        self.build_for_bounds(lo, hi)
+        self.build_framed(lo, hi, cloud.z_up)
     }
 
-    /// The camera for a scene with these world bounds (a LOD tree's root box).
-    pub fn build_for_bounds(&self, lo: DVec3, hi: DVec3) -> Result<Camera> {
+    /// The camera for a scene with these world bounds (a LOD tree's root box): the default
+    /// framing (Z-up when `z_up`), then the overrides.
+    pub fn build_framed(&self, lo: DVec3, hi: DVec3, z_up: bool) -> Result<Camera> {
         let (w, h) = self.size.unwrap_or(DEFAULT_SIZE);
-        let mut cam = Camera::framing(lo, hi, w, h, self.fov.unwrap_or(DEFAULT_FOV));
+        let mut cam = Camera::framing_up(lo, hi, w, h, self.fov.unwrap_or(DEFAULT_FOV), z_up);
         let framed_dir = cam.eye - cam.target;
         if let Some(t) = self.target {
             cam.target = t;
@@ -161,6 +173,61 @@ impl CameraArgs {
         cam.fit_clip(lo, hi);
         Ok(cam)
     }
+}
+
+/// A number that is finite (NaN and infinities are refused before any range check).
+pub fn finite_f64(s: &str) -> std::result::Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{}` is not a number", crate::args::shown(s)))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a finite number"))
+    }
+}
+
+/// [`finite_f64`] as f32 (also refusing values beyond f32's range).
+pub fn finite_f32(s: &str) -> std::result::Result<f32, String> {
+    let v = finite_f64(s)? as f32;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("{} is out of range", crate::args::shown(s)))
+    }
+}
+
+/// A vertical field of view in degrees, strictly between 0 and 180.
+fn parse_fov(s: &str) -> std::result::Result<f64, String> {
+    let v = finite_f64(s)?;
+    if v > 0.0 && v < 180.0 {
+        Ok(v)
+    } else {
+        Err(format!(
+            "a field of view of {v}° is impossible: it must lie strictly between 0 and 180 degrees (45 is the default)"
+        ))
+    }
+}
+
+/// A finite number above zero.
+fn positive_f64(s: &str) -> std::result::Result<f64, String> {
+    let v = finite_f64(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} must be above zero"))
+    }
+}
+
+/// User text as an error shows it: escaped, at most 32 characters.
+pub fn shown(t: &str) -> String {
+    const MAX: usize = 32;
+    let mut out: String = t.chars().take(MAX).flat_map(char::escape_debug).collect();
+    if t.chars().nth(MAX).is_some() {
+        out.push('…');
+    }
+    out
 }
 
 fn parse_light(s: &str) -> std::result::Result<Light, String> {
@@ -261,16 +328,16 @@ pub struct SplatArgs {
     pub splat_mode: SplatMode,
     /// Multiplies every splat radius (radii: 0.6 × the 16th-neighbour distance, or the
     /// file's `radius`).
-    #[arg(long, default_value_t = 1.0, value_name = "F")]
+    #[arg(long, value_parser = finite_f32, default_value_t = 1.0, value_name = "F")]
     pub splat_scale: f32,
     /// ε of the splats' ε-z test in world units: fragments this far behind the nearest one
     /// still blend [default: the median splat radius].
-    #[arg(long, value_name = "D")]
+    #[arg(long, value_parser = finite_f32, value_name = "D")]
     pub splat_epsilon: Option<f32>,
     /// Overlap relaxation c of --splat deferred's grouping: splats closer than c × the sum
     /// of their radii go to different groups (1: every overlap; smaller: fewer groups, a
     /// little overlap inside a group). The paper's choice is 0.4.
-    #[arg(long, default_value_t = stipple_core::grouping::DEFAULT_C, value_name = "C")]
+    #[arg(long, value_parser = finite_f32, default_value_t = stipple_core::grouping::DEFAULT_C, value_name = "C")]
     pub splat_c: f32,
     /// Do not estimate normals for clouds without them (they are then drawn unlit: raw
     /// pipeline by default, or eye-facing splats).
@@ -364,7 +431,7 @@ pub struct RawArgs {
     pub visibility_kernel: u32,
     /// Free fraction of the hemisphere above a pixel needed to count as visible (0..1).
     /// Higher removes more (fewer surfaces showing through, but eroded silhouettes).
-    #[arg(long, default_value_t = 0.4)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 0.4)]
     pub visibility_threshold: f32,
     /// Skip the visibility operator: every empty pixel is filled and nothing is removed, so
     /// hidden surfaces show through and silhouettes grow (Pintus Fig. 9a).
@@ -375,7 +442,7 @@ pub struct RawArgs {
     pub raw_fill_iterations: Option<u32>,
     /// Depth tolerance δ of the fill (Eq. 1), in pixel footprints: neighbours farther than
     /// this in depth do not blend.
-    #[arg(long, default_value_t = 8.0)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 8.0)]
     pub fill_delta: f32,
     /// Shading: depiction (multi-level shape depiction), depiction-single (one level: sharp
     /// lines and directional light), edl (eye-dome lighting), or none (colour only).
@@ -385,16 +452,16 @@ pub struct RawArgs {
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=32))]
     pub depiction_levels: u32,
     /// ξ of Eq. 3: how fast the levels' weights fall (0 = equal; larger = sharper).
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 1.5)]
     pub depiction_xi: f32,
     /// ε of Eq. 2 in pixel footprints: larger = gentler shading of tilted surfaces.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 2.0)]
     pub depiction_epsilon: f32,
     /// EDL strength (with --shading edl).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 1.0)]
     pub edl_strength: f32,
     /// EDL neighbour radius in pixels (with --shading edl).
-    #[arg(long, default_value_t = 1.4)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 1.4)]
     pub edl_radius: f32,
 }
 
@@ -480,7 +547,7 @@ pub struct PipelineArgs {
     pub fill_occluded_iterations: Iterations,
     /// Minimum gap d̃ between two surface layers, in world units. Default: 2.5 × the cloud's
     /// median point spacing (see `stipple info`).
-    #[arg(long, value_name = "D")]
+    #[arg(long, value_parser = finite_f32, value_name = "D")]
     pub layer_gap: Option<f32>,
     /// Skip smoothing (§3.4).
     #[arg(long)]
@@ -496,10 +563,10 @@ pub struct PipelineArgs {
     pub no_antialias: bool,
     /// Laplace threshold on depth / z_far: high = only silhouettes against the background,
     /// low = also edges between surface layers.
-    #[arg(long, default_value_t = 0.02)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 0.02)]
     pub aa_threshold: f32,
     /// How much an edge pixel takes of its blurred neighbourhood (0..1).
-    #[arg(long, default_value_t = 0.6)]
+    #[arg(long, value_parser = finite_f32, default_value_t = 0.6)]
     pub aa_strength: f32,
     /// Keep points whose normals face away from the eye.
     #[arg(long)]
@@ -556,6 +623,19 @@ impl PipelineArgs {
         let splat = self.splat.settings()?;
         // Built (and so checked) whichever pipeline is chosen: a bad raw flag is an error.
         let raw = self.raw.build(background)?;
+        let b = cloud.bounds();
+        if b.max == b.min {
+            let at = cloud.cloud.origin + b.min.as_dvec3();
+            notes.push(format!(
+                "all {} point{} lie at one position ({:.6}, {:.6}, {:.6}): the image shows them \
+                 as a single dot at its centre",
+                cloud.cloud.len(),
+                if cloud.cloud.len() == 1 { "" } else { "s" },
+                at.x,
+                at.y,
+                at.z
+            ));
+        }
         if choice == PipelineChoice::Raw || (choice == PipelineChoice::Auto && tree) {
             return Ok((raw, notes));
         }
@@ -579,9 +659,23 @@ impl PipelineArgs {
                 self.splat.normal_k
             );
         }
-        let report = cloud
-            .prepare_surface_from(self.splat.normal_k as usize, estimate, self.splat.viewpoint)
-            .map_err(|e| format!("normal estimation: {e}"))?;
+        let report = match cloud.prepare_surface_from(
+            self.splat.normal_k as usize,
+            estimate,
+            self.splat.viewpoint,
+        ) {
+            Err(stipple_core::normals::NormalError::TooFew(n))
+                if choice == PipelineChoice::Auto =>
+            {
+                notes.push(format!(
+                    "{n} point{}: too few to estimate normals or splat sizes (3 are needed); \
+                     drawn as single unlit points",
+                    if n == 1 { "" } else { "s" }
+                ));
+                return Ok((raw, notes));
+            }
+            r => r.map_err(|e| format!("normal estimation: {e}"))?,
+        };
         if report.estimated {
             notes.push(format!(
                 "estimated normals for {n} points (k = {}, oriented {}) in {:.2} s",
@@ -708,7 +802,7 @@ pub struct LookArgs {
     #[arg(long, value_name = "N")]
     pub layers: Option<u32>,
     /// Give every point of a single cloud this opacity (0..1): see-through with --layers.
-    #[arg(long, value_name = "ALPHA")]
+    #[arg(long, value_parser = finite_f32, value_name = "ALPHA")]
     pub opacity: Option<f32>,
     /// Compute shadow textures for the lights that cast them (point and area lights, e.g.
     /// --light point:x,y,z or disc:x,y,z,r). Scene files have shadows on unless they say
@@ -718,7 +812,7 @@ pub struct LookArgs {
     /// No shadows, even where a scene asks for them.
     #[arg(long, conflicts_with = "shadows")]
     pub no_shadows: bool,
-    /// At most N Monte Carlo samples per area light (default: the light's own count: 16 for
+    /// Monte Carlo samples per area light, 1 to 255 (default: the light's own count: 16 for
     /// --light disc:..., a scene's `samples`). 1 = a hard shadow from the light's centre.
     #[arg(long, value_name = "N")]
     pub shadow_samples: Option<u32>,

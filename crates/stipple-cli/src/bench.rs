@@ -131,6 +131,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
             (cloud, label, camera, None)
         }
     };
+    crate::memory::check_frame(
+        camera.width,
+        camera.height,
+        crate::look::layers(&a.look, scene.as_ref()),
+    )?;
     let load_s = t0.elapsed().as_secs_f64();
     if a.table3 {
         return table3(&a, cloud, &label, &mut r);

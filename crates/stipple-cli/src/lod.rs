@@ -42,8 +42,8 @@ pub struct BuildLodArgs {
     /// Directory for the spill file of an out-of-core build (default: beside the output).
     #[arg(long, value_name = "DIR")]
     temp_dir: Option<PathBuf>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, value_parser = threads_1024)]
     threads: Option<usize>,
     /// Replace the output if it exists.
     #[arg(long)]
@@ -95,6 +95,7 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
         temp_dir: a.temp_dir.clone(),
         progress: Some(Arc::new(progress)),
         abort_after_chunks: std::env::var(ABORT_ENV).ok().and_then(|v| v.parse().ok()),
+        replace: a.force,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
@@ -152,15 +153,36 @@ pub struct LodArgs {
     #[arg(long, default_value = "5M", value_parser = parse_count, value_name = "N")]
     pub point_budget: u64,
     /// For a .stlod tree: refine until samples are at most this many pixels apart on screen.
-    #[arg(long, default_value_t = 1.0, value_name = "PX")]
+    #[arg(long, default_value_t = 1.0, value_name = "PX", value_parser = crate::args::finite_f32)]
     pub lod_error: f32,
     /// For a .stlod tree: memory for cached node payloads (default: 4 × the point budget's
     /// size, at least 1 GiB).
     #[arg(long, value_parser = parse_size, value_name = "SIZE")]
     pub cache: Option<u64>,
-    /// For a .stlod tree: background threads loading nodes.
-    #[arg(long, default_value_t = 2, value_name = "N")]
+    /// For a .stlod tree: background threads loading nodes (1 to 64).
+    #[arg(long, default_value_t = 2, value_name = "N", value_parser = loaders_64)]
     pub loaders: usize,
+}
+
+/// A thread count from 1 to `max`.
+fn thread_count(s: &str, max: usize) -> std::result::Result<usize, String> {
+    let n: usize = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{}` is not a whole number", crate::args::shown(s)))?;
+    if (1..=max).contains(&n) {
+        Ok(n)
+    } else {
+        Err(format!("{n} threads: give 1 to {max}"))
+    }
+}
+
+fn threads_1024(s: &str) -> std::result::Result<usize, String> {
+    thread_count(s, 1024)
+}
+
+fn loaders_64(s: &str) -> std::result::Result<usize, String> {
+    thread_count(s, 64)
 }
 
 impl LodArgs {
@@ -257,7 +279,7 @@ pub fn cut_cloud(tree: &LodTree, parts: &[(u32, Payload)], camera: &Camera) -> P
 pub fn open_with_camera(p: &Path, camera: &CameraArgs) -> Result<(Arc<LodTree>, Camera)> {
     let tree = open(p)?;
     let (lo, hi) = tree.world_bounds();
-    let cam = camera.build_for_bounds(lo, hi)?;
+    let cam = camera.build_framed(lo, hi, tree.header.z_up())?;
     Ok((tree, cam))
 }
 

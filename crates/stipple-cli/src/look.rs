@@ -97,6 +97,18 @@ pub fn apply(
         if scene.is_some() && !look.shadows {
             return Ok(None);
         }
+        let raw = pipe
+            .geometry
+            .iter()
+            .any(|g| matches!(g, stipple_render::pipeline::GeometryPass::Visibility { .. }));
+        if raw {
+            return Err(
+                "--shadows: the raw pipeline (--raw, or --pipeline raw) draws without lights, \
+                 so nothing casts shadows; leave it out (normals are estimated for clouds \
+                 without them) or add --pipeline dobrev"
+                    .into(),
+            );
+        }
         return Err(
             "--shadows: no light casts shadows; give --light point:x,y,z or disc:x,y,z,r (a \
              headlight or a directional light has no position)"
@@ -125,6 +137,14 @@ pub fn apply(
             "--shadow-samples {max_samples}: 1 to {}",
             shadow::MAX_SAMPLES
         ));
+    }
+    if let Some(n) = look.shadow_samples {
+        // Honoured as given for every area light (a light's own count is only the default).
+        for l in &mut pipe.lights {
+            if let Light::Area(a) = l {
+                a.samples = n;
+            }
+        }
     }
     let cache: Option<PathBuf> = look
         .shadow_cache
@@ -231,6 +251,11 @@ pub fn load_scene(
     camera: &CameraArgs,
 ) -> Result<(PreparedCloud, LoadedScene, Camera)> {
     let (cloud, s) = scene::load(path)?;
-    let cam = scene_camera(camera, &s).build(&cloud.cloud)?;
+    let cam = scene_camera(camera, &s).build(&cloud.cloud).map_err(|e| {
+        format!(
+            "{}: {e} (from its [camera] table and the camera flags given)",
+            path.display()
+        )
+    })?;
     Ok((cloud, s, cam))
 }

@@ -5,6 +5,7 @@ mod bench;
 mod eval;
 mod lod;
 mod look;
+mod memory;
 mod scene;
 mod shadow_cache;
 
@@ -192,6 +193,10 @@ struct GenArgs {
     /// Overwrite the output file if it exists.
     #[arg(long)]
     force: bool,
+    /// Memory budget (e.g. 16G): a scene needing more is refused before any work. Default:
+    /// the memory available (free memory, within `ulimit -v`).
+    #[arg(long, value_parser = stipple_lod::mem::parse_size, value_name = "SIZE")]
+    memory: Option<u64>,
 }
 
 pub fn parse_scene(s: &str) -> Result<DemoScene> {
@@ -203,6 +208,15 @@ pub fn parse_scene(s: &str) -> Result<DemoScene> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    let memory = match &cli.cmd {
+        Some(Cmd::Render(a)) => a.source.memory,
+        Some(Cmd::Bench(a)) => a.source.memory,
+        Some(Cmd::Gen(a)) => a.memory,
+        _ => None,
+    };
+    if let Some(m) = memory {
+        memory::set_budget(m);
+    }
     let result = match cli.cmd {
         None => render(RenderArgs::demo()),
         Some(Cmd::Render(a)) => render(a),
@@ -280,6 +294,19 @@ fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
 /// /dev/full, a directory, a pipe): outputs are written beside it and renamed over it, which
 /// would replace the device itself.
 fn not_special(out: &Path) -> Result<()> {
+    let dir = out.parent().filter(|d| !d.as_os_str().is_empty());
+    let dir = std::fs::canonicalize(dir.unwrap_or(Path::new("."))).ok();
+    if let Some(d) = dir {
+        for sys in ["/dev", "/proc", "/sys"] {
+            if d.starts_with(sys) {
+                return Err(format!(
+                    "{}: {sys} holds devices and kernel files, not user files; write the \
+                     output somewhere else",
+                    out.display()
+                ));
+            }
+        }
+    }
     match std::fs::metadata(out) {
         Ok(m) if !m.is_file() => Err(format!(
             "{}: exists and is not a regular file (a device, directory or pipe); outputs are \
@@ -367,6 +394,10 @@ impl Drop for Staged {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
+    if let Some((w, h)) = a.camera.size {
+        // Before reading anything: an image too large for memory fails at once.
+        memory::check_frame(w, h, a.look.layers.unwrap_or(1))?;
+    }
     let tree = a.source.input.as_deref().filter(|p| lod::is_tree(p));
     let scene_file = a.source.input.as_deref().filter(|p| scene::is_scene(p));
     let (mut cloud, label, camera, scene) = match (tree, scene_file) {
@@ -384,6 +415,11 @@ fn render(a: RenderArgs) -> Result<()> {
             (cloud, label, camera, None)
         }
     };
+    memory::check_frame(
+        camera.width,
+        camera.height,
+        look::layers(&a.look, scene.as_ref()),
+    )?;
     let output = match &a.output {
         Some(o) => o.clone(),
         None => match &a.source.input {
@@ -781,7 +817,16 @@ fn gen(a: GenArgs) -> Result<()> {
             a.output.display()
         ));
     }
+    check_output(&a.output, &[])?;
     let n = a.points.unwrap_or(a.scene.default_points());
+    if n == 0 {
+        return Err("--points must be at least 1".into());
+    }
+    memory::check_points(
+        &format!("--points {n}"),
+        n as u64,
+        memory::GEN_BYTES_PER_POINT,
+    )?;
     let c = demo::generate(a.scene, n, a.seed);
     stipple_io::write_cloud(&a.output, &c).map_err(|e| e.to_string())?;
     println!(

@@ -285,6 +285,11 @@ fn source(c: &CloudSpec, dir: &Path) -> std::result::Result<(PointCloud, String)
             if n == 0 {
                 return Err("points must be at least 1".into());
             }
+            crate::memory::check_points(
+                &format!("points = {n}"),
+                n as u64,
+                crate::memory::BYTES_PER_POINT,
+            )?;
             let seed = c.seed.unwrap_or(1);
             let grey = [200, 200, 200];
             let cloud = match d.as_str() {

@@ -171,11 +171,69 @@ fn inputs_are_never_overwritten_and_errors_are_clear() {
             "eye and target coincide",
         ),
         (vec!["info", "missing.laz"], "missing.laz"),
+        // Numbers are checked where they are given, naming the flag and the reason.
+        (
+            vec!["render", "--fov", "0"],
+            "strictly between 0 and 180 degrees",
+        ),
+        (vec!["render", "--fov", "180"], "--fov"),
+        (
+            vec!["render", "--aa-threshold", "nan"],
+            "not a finite number",
+        ),
+        (vec!["render", "--opacity", "inf"], "--opacity"),
+        (vec!["render", "--ortho", "0"], "must be above zero"),
+        (vec!["render", "--lod-error", "NaN"], "--lod-error"),
+        (vec!["render", "--loaders", "100000"], "give 1 to 64"),
+        (
+            vec![
+                "build-lod",
+                "cloud.xyz",
+                "-o",
+                "t.stlod",
+                "--threads",
+                "100000",
+            ],
+            "give 1 to 1024",
+        ),
     ] {
         let o = stipple(&dir, &args);
         assert!(!o.status.success(), "{args:?} succeeded");
         assert!(text(&o).contains(phrase), "{args:?}: {}", text(&o));
         assert!(!text(&o).contains("panicked"), "{args:?}: {}", text(&o));
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Degenerate clouds render with a message, never a silent blank image: one point (too few
+/// for normals: drawn as an unlit point) and points that all coincide.
+#[test]
+fn degenerate_clouds_say_what_the_image_shows() {
+    let dir = tempdir("degenerate");
+    std::fs::write(dir.join("one.xyz"), "1 2 3\n").unwrap();
+    std::fs::write(dir.join("same.xyz"), "1 2 3\n".repeat(5000)).unwrap();
+    for (name, phrases) in [
+        (
+            "one.xyz",
+            &["1 point: too few to estimate normals", "a single dot"][..],
+        ),
+        ("same.xyz", &["all 5000 points lie at one position"][..]),
+    ] {
+        let o = stipple(&dir, &["render", name, "--size", "64", "-o", "x.png"]);
+        let t = text(&o);
+        assert!(o.status.success(), "{name}: {t}");
+        for p in phrases {
+            assert!(t.contains(p), "{name}: missing {p:?}: {t}");
+        }
+        let (w, _, rgba) = stipple_io::image::read_png(&dir.join("x.png")).unwrap();
+        let bg = &rgba[..4];
+        let centre = (32 * w as usize + 32) * 4;
+        let lit = rgba.chunks(4).filter(|p| *p != bg).count();
+        assert!(lit >= 1, "{name}: blank image");
+        assert!(
+            rgba[centre - 8..centre + 8].chunks(4).any(|p| p != bg),
+            "{name}: the dot is not at the centre"
+        );
     }
     std::fs::remove_dir_all(dir).ok();
 }
@@ -446,5 +504,122 @@ fn eval_compares_a_raw_rendering_with_the_mesh() {
         assert!(!o.status.success());
         assert!(text(&o).contains("has no faces"), "{}", text(&o));
     }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// LAS/LAZ are framed Z-up (Z is elevation), other files Y-up unless flat in Z: the same
+/// round cloud written as LAS and as PLY gets an up vector of +Z and +Y.
+#[test]
+fn lidar_formats_are_framed_z_up() {
+    let dir = tempdir("z-up");
+    for (file, up) in [("s.las", [0.0, 0.0, 1.0]), ("s.ply", [0.0, 1.0, 0.0])] {
+        let o = stipple(
+            &dir,
+            &["gen", "sphere", "--points", "3000", "-o", file, "--force"],
+        );
+        assert!(o.status.success(), "{}", text(&o));
+        let o = stipple(
+            &dir,
+            &[
+                "render",
+                file,
+                "--size",
+                "48",
+                "-o",
+                "x.png",
+                "--camera-out",
+                "c.json",
+            ],
+        );
+        assert!(o.status.success(), "{}", text(&o));
+        let cam: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join("c.json")).unwrap()).unwrap();
+        let got: Vec<f64> = cam["up"]
+            .as_array()
+            .unwrap_or_else(|| panic!("no `up` in {cam}"))
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert_eq!(got, up, "{file}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// `--shadow-samples` is honoured above a light's own count (it was silently capped at 16),
+/// and shadows asked of the raw pipeline, which draws without lights, are refused with the
+/// reason (it said "no light casts shadows" although a light was given).
+#[test]
+fn shadow_flags_are_honoured_or_explained() {
+    let dir = tempdir("shadow-flags");
+    let base = [
+        "render",
+        "--demo",
+        "sphere",
+        "--points",
+        "4000",
+        "--size",
+        "48",
+        "-o",
+        "x.png",
+        "--shadows",
+        "--light",
+        "disc:0,3,2,0.5",
+    ];
+    let o = stipple(&dir, &[&base[..], &["--shadow-samples", "30"]].concat());
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("30 light samples"), "{}", text(&o));
+    let o = stipple(&dir, &[&base[..], &["--raw"]].concat());
+    assert!(!o.status.success());
+    assert!(text(&o).contains("raw pipeline"), "{}", text(&o));
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// Needs beyond the memory budget are refused before any work, naming the need and the
+/// budget (free memory, `ulimit -v`, or `--memory`); outputs into /dev are refused.
+#[test]
+fn memory_needs_are_checked_before_allocating() {
+    let dir = tempdir("memory");
+    for (args, want) in [
+        (
+            vec!["gen", "torus", "--points", "1000000000000", "-o", "t.ply"],
+            "--points 1000000000000 needs about",
+        ),
+        (
+            vec!["render", "--demo", "torus", "--points", "1000000000000"],
+            "raise the budget with --memory",
+        ),
+        (
+            vec![
+                "render", "--demo", "sphere", "--points", "100000", "--memory", "1M",
+            ],
+            "more than the --memory budget (1 MiB)",
+        ),
+        (
+            vec!["gen", "sphere", "-o", "/dev/stipple-test.ply"],
+            "/dev holds devices",
+        ),
+    ] {
+        let o = stipple(&dir, &args);
+        assert!(!o.status.success(), "{args:?}: {}", text(&o));
+        assert!(text(&o).contains(want), "{args:?}: {}", text(&o));
+    }
+    assert!(!Path::new("/dev/stipple-test.ply").exists());
+    assert!(!dir.join("t.ply").exists());
+    // Under `ulimit -v` the budget is what the limit leaves.
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 1500000 && exec '{}' render --demo sphere --points 1000 --size 8192 -o x.png",
+            env!("CARGO_BIN_EXE_stipple")
+        ))
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(!o.status.success(), "{t}");
+    assert!(
+        t.contains("a 8192×8192 image needs about") && t.contains("ulimit -v"),
+        "{t}"
+    );
     std::fs::remove_dir_all(dir).ok();
 }

@@ -70,7 +70,7 @@ fn every_covered_data_file_renders() {
         let t0 = std::time::Instant::now();
         let cloud = stipple_io::read_cloud(&dir.join(&name)).unwrap_or_else(|e| panic!("{e}"));
         let (lo, hi) = cloud.world_bounds();
-        let cam = Camera::framing(lo, hi, 160, 120, 45.0);
+        let cam = Camera::framing_up(lo, hi, 160, 120, 45.0, cloud.z_up);
         let prepared = PreparedCloud::new(cloud);
         let f = render(&prepared, &cam, &Pipeline::default(), Backend::Cpu).unwrap();
         let covered = f.id.iter().filter(|&&i| i != BACKGROUND).count();

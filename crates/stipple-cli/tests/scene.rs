@@ -234,6 +234,24 @@ fn bad_look_options_are_clear_errors() {
         "{}",
         text(&o)
     );
+    // A scene's impossible camera names the file and the cause.
+    for (camera, want) in [
+        (
+            "eye = [0.0, 0.0, 3.0]\ntarget = [0.0, 0.0, 3.0]",
+            "eye and target coincide",
+        ),
+        ("fov = 0", "field of view 0"),
+    ] {
+        std::fs::write(
+            dir.join("cam.toml"),
+            format!("[camera]\n{camera}\n\n[[cloud]]\ndemo = \"sphere\"\npoints = 500\n"),
+        )
+        .unwrap();
+        let o = stipple(&dir, &["render", "cam.toml", "-o", "cam.png"]);
+        let t = text(&o);
+        assert!(!o.status.success(), "{camera}: {t}");
+        assert!(t.contains("cam.toml") && t.contains(want), "{camera}: {t}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }
 

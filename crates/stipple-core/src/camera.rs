@@ -50,8 +50,8 @@ pub enum CameraError {
     BadFov(f64),
     #[error("orthographic height {0} must be positive")]
     BadOrtho(f64),
-    #[error("a camera value is not finite")]
-    NonFinite,
+    #[error("the camera's {0} is not finite (NaN or infinite)")]
+    NonFinite(&'static str),
 }
 
 pub const MAX_SIDE: u32 = 16384;
@@ -65,8 +65,25 @@ impl Camera {
         if self.width == 0 || self.height == 0 || self.width > MAX_SIDE || self.height > MAX_SIDE {
             return Err(CameraError::BadSize(self.width, self.height));
         }
-        if !(self.eye.is_finite() && self.target.is_finite() && self.up.is_finite()) {
-            return Err(CameraError::NonFinite);
+        // The projection first: a bad field of view makes a framed eye infinite, and the
+        // error should name the cause.
+        match self.projection {
+            Projection::Perspective { fov_deg } if !(fov_deg > 0.0 && fov_deg < 180.0) => {
+                return Err(CameraError::BadFov(fov_deg))
+            }
+            Projection::Orthographic { height } if !(height > 0.0 && height.is_finite()) => {
+                return Err(CameraError::BadOrtho(height))
+            }
+            _ => {}
+        }
+        for (what, v) in [
+            ("eye", self.eye),
+            ("target", self.target),
+            ("up vector", self.up),
+        ] {
+            if !v.is_finite() {
+                return Err(CameraError::NonFinite(what));
+            }
         }
         if (self.target - self.eye).length() <= 1e-12 * (1.0 + self.eye.length()) {
             return Err(CameraError::EyeIsTarget);
@@ -75,15 +92,7 @@ impl Camera {
         if self.up.length() == 0.0 || f.cross(self.up.normalize()).length() < 1e-9 {
             return Err(CameraError::UpParallel);
         }
-        match self.projection {
-            Projection::Perspective { fov_deg } if !(fov_deg > 0.0 && fov_deg < 180.0) => {
-                Err(CameraError::BadFov(fov_deg))
-            }
-            Projection::Orthographic { height } if !(height > 0.0 && height.is_finite()) => {
-                Err(CameraError::BadOrtho(height))
-            }
-            _ => Ok(()),
-        }
+        Ok(())
     }
 
     pub fn basis(&self) -> Basis {
@@ -94,12 +103,25 @@ impl Camera {
     }
 
     /// A camera that frames world bounds `[lo, hi]`: it looks at their centre from a fixed
-    /// three-quarter direction, far enough for the bounding sphere to fit the narrower field
-    /// of view. The up axis is +Y, or +Z when the bounds are flat in Z (LiDAR tiles).
+    /// three-quarter direction, as close as the eight corners of the box allow (they fill
+    /// 95% of the frame). The up axis is +Y, or +Z when the bounds are flat in Z (LiDAR
+    /// tiles); [`Camera::framing_up`] takes the source's word for it.
     pub fn framing(lo: DVec3, hi: DVec3, width: u32, height: u32, fov_deg: f64) -> Camera {
+        Camera::framing_up(lo, hi, width, height, fov_deg, false)
+    }
+
+    /// [`Camera::framing`] with `z_up` when the source says +Z is up (LAS/LAZ/COPC).
+    pub fn framing_up(
+        lo: DVec3,
+        hi: DVec3,
+        width: u32,
+        height: u32,
+        fov_deg: f64,
+        z_up: bool,
+    ) -> Camera {
         let c = (lo + hi) * 0.5;
         let e = hi - lo;
-        let z_up = e.z < 0.35 * e.x.min(e.y);
+        let z_up = z_up || e.z < 0.35 * e.x.min(e.y);
         let (up, dir) = if z_up {
             (DVec3::Z, DVec3::new(0.45, -1.0, 0.8).normalize())
         } else {

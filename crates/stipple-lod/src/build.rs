@@ -21,7 +21,7 @@
 //! the same file for the same inputs and options (payload order, node numbering and samples
 //! do not depend on thread timing).
 
-use crate::format::{Header, Node, FLAG_COLOUR, HEADER_SIZE, NODE_SIZE, NONE};
+use crate::format::{Header, Node, FLAG_COLOUR, FLAG_Z_UP, HEADER_SIZE, NODE_SIZE, NONE};
 use crate::kd::{self, LocalNode};
 use crate::record::Record;
 use crate::source::open_inputs;
@@ -70,6 +70,10 @@ pub struct BuildOptions {
     /// Testing aid: abort the process (no clean-up, like a kill) after this many chunks
     /// have been written.
     pub abort_after_chunks: Option<usize>,
+    /// Replace an existing output (`--force`). Without it a tree that exists when the
+    /// build finishes (another build to the same output finished first) is kept and this
+    /// build fails: the finished file is linked into place, never renamed over another.
+    pub replace: bool,
 }
 
 impl Default for BuildOptions {
@@ -80,6 +84,7 @@ impl Default for BuildOptions {
             temp_dir: None,
             progress: None,
             abort_after_chunks: None,
+            replace: false,
         }
     }
 }
@@ -136,6 +141,9 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
             (8 * m * IN_CORE_BYTES) >> 20
         )));
     }
+    let z_up = inputs
+        .iter()
+        .all(|p| matches!(stipple_io::extension(p).as_str(), "las" | "laz"));
     let inputs = open_inputs(inputs, o.memory)?;
     let total: u64 = inputs.iter().map(|i| i.count).sum();
     let (lo, hi) = inputs.iter().fold(
@@ -291,7 +299,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
     let table_offset = out.offset;
     out.write(&table)?;
     let header = Header {
-        flags: if coloured { FLAG_COLOUR } else { 0 },
+        flags: if coloured { FLAG_COLOUR } else { 0 } | if z_up { FLAG_Z_UP } else { 0 },
         max_node_points: m as u32,
         point_count: total,
         node_count: order.len() as u32,
@@ -311,7 +319,27 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         .and_then(|_| file.sync_all())
         .map_err(|e| LodError::io(output, e))?;
     drop(file);
-    std::fs::rename(&tmp, output).map_err(|e| LodError::io(output, e))?;
+    if o.replace {
+        std::fs::rename(&tmp, output).map_err(|e| LodError::io(output, e))?;
+    } else {
+        // A hard link fails if the output exists, atomically (rename would replace it).
+        match std::fs::hard_link(&tmp, output) {
+            Ok(()) => std::fs::remove_file(&tmp).map_err(|e| LodError::io(&tmp, e))?,
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+                return Err(LodError::Invalid(format!(
+                    "{}: appeared while this build ran (another build to the same output \
+                     finished first?); it is kept, and this build's tree was discarded. \
+                     Pass --force to replace it",
+                    output.display()
+                )));
+            }
+            // File systems without hard links: check, then rename (a small window).
+            Err(_) if !output.exists() => {
+                std::fs::rename(&tmp, output).map_err(|e| LodError::io(output, e))?
+            }
+            Err(e) => return Err(LodError::io(output, e)),
+        }
+    }
     guard.0.retain(|p| p != &tmp);
     report.build_seconds = t0.elapsed().as_secs_f64() - report.read_seconds;
     Ok(report)

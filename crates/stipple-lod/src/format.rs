@@ -36,6 +36,9 @@ pub const NONE: u32 = u32::MAX;
 /// Header flag: records carry colours (from RGB, or grey from intensity).
 pub const FLAG_COLOUR: u32 = 1;
 
+/// Header flag: every input was LAS/LAZ, whose Z is elevation (the tree is framed Z-up).
+pub const FLAG_Z_UP: u32 = 2;
+
 /// The tree-wide facts stored in the header.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Header {
@@ -57,6 +60,12 @@ pub struct Header {
 impl Header {
     pub fn has_colour(&self) -> bool {
         self.flags & FLAG_COLOUR != 0
+    }
+
+    /// Whether the inputs said +Z is up (see [`FLAG_Z_UP`]; trees built before the flag
+    /// existed say no, and are framed by their shape).
+    pub fn z_up(&self) -> bool {
+        self.flags & FLAG_Z_UP != 0
     }
 
     pub fn encode(&self) -> [u8; HEADER_SIZE as usize] {

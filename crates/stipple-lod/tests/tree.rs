@@ -458,3 +458,31 @@ fn a_corrupt_payload_is_reported_by_the_streamer() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A tree that exists when a build finishes (another build to the same output finished
+/// first) is kept and the build fails, leaving no temporary file; `replace` replaces it.
+#[test]
+fn a_finished_build_never_replaces_an_existing_tree_unless_asked() {
+    let dir = scratch("no-clobber");
+    let input = write_las(&dir, "in.las", &terrain(5_000, 0, 3));
+    let out = dir.join("t.stlod");
+    std::fs::write(&out, b"another build's tree").unwrap();
+    let o = BuildOptions {
+        max_node_points: 1024,
+        ..Default::default()
+    };
+    let e = build(std::slice::from_ref(&input), &out, &o)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--force") && e.contains("t.stlod"), "{e}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"another build's tree");
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(left.len(), 2, "temporary files left behind: {left:?}");
+    let o = BuildOptions { replace: true, ..o };
+    build(&[input], &out, &o).unwrap();
+    assert!(LodTree::open(&out).is_ok());
+    let _ = std::fs::remove_dir_all(&dir);
+}
