@@ -107,6 +107,9 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((w, h))
 }
 
+/// Below this address-space limit (`ulimit -v`) `--backend auto` does not probe GPU drivers.
+pub const AUTO_PROBE_MIN_ADDRESS_SPACE: u64 = 8 << 30;
+
 /// The image size when neither the command line nor a scene gives one.
 pub const DEFAULT_SIZE: (u32, u32) = (1024, 1024);
 
@@ -852,13 +855,29 @@ fn parse_projection(s: &str) -> std::result::Result<ProjectionPath, String> {
 
 impl BackendArgs {
     /// Opens the renderer; `--projection hardware` with the CPU backend is an error.
+    /// Opens the renderer; `auto` under a small `ulimit -v` (below
+    /// [`AUTO_PROBE_MIN_ADDRESS_SPACE`]) takes the CPU without probing GPU drivers.
     pub fn open(&self) -> Result<Renderer> {
         let options = GpuOptions {
             force_32bit: self.gpu_32bit,
             ..Default::default()
         };
-        let mut r =
-            Renderer::new(self.backend, options).map_err(|e| format!("--backend gpu: {e}"))?;
+        let mut backend = self.backend;
+        if backend == Backend::Auto {
+            if let Some(limit) = stipple_lod::mem::address_space_limit() {
+                if limit < AUTO_PROBE_MIN_ADDRESS_SPACE {
+                    // GPU drivers map large address ranges when probed, which a small
+                    // `ulimit -v` cannot take: stay on the CPU.
+                    eprintln!(
+                        "stipple: note: ulimit -v is {} MiB: rendering on the CPU without \
+                         probing GPU drivers (--backend gpu probes anyway)",
+                        limit >> 20
+                    );
+                    backend = Backend::Cpu;
+                }
+            }
+        }
+        let mut r = Renderer::new(backend, options).map_err(|e| format!("--backend gpu: {e}"))?;
         match r.gpu_mut() {
             Some(g) => g.projection = self.projection,
             None if self.projection == ProjectionPath::Hardware => {

@@ -207,6 +207,13 @@ pub fn parse_scene(s: &str) -> Result<DemoScene> {
 }
 
 fn main() -> ExitCode {
+    // Like other command-line tools, end quietly when the reader of our output goes away
+    // (`stipple info x.laz | head -2`); Rust's default turns that into a panic.
+    #[cfg(unix)]
+    // SAFETY: restoring the default action of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     let memory = match &cli.cmd {
         Some(Cmd::Render(a)) => a.source.memory,
@@ -340,6 +347,23 @@ fn distinct_outputs(outs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
+/// The process id of another running stipple process writing `path` (its temporary file
+/// `.NAME.PID.stipple-tmp` is beside it and that process is alive), if any.
+fn other_writer(path: &Path) -> Option<u32> {
+    let name = path.file_name()?.to_string_lossy().into_owned();
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty());
+    let prefix = format!(".{name}.");
+    std::fs::read_dir(dir.unwrap_or(Path::new(".")))
+        .ok()?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            let pid = n.strip_prefix(&prefix)?.strip_suffix(".stipple-tmp")?;
+            pid.parse::<u32>().ok()
+        })
+        .find(|&pid| pid != std::process::id() && Path::new(&format!("/proc/{pid}")).exists())
+}
+
 /// Outputs of one command, written to temporary files beside their places and renamed into
 /// place together by [`Staged::commit`]; dropped uncommitted (an error on the way), the
 /// temporary files are removed and no output appears or changes.
@@ -362,7 +386,17 @@ impl Staged {
         tmp.push(format!(".{}.stipple-tmp", std::process::id()));
         let tmp = path.with_file_name(tmp);
         not_special(path)?;
+        // Our temporary file first, then a look for another live process's: of two
+        // processes writing one output at once, at least the later one stops here.
+        std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", path.display()))?;
         self.files.push((tmp.clone(), path.to_path_buf()));
+        if let Some(pid) = other_writer(path) {
+            return Err(format!(
+                "{}: another stipple process (pid {pid}) is writing it right now; wait for it \
+                 to finish or choose another output",
+                path.display()
+            ));
+        }
         f(&tmp).map_err(|e| match e {
             stipple_io::IoError::Io { source, .. } => format!("{}: {source}", path.display()),
             other => other

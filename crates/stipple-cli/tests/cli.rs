@@ -621,5 +621,64 @@ fn memory_needs_are_checked_before_allocating() {
         t.contains("a 8192×8192 image needs about") && t.contains("ulimit -v"),
         "{t}"
     );
+    // Within a limit that fits the frame, `auto` renders on the CPU without probing GPU
+    // drivers (whose mappings exhausted the limit: an abort), and build-lod's default
+    // budget stays inside the limit.
+    let bin = env!("CARGO_BIN_EXE_stipple");
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 600000 && '{bin}' gen sphere --points 20000 -o s.las && \
+             '{bin}' render s.las --size 256 -o s.png && '{bin}' build-lod s.las -o s.stlod"
+        ))
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(t.contains("without probing GPU drivers"), "{t}");
+    let budget: u64 = t
+        .split("memory budget ")
+        .nth(1)
+        .and_then(|r| r.split(" MiB").next())
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no budget in {t}"));
+    assert!(budget < 600, "{t}");
+    // A small .ply.gz that inflates to 600 MB of padding after its three vertices is read
+    // only as far as its header's records reach: it fits a 500 MB limit.
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "printf 'ply\\nformat ascii 1.0\\nelement vertex 3\\nproperty float x\\n\
+             property float y\\nproperty float z\\nend_header\\n0 0 0\\n1 0 0\\n0 1 0\\n' \
+             > b.ply && (cat b.ply; head -c 600000000 /dev/zero) | gzip -c > bomb.ply.gz && \
+             ulimit -v 500000 && '{bin}' info bomb.ply.gz"
+        ))
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(o.status.success() && t.contains("points      3"), "{t}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
+/// A reader that goes away (`| head`) ends stipple quietly, as it does any Unix tool; it
+/// used to panic with "failed printing to stdout: Broken pipe". (400 reports are more than
+/// a pipe's buffer, so the write after `head` has gone is certain.)
+#[test]
+fn a_closed_pipe_is_not_a_panic() {
+    let dir = tempdir("pipe");
+    let bin = env!("CARGO_BIN_EXE_stipple");
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "'{bin}' gen sphere --points 500 -o s.xyz && \
+             '{bin}' info $(for i in $(seq 400); do printf 's.xyz '; done) | head -c 1 >/dev/null"
+        ))
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(!t.contains("panicked") && !t.contains("Broken pipe"), "{t}");
     std::fs::remove_dir_all(dir).ok();
 }

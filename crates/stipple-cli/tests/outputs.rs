@@ -119,3 +119,34 @@ fn render_outputs_never_clobber_inputs_or_each_other() {
     assert!(o.status.success(), "{}", text(&o));
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// An output that another live stipple process is writing (its temporary file is beside
+/// the output) is an error; a temporary file left by a dead process is not.
+#[test]
+fn an_output_another_process_is_writing_is_refused() {
+    let dir = tempdir("concurrent");
+    // A live process standing in for the other writer.
+    let mut other = std::process::Command::new("sleep")
+        .arg("60")
+        .spawn()
+        .unwrap();
+    let tmp = dir.join(format!(".x.png.{}.stipple-tmp", other.id()));
+    std::fs::write(&tmp, b"half an image").unwrap();
+    let args = [
+        "render", "--demo", "sphere", "--points", "500", "--size", "32", "-o", "x.png",
+    ];
+    let o = stipple(&dir, &args);
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains(&format!("another stipple process (pid {})", other.id())),
+        "{}",
+        text(&o)
+    );
+    assert!(!dir.join("x.png").exists());
+    other.kill().unwrap();
+    other.wait().unwrap();
+    let o = stipple(&dir, &args);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(dir.join("x.png").exists());
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -69,6 +69,28 @@ impl Bounds {
     }
 }
 
+/// The largest coordinate magnitude a reader accepts: positions are kept as 32-bit offsets
+/// from the cloud's centre, and beyond this no geodetic or scientific use remains (a finite
+/// 1e300 would become an infinite offset).
+pub const MAX_COORDINATE: f64 = 1e15;
+
+/// Why a finite world position cannot be kept (see [`MAX_COORDINATE`]), if it cannot.
+pub fn coordinate_problem(p: glam::DVec3) -> Option<String> {
+    if !p.is_finite() {
+        return Some(format!(
+            "a non-finite coordinate ({}, {}, {})",
+            p.x, p.y, p.z
+        ));
+    }
+    (p.abs().max_element() > MAX_COORDINATE).then(|| {
+        format!(
+            "a coordinate out of range ({:e}, {:e}, {:e}): positions are kept as 32-bit \
+             offsets from the cloud's centre and may be at most {MAX_COORDINATE:e} in magnitude",
+            p.x, p.y, p.z
+        )
+    })
+}
+
 /// A problem with the contents of a cloud (not with the file it came from: readers wrap this
 /// with the path).
 #[derive(Debug, thiserror::Error, PartialEq)]

@@ -7,6 +7,7 @@ pub mod demo;
 pub mod grouping;
 pub mod normals;
 pub mod rng;
+pub mod sys;
 
 pub use camera::{Camera, Projection};
 pub use cloud::{Bounds, PointCloud};

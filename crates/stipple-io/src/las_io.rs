@@ -31,7 +31,10 @@ impl LasBatches {
             .map_err(|e| IoError::io(path, e))?
             .len();
         let reader = las::Reader::from_path(path)
-            .map_err(|e| IoError::invalid(path, format!("cannot read the LAS header: {e}")))?;
+            .map_err(|e| IoError::invalid(path, explain_open_error(path, file_len, &e)))?;
+        if let Some(problem) = header_problem(path, file_len) {
+            return Err(IoError::invalid(path, problem));
+        }
         let header = reader.header().clone();
         let count = header.number_of_points();
         if count == 0 {
@@ -96,6 +99,86 @@ impl LasBatches {
     }
 }
 
+/// Says what is wrong with a LAS/LAZ file the `las` crate could not open, from the header's
+/// own fields where they explain it (truncation, counts and offsets beyond the file).
+fn explain_open_error(path: &Path, file_len: u64, e: &las::Error) -> String {
+    if let Some(problem) = header_problem(path, file_len) {
+        return problem;
+    }
+    let text = e.to_string();
+    let compressed = std::fs::File::open(path)
+        .and_then(|mut f| {
+            use std::io::{Read, Seek};
+            let mut b = [0u8; 1];
+            f.seek(std::io::SeekFrom::Start(104))?;
+            f.read_exact(&mut b)?;
+            Ok(b[0] & 0xC0 != 0)
+        })
+        .unwrap_or(false);
+    if text.contains("fill whole buffer") || text.contains("os error 22") {
+        return if compressed {
+            format!(
+                "the LAZ data cannot be read ({text}): the file ({file_len} bytes) is \
+                 truncated or an offset in it is wrong (LAZ keeps its chunk table at the end, \
+                 so a cut file loses it)"
+            )
+        } else {
+            format!(
+                "the header or its variable-length records reach past the end of the file \
+                 ({file_len} bytes): it is truncated or an offset in it is wrong ({text})"
+            )
+        };
+    }
+    format!("cannot read the LAS header: {text}")
+}
+
+/// A LAS header whose sizes, offsets or counts cannot fit the file, said plainly.
+fn header_problem(path: &Path, file_len: u64) -> Option<String> {
+    use std::io::Read;
+    let mut head = [0u8; 227];
+    let n = std::fs::File::open(path)
+        .and_then(|mut f| {
+            let mut n = 0;
+            while n < head.len() {
+                match f.read(&mut head[n..])? {
+                    0 => break,
+                    k => n += k,
+                }
+            }
+            Ok(n)
+        })
+        .unwrap_or(0);
+    if n < head.len() {
+        return Some(format!(
+            "the file ends after {file_len} bytes, inside the LAS header (which takes at \
+             least 227): it is truncated"
+        ));
+    }
+    let u16_at = |o: usize| u16::from_le_bytes([head[o], head[o + 1]]) as u64;
+    let u32_at = |o: usize| u32::from_le_bytes(head[o..o + 4].try_into().unwrap()) as u64;
+    let (header_size, point_offset, nvlr) = (u16_at(94), u32_at(96), u32_at(100));
+    if header_size > file_len {
+        return Some(format!(
+            "the header says it is {header_size} bytes long, but the file has only \
+             {file_len}: it is truncated"
+        ));
+    }
+    if point_offset > file_len {
+        return Some(format!(
+            "the header says the points start at byte {point_offset}, but the file has only \
+             {file_len} bytes: it is truncated"
+        ));
+    }
+    // A variable-length record takes at least 54 bytes.
+    if nvlr.saturating_mul(54) > file_len {
+        return Some(format!(
+            "the header declares {nvlr} variable-length records, more than the file's \
+             {file_len} bytes can hold: the header is corrupt"
+        ));
+    }
+    None
+}
+
 /// Reads a LAS/LAZ file.
 pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
     let file_len = std::fs::metadata(path)
@@ -106,11 +189,37 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
     let count = batches.count;
     let fmt = header.point_format();
     let b = header.bounds();
-    let mut origin = DVec3::new(
-        (b.min.x + b.max.x) * 0.5,
-        (b.min.y + b.max.y) * 0.5,
-        (b.min.z + b.max.z) * 0.5,
-    )
+    let (hlo, hhi) = (
+        DVec3::new(b.min.x, b.min.y, b.min.z),
+        DVec3::new(b.max.x, b.max.y, b.max.z),
+    );
+    // The origin of the f32 offsets: the header's centre when the header's bounds hold the
+    // first batch of points, else (inverted, far-off or missing bounds, which would quantise
+    // the offsets to metres) the first batch's own centre.
+    batches.next_batch(BATCH)?;
+    let (flo, fhi) = {
+        let pd = &batches.data;
+        pd.x()
+            .zip(pd.y())
+            .zip(pd.z())
+            .map(|((x, y), z)| DVec3::new(x, y, z))
+            .filter(|p| p.is_finite())
+            .fold(
+                (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+                |(lo, hi), p| (lo.min(p), hi.max(p)),
+            )
+    };
+    let slack = (hhi - hlo).abs().max_element() * 0.01 + 1.0;
+    let header_holds = hlo.is_finite()
+        && hhi.is_finite()
+        && hlo.cmple(hhi).all()
+        && flo.cmpge(hlo - slack).all()
+        && fhi.cmple(hhi + slack).all();
+    let mut origin = if header_holds {
+        (hlo + hhi) * 0.5
+    } else {
+        (flo + fhi) * 0.5
+    }
     .round();
     if !origin.is_finite() || origin.abs().max_element() > 1e12 {
         origin = DVec3::ZERO;
@@ -126,14 +235,17 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
     };
     let mut rgb16: Option<Vec<[u16; 3]>> = fmt.has_color.then(|| Vec::with_capacity(cap));
     let mut read: u64 = 0;
-    while batches.next_batch(BATCH)? > 0 {
+    // The first batch is in `batches.data` already.
+    let mut first = true;
+    while first || batches.next_batch(BATCH)? > 0 {
+        first = false;
         let pd = &batches.data;
         for (k, ((x, y), z)) in pd.x().zip(pd.y()).zip(pd.z()).enumerate() {
             let p = DVec3::new(x, y, z);
-            if !p.is_finite() {
+            if let Some(problem) = stipple_core::cloud::coordinate_problem(p) {
                 return Err(IoError::invalid(
                     path,
-                    format!("point {} has a non-finite coordinate", read + k as u64),
+                    format!("point {} has {problem}", read + k as u64),
                 ));
             }
             cloud.positions.push((p - origin).as_vec3());

@@ -57,6 +57,29 @@ pub enum Format {
 /// gzip) and, for headerless text, from its extension. The cloud is validated before it is
 /// returned.
 pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
+    let meta = std::fs::metadata(path).map_err(|e| IoError::io(path, e))?;
+    if !meta.is_file() {
+        return Err(IoError::invalid(
+            path,
+            "not a regular file (a device, directory or pipe): stipple reads point files",
+        ));
+    }
+    // PLY and text files are read whole (LAS/LAZ stream into the cloud's columns).
+    if !matches!(extension(path).as_str(), "las" | "laz") {
+        if let Some(avail) = stipple_core::sys::available_memory() {
+            if meta.len() > avail {
+                return Err(IoError::invalid(
+                    path,
+                    format!(
+                        "the file is {} MiB, more than the {} MiB of memory available to \
+                         read it",
+                        meta.len() >> 20,
+                        avail >> 20
+                    ),
+                ));
+            }
+        }
+    }
     let mut head = [0u8; 4];
     let n = {
         let mut f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;

@@ -6,8 +6,9 @@
 //! Other vertex properties are skipped. The `face` element's `vertex_indices` lists are kept
 //! as triangles (polygons are fanned). Other elements are skipped.
 
-use crate::{read_maybe_gz, IoError};
+use crate::IoError;
 use glam::{DVec3, Vec3};
+use std::io::Read;
 use std::io::Write;
 use std::path::Path;
 use stipple_core::PointCloud;
@@ -460,9 +461,94 @@ impl RecordSource for Ascii<'_> {
     }
 }
 
+/// At most this many characters per ASCII value (with its separator) are inflated from a
+/// `.ply.gz`; the parser needs no more.
+const MAX_ASCII_VALUE: u64 = 128;
+
+/// The most bytes the records a header declares can take (ASCII: [`MAX_ASCII_VALUE`] per
+/// value; binary lists at their count type's largest length, at most 1e6).
+fn max_body_bytes(h: &Header) -> u64 {
+    h.elements.iter().fold(0u64, |acc, el| {
+        let record: u64 = match h.encoding {
+            Encoding::Ascii => (el.props.len() as u64 + 1).saturating_mul(MAX_ASCII_VALUE),
+            _ => el
+                .props
+                .iter()
+                .map(|p| match p {
+                    Property::Scalar { ty, .. } => ty.size() as u64,
+                    Property::List { count, item, .. } => {
+                        let longest = match count.size() {
+                            1 => 255,
+                            2 => 65_535,
+                            _ => 1_000_000,
+                        };
+                        count.size() as u64 + longest * item.size() as u64
+                    }
+                })
+                .sum(),
+        };
+        acc.saturating_add(el.count.saturating_mul(record))
+    })
+}
+
+/// A PLY file's bytes; a gzip-compressed one is inflated only as far as its header's
+/// records can reach (a small `.ply.gz` that inflates to gigabytes of padding stops there),
+/// and refused when even that is more than the memory available.
+fn read_ply_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
+    let raw = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
+    if !raw.starts_with(&[0x1f, 0x8b]) {
+        return Ok(raw);
+    }
+    let corrupt = |e: std::io::Error| {
+        IoError::invalid(path, format!("gzip data is corrupt or truncated: {e}"))
+    };
+    let mut dec = flate2::read::MultiGzDecoder::new(&raw[..]);
+    let mut out: Vec<u8> = Vec::new();
+    let mut limit: Option<u64> = None;
+    let mut buf = vec![0u8; 1 << 20];
+    loop {
+        let n = dec.read(&mut buf).map_err(corrupt)?;
+        if n == 0 {
+            break;
+        }
+        out.extend_from_slice(&buf[..n]);
+        if limit.is_none() {
+            match parse_header(&out) {
+                Ok(h) => {
+                    let body = max_body_bytes(&h);
+                    if let Some(avail) = stipple_core::sys::available_memory() {
+                        if body.min(raw.len() as u64 * 1032) > avail {
+                            return Err(IoError::invalid(
+                                path,
+                                format!(
+                                    "the header declares records of up to {} MiB once \
+                                     inflated, more than the {} MiB of memory available",
+                                    body >> 20,
+                                    avail >> 20
+                                ),
+                            ));
+                        }
+                    }
+                    limit = Some((h.data_start as u64).saturating_add(body));
+                }
+                // The header is not all there yet; past its maximum size the parser says why.
+                Err(_) if out.len() < MAX_HEADER => {}
+                Err(_) => limit = Some(out.len() as u64),
+            }
+        }
+        if let Some(l) = limit {
+            if out.len() as u64 >= l {
+                out.truncate(l as usize);
+                break;
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Reads a PLY file (gzip-compressed or not).
 pub fn read_ply(path: &Path) -> Result<PointCloud, IoError> {
-    let data = read_maybe_gz(path)?;
+    let data = read_ply_bytes(path)?;
     parse_ply(&data).map_err(|m| IoError::invalid(path, m))
 }
 
@@ -536,7 +622,13 @@ fn read_elements(
         // Counts were checked against the bytes present; cap again for list-bearing elements.
         let cap = (el.count as usize).min(body_len / el.min_record().max(1));
         let mut vals = vec![0.0f64; el.props.len()];
-        if el.name == "vertex" && !seen_vertex {
+        let is_vertex = el.name == "vertex" && !seen_vertex;
+        if el.props.is_empty() && !is_vertex {
+            // Records of no bytes: nothing to read, however many the header declares (a
+            // count of 4 000 000 000 was a loop of 4e9 empty reads; found by fuzzing).
+            continue;
+        }
+        if is_vertex {
             seen_vertex = true;
             let m = VertexMap::new(el)?;
             world.reserve(cap);
@@ -560,11 +652,8 @@ fn read_elements(
                 src.record(el, &mut vals, None)
                     .map_err(|e| format!("vertex {i}: {e}"))?;
                 let p = DVec3::new(vals[x], vals[y], vals[z]);
-                if !p.is_finite() {
-                    return Err(format!(
-                        "vertex {i} has a non-finite coordinate ({}, {}, {})",
-                        p.x, p.y, p.z
-                    ));
+                if let Some(problem) = stipple_core::cloud::coordinate_problem(p) {
+                    return Err(format!("vertex {i} has {problem}"));
                 }
                 world.push(p);
                 if let Some(n) = normals.as_mut() {

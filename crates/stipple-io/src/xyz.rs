@@ -69,6 +69,11 @@ pub fn read_xyz(path: &Path) -> Result<PointCloud, IoError> {
     parse_xyz(text).map_err(|m| IoError::invalid(path, m))
 }
 
+/// The longest line a text point file may have (a point with dozens of attributes takes a
+/// few hundred bytes); longer lines are refused before they are split into tokens.
+pub const MAX_LINE: usize = 64 << 10;
+
+/// Parses the text of a point file (see [`read_xyz`] for the layouts understood).
 pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
     let mut names: Option<Vec<Col>> = None;
     let mut ncols = 0usize;
@@ -76,6 +81,13 @@ pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
     let mut first_content = true;
     for (ln, line) in text.lines().enumerate() {
         let line_no = ln + 1;
+        if line.len() > MAX_LINE {
+            return Err(format!(
+                "line {line_no} is {} bytes long, more than a point's line can be ({MAX_LINE}): \
+                 this is not a text point file",
+                line.len()
+            ));
+        }
         let t = line.trim();
         if t.is_empty() || t.starts_with('#') || t.starts_with("//") && !t.starts_with("//x") {
             continue;
@@ -116,7 +128,7 @@ pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
                     return Err(format!(
                         "line {line_no}: value {} is not finite (`{}`)",
                         bad + 1,
-                        toks[bad]
+                        crate::ply::shown(toks[bad])
                     ));
                 }
                 rows.extend_from_slice(&v);
@@ -183,6 +195,13 @@ pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
     let world: Vec<DVec3> = (0..n)
         .map(|i| DVec3::new(at(i, x), at(i, y), at(i, z)))
         .collect();
+    if let Some((i, problem)) = world
+        .iter()
+        .enumerate()
+        .find_map(|(i, &p)| stipple_core::cloud::coordinate_problem(p).map(|m| (i, m)))
+    {
+        return Err(format!("point {i} has {problem}"));
+    }
     let mut cloud = PointCloud::from_world(&world);
     if let (Some(r), Some(g), Some(b)) = (find(Col::R), find(Col::G), find(Col::B)) {
         let max = (0..n)

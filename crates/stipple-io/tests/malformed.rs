@@ -48,7 +48,7 @@ const CASES: &[(&str, &str)] = &[
     ("truncated.ply.gz", "gzip data is corrupt or truncated"),
     ("empty_file.ply", "not a PLY file"),
     ("bad_magic.las", "not a LAS/LAZ file"),
-    ("tiny.las", "cannot read the LAS header"),
+    ("tiny.las", "inside the LAS header"),
     ("bad_token.xyz", "line 3: `abc` is not a number"),
     ("ragged.xyz", "line 2: 4 values, but earlier lines have 3"),
     ("nan.xyz", "line 2: value 2 is not finite"),
@@ -56,6 +56,19 @@ const CASES: &[(&str, &str)] = &[
     ("two_columns.xyz", "expected at least 3 numbers"),
     ("binary.xyz", "not a text file"),
     ("unsupported.pcd", "not supported yet"),
+    // A finite 1e300 is out of range, not "non-finite".
+    (
+        "huge_coordinate.ply",
+        "vertex 1 has a coordinate out of range (1e300",
+    ),
+    (
+        "huge_coordinate.xyz",
+        "point 2 has a coordinate out of range",
+    ),
+    // A line longer than any point's is refused before it is split into tokens.
+    ("long_line.xyz", "line 2 is 66000 bytes long"),
+    // Found by fuzzing: an element of 4e9 records without properties looped 4e9 times.
+    ("fuzz_empty_element.ply", "no vertex element"),
 ];
 
 #[test]
@@ -130,4 +143,82 @@ fn truncated_and_inflated_las_are_rejected() {
     let e = read_cloud(&z).unwrap_err().to_string();
     assert!(e.contains("zero.las") && e.contains("no points"), "{e}");
     std::fs::remove_dir_all(dir).ok();
+}
+
+/// LAS header bounds that disagree with the points (far off, or inverted) do not quantise
+/// the points: the origin then comes from the data.
+#[test]
+fn wrong_las_header_bounds_keep_the_points_precise() {
+    let dir = tempdir("las-bounds");
+    let path = las_fixture(&dir, 2000);
+    let truth = read_cloud(&path).unwrap();
+    let bytes = std::fs::read(&path).unwrap();
+    // LAS 1.2 header: max x, min x, max y, min y, max z, min z as f64 from offset 179.
+    let put =
+        |b: &mut Vec<u8>, off: usize, v: f64| b[off..off + 8].copy_from_slice(&v.to_le_bytes());
+    for (tag, vals) in [
+        ("far", [1e9 + 1.0, 1e9, 1e9 + 1.0, 1e9, 1e9 + 1.0, 1e9]),
+        ("inverted", [-5.0, 5.0, -5.0, 5.0, -5.0, 5.0]),
+    ] {
+        let mut b = bytes.clone();
+        for (k, v) in vals.into_iter().enumerate() {
+            put(&mut b, 179 + 8 * k, v);
+        }
+        let p = dir.join(format!("{tag}.las"));
+        std::fs::write(&p, &b).unwrap();
+        let c = read_cloud(&p).unwrap();
+        assert_eq!(c.len(), truth.len());
+        for (a, t) in c.positions.iter().zip(&truth.positions) {
+            let (a, t) = (c.origin + a.as_dvec3(), truth.origin + t.as_dvec3());
+            assert!((a - t).length() < 1e-3, "{tag}: {a} vs {t}");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Truncated and corrupt LAS/LAZ headers say what is wrong and where, from the header's own
+/// fields (the `las` crate alone said "failed to fill whole buffer").
+#[test]
+fn truncated_las_and_laz_say_where() {
+    let dir = tempdir("las-truncated");
+    let mut c = stipple_core::demo::generate(stipple_core::demo::DemoScene::Torus, 3000, 5);
+    c.normals = None;
+    let laz = dir.join("f.laz");
+    stipple_io::write_cloud(&laz, &c).unwrap();
+    let bytes = std::fs::read(&laz).unwrap();
+    let mut offset = bytes.clone();
+    offset[96..100].copy_from_slice(&(bytes.len() as u32 + 100).to_le_bytes());
+    let mut nvlr = bytes.clone();
+    nvlr[100..104].copy_from_slice(&u32::MAX.to_le_bytes());
+    for (name, data, want) in [
+        ("head.laz", bytes[..100].to_vec(), "inside the LAS header"),
+        ("offset.laz", offset, "the points start at byte"),
+        (
+            "data.laz",
+            bytes[..bytes.len() * 2 / 3].to_vec(),
+            "truncated",
+        ),
+        ("nvlr.laz", nvlr, "4294967295 variable-length records"),
+    ] {
+        let p = dir.join(name);
+        std::fs::write(&p, &data).unwrap();
+        let e = read_cloud(&p).unwrap_err().to_string();
+        assert!(e.contains(name) && e.contains(want), "{name}: {e}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Devices, directories and pipes are not read (a symbolic link to /dev/zero named `.xyz`
+/// used to be read until memory ran out).
+#[test]
+fn non_regular_inputs_are_refused() {
+    let dir = tempdir("special");
+    let link = dir.join("zero.xyz");
+    let _ = std::fs::remove_file(&link);
+    std::os::unix::fs::symlink("/dev/zero", &link).unwrap();
+    for p in [link.as_path(), dir.as_path()] {
+        let e = read_cloud(p).unwrap_err().to_string();
+        assert!(e.contains("not a regular file"), "{e}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

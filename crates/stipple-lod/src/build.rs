@@ -89,10 +89,13 @@ impl Default for BuildOptions {
     }
 }
 
-/// A quarter of the machine's memory, at most 8 GiB (6 GiB on a 24 GiB machine).
+/// A quarter of the machine's memory, at most 8 GiB (6 GiB on a 24 GiB machine), and at most
+/// three quarters of what this process can still take (free memory, within `ulimit -v`).
 pub fn default_memory() -> u64 {
     let total = crate::mem::total_memory().unwrap_or(8 << 30);
-    (total / 4).clamp(MIN_MEMORY, 8 << 30)
+    // Within what this process can still take (free memory, `ulimit -v`).
+    let free = crate::mem::available_memory().map_or(u64::MAX, |a| a / 4 * 3);
+    (total / 4).min(free).clamp(MIN_MEMORY, 8 << 30)
 }
 
 #[derive(Clone, Debug, Default)]

@@ -1,52 +1,7 @@
-//! Memory figures of this process and machine (Linux `/proc`; `None` elsewhere), and memory
-//! sizes as users write them.
+//! Memory figures of this process and machine (from `stipple_core::sys`), and memory sizes
+//! as users write them.
 
-fn status_kib(file: &str, key: &str) -> Option<u64> {
-    let s = std::fs::read_to_string(file).ok()?;
-    let line = s.lines().find(|l| l.starts_with(key))?;
-    line[key.len()..]
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()
-}
-
-/// Peak resident memory of this process (VmHWM), bytes.
-pub fn peak_rss() -> Option<u64> {
-    status_kib("/proc/self/status", "VmHWM:").map(|k| k * 1024)
-}
-
-/// Physical memory of the machine, bytes.
-pub fn total_memory() -> Option<u64> {
-    status_kib("/proc/meminfo", "MemTotal:").map(|k| k * 1024)
-}
-
-/// Memory this process can still take, bytes: the machine's available memory (MemAvailable),
-/// and under an address-space limit (`ulimit -v`) what is left of it beyond the process's
-/// current size, whichever is smaller.
-pub fn available_memory() -> Option<u64> {
-    let free = status_kib("/proc/meminfo", "MemAvailable:").map(|k| k * 1024);
-    let headroom = address_space_limit().map(|limit| {
-        let used = status_kib("/proc/self/status", "VmSize:").map_or(0, |k| k * 1024);
-        limit.saturating_sub(used)
-    });
-    match (free, headroom) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    }
-}
-
-/// The soft address-space limit (`ulimit -v`), bytes, when one is set.
-pub fn address_space_limit() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/limits").ok()?;
-    let line = s.lines().find(|l| l.starts_with("Max address space"))?;
-    line["Max address space".len()..]
-        .split_whitespace()
-        .next()?
-        .parse()
-        .ok()
-}
+pub use stipple_core::sys::{address_space_limit, available_memory, peak_rss, total_memory};
 
 /// Parses `512M`, `6G`, `1.5GiB`, `100000000` (bytes), case-insensitive.
 pub fn parse_size(s: &str) -> Result<u64, String> {

@@ -192,10 +192,10 @@ impl Input {
                     out.clear();
                     for (k, ((x, y), z)) in pd.x().zip(pd.y()).zip(pd.z()).enumerate() {
                         let w = DVec3::new(x, y, z);
-                        if !w.is_finite() {
+                        if let Some(problem) = stipple_core::cloud::coordinate_problem(w) {
                             return Err(bad(
                                 path,
-                                format!("point {} has a non-finite coordinate", read + k as u64),
+                                format!("point {} has {problem}", read + k as u64),
                             ));
                         }
                         out.push(Record::new((w - origin).as_vec3(), NEUTRAL));
