@@ -264,6 +264,14 @@ impl VertexMap {
                     p.name()
                 ));
             }
+            if let Some(first) = *slot {
+                return Err(format!(
+                    "vertex property `{}` (property {k}) gives the same attribute as `{}` \
+                     (property {first}): which one is meant is ambiguous",
+                    shown(p.name()),
+                    shown(el.props[first].name())
+                ));
+            }
             *slot = Some(k);
         }
         if m.xyz.iter().any(Option::is_none) {
@@ -622,7 +630,10 @@ fn read_elements(
         // Counts were checked against the bytes present; cap again for list-bearing elements.
         let cap = (el.count as usize).min(body_len / el.min_record().max(1));
         let mut vals = vec![0.0f64; el.props.len()];
-        let is_vertex = el.name == "vertex" && !seen_vertex;
+        if el.name == "vertex" && seen_vertex {
+            return Err("the file has a second `vertex` element; stipple reads files with one".into());
+        }
+        let is_vertex = el.name == "vertex";
         if el.props.is_empty() && !is_vertex {
             // Records of no bytes: nothing to read, however many the header declares (a
             // count of 4 000 000 000 was a loop of 4e9 empty reads; found by fuzzing).

@@ -65,6 +65,9 @@ const CASES: &[(&str, &str)] = &[
         "huge_coordinate.xyz",
         "point 2 has a coordinate out of range",
     ),
+    // Ambiguous files are errors, not a silent choice.
+    ("duplicate_x.ply", "vertex property `x` (property 3) gives the same attribute as `x`"),
+    ("two_vertex_elements.ply", "a second `vertex` element"),
     // A line longer than any point's is refused before it is split into tokens.
     ("long_line.xyz", "line 2 is 66000 bytes long"),
     // Found by fuzzing: an element of 4e9 records without properties looped 4e9 times.
