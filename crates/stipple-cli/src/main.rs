@@ -705,6 +705,11 @@ fn devices() -> Result<()> {
             Ok(()) => println!("   usable by stipple: yes"),
             Err(why) => println!("   usable by stipple: no ({why})"),
         }
+        if let Err(why) = &a.hardware_projection {
+            println!(
+                "   --projection hardware: unavailable ({why}); the default compute path runs"
+            );
+        }
     }
     match stipple_render::gpu::GpuContext::new(Default::default()) {
         Ok(c) => println!("--backend auto/gpu uses: {}", c.describe()),

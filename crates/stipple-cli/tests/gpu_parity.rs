@@ -202,3 +202,51 @@ fn gpu_bench_reports_host_steps_and_compares_projections_only_when_projecting() 
     let splat = bench(&["--pipeline", "splat"]);
     assert!(!splat.contains("project ("), "{splat}");
 }
+
+/// On a GL adapter (Mesa's llvmpipe through EGL, `WGPU_BACKEND=gl`), whose R32Float targets
+/// are not renderable, `stipple devices` names what the adapter lacks, the default frame
+/// renders (the hardware projection used to be built up front and failed with a raw wgpu
+/// validation error), and `--projection hardware` is refused in one line.
+#[test]
+fn a_gl_adapter_renders_and_says_what_it_lacks() {
+    let run = |args: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .args(args)
+            .env("WGPU_BACKEND", "gl")
+            .current_dir(std::env::temp_dir())
+            .output()
+            .unwrap();
+        let t = format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        (o.status.success(), t)
+    };
+    let (_, devices) = run(&["devices"]);
+    if !devices.contains("(Gl, ") {
+        eprintln!("skipped: no GL adapter (install libegl-mesa0): {devices}");
+        return;
+    }
+    let png = std::env::temp_dir().join(format!("stipple-gl-{}.png", std::process::id()));
+    let png = png.to_str().unwrap();
+    let base = [
+        "render", "--demo", "sphere", "--points", "3000", "--size", "48",
+    ];
+    let (ok, t) = run(&[&base[..], &["--backend", "gpu", "-o", png]].concat());
+    assert!(ok && t.contains("(Gl, "), "{t}");
+    if devices.contains("--projection hardware: unavailable") {
+        let (ok, t) = run(&[
+            &base[..],
+            &["--backend", "gpu", "--projection", "hardware", "-o", png],
+        ]
+        .concat());
+        assert!(!ok, "{t}");
+        assert!(
+            t.contains("this adapter cannot run --projection hardware"),
+            "{t}"
+        );
+        assert!(!t.contains("Validation Error"), "{t}");
+    }
+    let _ = std::fs::remove_file(png);
+}

@@ -631,7 +631,9 @@ fn read_elements(
         let cap = (el.count as usize).min(body_len / el.min_record().max(1));
         let mut vals = vec![0.0f64; el.props.len()];
         if el.name == "vertex" && seen_vertex {
-            return Err("the file has a second `vertex` element; stipple reads files with one".into());
+            return Err(
+                "the file has a second `vertex` element; stipple reads files with one".into(),
+            );
         }
         let is_vertex = el.name == "vertex";
         if el.props.is_empty() && !is_vertex {

@@ -66,7 +66,10 @@ const CASES: &[(&str, &str)] = &[
         "point 2 has a coordinate out of range",
     ),
     // Ambiguous files are errors, not a silent choice.
-    ("duplicate_x.ply", "vertex property `x` (property 3) gives the same attribute as `x`"),
+    (
+        "duplicate_x.ply",
+        "vertex property `x` (property 3) gives the same attribute as `x`",
+    ),
     ("two_vertex_elements.ply", "a second `vertex` element"),
     // A line longer than any point's is refused before it is split into tokens.
     ("long_line.xyz", "line 2 is 66000 bytes long"),

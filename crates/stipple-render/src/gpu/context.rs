@@ -22,6 +22,8 @@ pub enum GpuError {
     Wgpu(String),
     #[error("not implemented on the GPU backend: {0}")]
     Unsupported(String),
+    #[error("this adapter cannot run {0}")]
+    AdapterLacks(String),
 }
 
 /// Features that change how stipple runs on an adapter.
@@ -43,6 +45,21 @@ pub struct AdapterReport {
     pub max_buffer: u64,
     /// `Err(reason)` when the pipeline cannot run on it.
     pub suitable: Result<(), String>,
+    /// `Err(reason)` when the hardware projection path (`--projection hardware`, a
+    /// baseline) cannot run on it: its colour targets must be renderable.
+    pub hardware_projection: Result<(), String>,
+}
+
+/// Whether the hardware projection's render targets work on `a`.
+fn hardware_projection(a: &Adapter) -> Result<(), String> {
+    use super::project_hw::{DEPTH_FORMAT, ID_FORMAT};
+    for f in [ID_FORMAT, DEPTH_FORMAT] {
+        let usage = a.get_texture_format_features(f).allowed_usages;
+        if !usage.contains(wgpu::TextureUsages::RENDER_ATTACHMENT) {
+            return Err(format!("{f:?} is not renderable on this adapter"));
+        }
+    }
+    Ok(())
 }
 
 impl AdapterReport {
@@ -63,6 +80,7 @@ impl AdapterReport {
             max_storage_binding: l.max_storage_buffer_binding_size,
             max_buffer: l.max_buffer_size,
             suitable: suitability(a),
+            hardware_projection: hardware_projection(a),
         }
     }
 

@@ -61,13 +61,14 @@ struct Kit {
     indirect: Buffer,
     timer: Option<Timer>,
     project: Project,
-    project_hw: ProjectHw,
+    /// The hardware projection's pipelines and bind group, made when first used (their
+    /// targets are not renderable everywhere, e.g. R32Float on GL).
+    project_hw: Option<(ProjectHw, wgpu::BindGroup)>,
     fill_background: Pass,
     fill_occluded: Pass,
     iterate: Pass,
     /// The bind groups that depend on nothing but the set-up.
     iterate_group: wgpu::BindGroup,
-    hw_group: wgpu::BindGroup,
     shade: Shade,
     smooth: Pass,
     antialias: Pass,
@@ -707,7 +708,6 @@ impl GpuRenderer {
         });
         let iterate = super::iterate::new(&ctx);
         let (vis_table, vis_ranges) = super::visibility::offset_table();
-        let project_hw = ProjectHw::new(&ctx);
         let kit = Kit {
             cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
             cell_ranges,
@@ -736,16 +736,7 @@ impl GpuRenderer {
                 ],
             ),
             iterate,
-            hw_group: util::bind(
-                d,
-                "project_hw",
-                &project_hw.bgl,
-                &[
-                    Res::Buf(&view),
-                    Res::Arena(&arena.buffer, block::<ChunkBlock>()),
-                ],
-            ),
-            project_hw,
+            project_hw: None,
             counters,
             indirect,
             view,
@@ -838,12 +829,31 @@ impl GpuRenderer {
             }
         };
         let f = self.frame.insert(f);
+        if self.projection == ProjectionPath::Hardware && self.kit.project_hw.is_none() {
+            self.ctx.adapter.hardware_projection.clone().map_err(|e| {
+                GpuError::AdapterLacks(format!(
+                    "--projection hardware ({e}); leave the flag out for the compute projection"
+                ))
+            })?;
+            let hw = ProjectHw::new(&self.ctx);
+            let group = util::bind(
+                &self.ctx.device,
+                "project_hw",
+                &hw.bgl,
+                &[
+                    Res::Buf(&self.kit.view),
+                    Res::Arena(&self.arena.buffer, block::<ChunkBlock>()),
+                ],
+            );
+            self.kit.project_hw = Some((hw, group));
+        }
         if self.projection == ProjectionPath::Hardware && f.targets.is_none() {
             let t = Targets::new(&self.ctx, v.width, v.height);
+            let hw = &self.kit.project_hw.as_ref().expect("made above").0;
             let copy = util::bind(
                 &self.ctx.device,
                 "project_hw copy",
-                &self.kit.project_hw.copy_bgl,
+                &hw.copy_bgl,
                 &[
                     Res::Buf(&self.kit.view),
                     Res::Skip,
@@ -1421,7 +1431,10 @@ fn record_project_hw(
     rec.start();
     let q = rec.queries();
     let cull = cull && cloud.has_normals;
-    let hw = &kit.project_hw;
+    let (hw, hw_group) = kit
+        .project_hw
+        .as_ref()
+        .ok_or_else(|| GpuError::Wgpu("the hardware projection was not set up".into()))?;
     let mut draws = Vec::new();
     for c in &cloud.chunks {
         let off = rec.arena.push(&ChunkBlock {
@@ -1483,7 +1496,7 @@ fn record_project_hw(
         });
         pass.set_pipeline(&hw.pipeline);
         for (off, c) in &draws {
-            pass.set_bind_group(0, &kit.hw_group, &[*off]);
+            pass.set_bind_group(0, hw_group, &[*off]);
             pass.set_vertex_buffer(0, c.positions.slice(..));
             let n = c.normals.as_ref().unwrap_or(&c.positions);
             pass.set_vertex_buffer(1, n.slice(..));
