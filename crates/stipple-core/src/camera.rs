@@ -103,8 +103,9 @@ impl Camera {
     }
 
     /// A camera that frames world bounds `[lo, hi]`: it looks at their centre from a fixed
-    /// three-quarter direction, as close as the eight corners of the box allow (they fill
-    /// 95% of the frame). The up axis is +Y, or +Z when the bounds are flat in Z (LiDAR
+    /// direction (Y-up: a three-quarter view from +Z; Z-up: from −Y, raised about 40°, so a
+    /// rectangular tile faces the image squarely and fills it), as close as the eight
+    /// corners of the box allow (they fill 95% of the frame). The up axis is +Y, or +Z when the bounds are flat in Z (LiDAR
     /// tiles); [`Camera::framing_up`] takes the source's word for it.
     pub fn framing(lo: DVec3, hi: DVec3, width: u32, height: u32, fov_deg: f64) -> Camera {
         Camera::framing_up(lo, hi, width, height, fov_deg, false)
@@ -123,7 +124,7 @@ impl Camera {
         let e = hi - lo;
         let z_up = z_up || e.z < 0.35 * e.x.min(e.y);
         let (up, dir) = if z_up {
-            (DVec3::Z, DVec3::new(0.45, -1.0, 0.8).normalize())
+            (DVec3::Z, DVec3::new(0.0, -1.0, 0.8).normalize())
         } else {
             (DVec3::Y, DVec3::new(0.45, 0.35, 1.0).normalize())
         };
