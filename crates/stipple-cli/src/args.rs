@@ -625,7 +625,12 @@ impl PipelineArgs {
         let background = self.background.unwrap_or(DEFAULT_BACKGROUND);
         let splat = self.splat.settings()?;
         // Built (and so checked) whichever pipeline is chosen: a bad raw flag is an error.
-        let raw = self.raw.build(background)?;
+        let mut raw = self.raw.build(background)?;
+        if self.points_only {
+            // The points alone, in every pipeline.
+            raw.geometry.clear();
+            raw.colour.clear();
+        }
         let b = cloud.bounds();
         if b.max == b.min {
             let at = cloud.cloud.origin + b.min.as_dvec3();

@@ -682,3 +682,45 @@ fn a_closed_pipe_is_not_a_panic() {
     assert!(!t.contains("panicked") && !t.contains("Broken pipe"), "{t}");
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--points-only` holds for the raw pipeline too, and `--raw-fill-iterations 0` runs no
+/// fill (both used to run every pass).
+#[test]
+fn raw_pipeline_honours_points_only_and_zero_fill_iterations() {
+    let dir = tempdir("raw-flags");
+    let passes = |extra: &[&str]| -> String {
+        let base = [
+            "render",
+            "--demo",
+            "sphere",
+            "--points",
+            "5000",
+            "--size",
+            "64",
+            "--raw",
+            "--stats",
+            "--backend",
+            "cpu",
+            "-o",
+            "r.png",
+        ];
+        let o = stipple(&dir, &[&base[..], extra].concat());
+        assert!(o.status.success(), "{}", text(&o));
+        text(&o)
+    };
+    let all = passes(&[]);
+    assert!(
+        all.contains("fill_anisotropic") && all.contains("visibility"),
+        "{all}"
+    );
+    let points = passes(&["--points-only"]);
+    for p in ["fill_anisotropic", "visibility", "depiction"] {
+        assert!(!points.contains(p), "--points-only ran {p}: {points}");
+    }
+    let no_fill = passes(&["--raw-fill-iterations", "0"]);
+    assert!(
+        !no_fill.contains("fill_anisotropic") && no_fill.contains("visibility"),
+        "{no_fill}"
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

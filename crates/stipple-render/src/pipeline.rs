@@ -296,11 +296,16 @@ impl Pipeline {
     /// The raw-cloud preset (Pintus §3): visibility → anisotropic filling → shape depiction,
     /// ignoring normals (no culling, no lighting).
     pub fn raw(s: RawSettings) -> Pipeline {
-        let mut colour = vec![ColourPass::FillAnisotropic {
-            iterations: s.fill_iterations.unwrap_or(2 * s.kernel),
-            delta: s.delta,
-            all_empty: !s.visibility,
-        }];
+        // No fill at all when asked for zero iterations (0 inside the pass means "twice the
+        // kernel, once the automatic kernel is known").
+        let mut colour = match s.fill_iterations {
+            Some(0) => vec![],
+            n => vec![ColourPass::FillAnisotropic {
+                iterations: n.unwrap_or(2 * s.kernel),
+                delta: s.delta,
+                all_empty: !s.visibility,
+            }],
+        };
         match s.shading {
             RawShading::Depiction(levels) => colour.push(ColourPass::Depiction {
                 levels,
