@@ -279,7 +279,9 @@ pub fn cut_cloud(tree: &LodTree, parts: &[(u32, Payload)], camera: &Camera) -> P
 pub fn open_with_camera(p: &Path, camera: &CameraArgs) -> Result<(Arc<LodTree>, Camera)> {
     let tree = open(p)?;
     let (lo, hi) = tree.world_bounds();
-    let cam = camera.build_framed(lo, hi, tree.header.z_up())?;
+    let cam = camera
+        .build_framed(lo, hi, tree.header.z_up())
+        .map_err(|e| format!("{}: {e}", p.display()))?;
     Ok((tree, cam))
 }
 

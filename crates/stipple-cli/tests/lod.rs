@@ -259,6 +259,11 @@ fn bad_trees_and_bad_options_are_clear_errors() {
         &["render", "s.stlod", "--point-budget", "100"],
         "smaller than one node",
     );
+    // A camera error names the tree.
+    err(
+        &["render", "s.stlod", "--eye", "1,1,1", "--target", "1,1,1"],
+        "s.stlod: camera: eye and target coincide",
+    );
     let bytes = std::fs::read(dir.join("s.stlod")).unwrap();
     std::fs::write(dir.join("cut.stlod"), &bytes[..bytes.len() * 2 / 3]).unwrap();
     err(&["render", "cut.stlod"], "cut short");
