@@ -30,11 +30,13 @@ impl LasBatches {
         let file_len = std::fs::metadata(path)
             .map_err(|e| IoError::io(path, e))?
             .len();
-        let reader = las::Reader::from_path(path)
-            .map_err(|e| IoError::invalid(path, explain_open_error(path, file_len, &e)))?;
+        // The header's sizes, counts and offsets are checked against the file first: the
+        // `las` crate trusts them (allocating what they claim).
         if let Some(problem) = header_problem(path, file_len) {
             return Err(IoError::invalid(path, problem));
         }
+        let reader = las::Reader::from_path(path)
+            .map_err(|e| IoError::invalid(path, explain_open_error(path, file_len, &e)))?;
         let header = reader.header().clone();
         let count = header.number_of_points();
         if count == 0 {
@@ -134,21 +136,20 @@ fn explain_open_error(path: &Path, file_len: u64, e: &las::Error) -> String {
 
 /// A LAS header whose sizes, offsets or counts cannot fit the file, said plainly.
 fn header_problem(path: &Path, file_len: u64) -> Option<String> {
-    use std::io::Read;
-    let mut head = [0u8; 227];
-    let n = std::fs::File::open(path)
-        .and_then(|mut f| {
-            let mut n = 0;
-            while n < head.len() {
-                match f.read(&mut head[n..])? {
-                    0 => break,
-                    k => n += k,
-                }
-            }
-            Ok(n)
-        })
-        .unwrap_or(0);
-    if n < head.len() {
+    use std::io::{Read, Seek, SeekFrom};
+    // Up to the LAS 1.4 header's 375 bytes; 227 are required.
+    let mut head = [0u8; 375];
+    let Ok(mut file) = std::fs::File::open(path) else {
+        return None;
+    };
+    let mut n = 0;
+    while n < head.len() {
+        match file.read(&mut head[n..]) {
+            Ok(0) | Err(_) => break,
+            Ok(k) => n += k,
+        }
+    }
+    if n < 227 {
         return Some(format!(
             "the file ends after {file_len} bytes, inside the LAS header (which takes at \
              least 227): it is truncated"
@@ -175,6 +176,34 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
             "the header declares {nvlr} variable-length records, more than the file's \
              {file_len} bytes can hold: the header is corrupt"
         ));
+    }
+    // LAS 1.4 extended VLRs: each one's 64-bit length must stay inside the file (the `las`
+    // crate allocates it before reading: a bogus length panicked or exhausted memory; found
+    // by fuzzing).
+    let minor = head[25];
+    if minor >= 4 && header_size >= 375 && n >= 247 {
+        let u64_at = |o: usize| u64::from_le_bytes(head[o..o + 8].try_into().unwrap());
+        let (mut at, count) = (u64_at(235), u32_at(243));
+        if count > 0 && at.saturating_add(count.saturating_mul(60)) > file_len {
+            return Some(format!(
+                "the header declares {count} extended variable-length records from byte {at}, \
+                 beyond the file's {file_len} bytes: it is truncated or the header is corrupt"
+            ));
+        }
+        for k in 0..count {
+            let mut len = [0u8; 8];
+            if file.seek(SeekFrom::Start(at + 20)).is_err() || file.read_exact(&mut len).is_err() {
+                return Some(format!("extended variable-length record {k} is cut short"));
+            }
+            let len = u64::from_le_bytes(len);
+            at = at.saturating_add(60).saturating_add(len);
+            if at > file_len {
+                return Some(format!(
+                    "extended variable-length record {k} claims {len} bytes, beyond the end of \
+                     the file ({file_len} bytes): it is truncated or corrupt"
+                ));
+            }
+        }
     }
     None
 }

@@ -73,6 +73,16 @@ const CASES: &[(&str, &str)] = &[
     ("two_vertex_elements.ply", "a second `vertex` element"),
     // A line longer than any point's is refused before it is split into tokens.
     ("long_line.xyz", "line 2 is 66000 bytes long"),
+    // Found by fuzzing: LAS 1.4 extended VLRs beyond the file made the `las` crate
+    // allocate what they claimed (a panic, or memory exhausted).
+    (
+        "bogus_evlr_count.las",
+        "256 extended variable-length records from byte 116",
+    ),
+    (
+        "huge_evlr.las",
+        "extended variable-length record 0 claims 1152921504606846976 bytes",
+    ),
     // Found by fuzzing: an element of 4e9 records without properties looped 4e9 times.
     ("fuzz_empty_element.ply", "no vertex element"),
 ];
