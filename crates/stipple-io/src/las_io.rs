@@ -158,6 +158,12 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
     let u16_at = |o: usize| u16::from_le_bytes([head[o], head[o + 1]]) as u64;
     let u32_at = |o: usize| u32::from_le_bytes(head[o..o + 4].try_into().unwrap()) as u64;
     let (header_size, point_offset, nvlr) = (u16_at(94), u32_at(96), u32_at(100));
+    if header_size < 227 {
+        return Some(format!(
+            "the header says it is {header_size} bytes long; a LAS header takes at least 227: \
+             the header is corrupt"
+        ));
+    }
     if header_size > file_len {
         return Some(format!(
             "the header says it is {header_size} bytes long, but the file has only \
@@ -181,7 +187,7 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
     // crate allocates it before reading: a bogus length panicked or exhausted memory; found
     // by fuzzing).
     let minor = head[25];
-    if minor >= 4 && header_size >= 375 && n >= 247 {
+    if minor >= 4 && n >= 247 {
         let u64_at = |o: usize| u64::from_le_bytes(head[o..o + 8].try_into().unwrap());
         let (mut at, count) = (u64_at(235), u32_at(243));
         if count > 0 && at.saturating_add(count.saturating_mul(60)) > file_len {

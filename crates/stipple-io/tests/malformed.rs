@@ -83,6 +83,10 @@ const CASES: &[(&str, &str)] = &[
         "huge_evlr.las",
         "extended variable-length record 0 claims 1152921504606846976 bytes",
     ),
+    (
+        "header_size_zero.copc.laz",
+        "a LAS header takes at least 227",
+    ),
     // Found by fuzzing: an element of 4e9 records without properties looped 4e9 times.
     ("fuzz_empty_element.ply", "no vertex element"),
 ];
