@@ -183,6 +183,25 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
              {file_len} bytes can hold: the header is corrupt"
         ));
     }
+    // The point records' extent must be a number (the `las` crate multiplies count and
+    // record length unchecked: an overflow panic in debug builds; found by fuzzing).
+    let record_len = u16_at(105);
+    let legacy_count = u32_at(107);
+    let count = if head[25] >= 4 && n >= 255 {
+        u64::from_le_bytes(head[247..255].try_into().unwrap()).max(legacy_count)
+    } else {
+        legacy_count
+    };
+    if count
+        .checked_mul(record_len)
+        .and_then(|b| b.checked_add(point_offset))
+        .is_none()
+    {
+        return Some(format!(
+            "the header declares {count} points of {record_len} bytes, more than any file can \
+             hold: the header is corrupt"
+        ));
+    }
     // LAS 1.4 extended VLRs: each one's 64-bit length must stay inside the file (the `las`
     // crate allocates it before reading: a bogus length panicked or exhausted memory; found
     // by fuzzing).

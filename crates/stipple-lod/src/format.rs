@@ -368,8 +368,12 @@ fn check_structure(h: &Header, nodes: &[Node]) -> Result<(), String> {
                     "node {i} names a child {c} that does not follow it: the file is corrupt"
                 ));
             }
-            parents[c as usize] += 1;
-            sum += nodes[c as usize].subtree_points;
+            parents[c as usize] = parents[c as usize].saturating_add(1);
+            // Checked: a crafted table (checksums are no protection against intent) can
+            // hold counts whose sum overflows (found by fuzzing).
+            sum = sum
+                .checked_add(nodes[c as usize].subtree_points)
+                .ok_or_else(|| format!("node {i}'s counts overflow: the file is corrupt"))?;
         }
         if sum != n.subtree_points || n.sample_count > h.max_node_points {
             return Err(format!(
@@ -440,5 +444,51 @@ impl Reader<'_> {
     }
     fn vec3(&mut self) -> Vec3 {
         Vec3::new(self.f32(), self.f32(), self.f32())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DVec3, Vec3};
+
+    /// A node table whose children's counts overflow when added is an error, not an
+    /// arithmetic overflow (found by fuzzing with the checksums off; a crafted file can carry
+    /// valid checksums).
+    #[test]
+    fn overflowing_counts_are_corrupt_not_a_panic() {
+        let bounds = Bounds {
+            min: Vec3::ZERO,
+            max: Vec3::ONE,
+        };
+        let node = |subtree_points: u64, children: [u32; 2], at: u64| Node {
+            bounds,
+            subtree_points,
+            sample_count: 1,
+            children,
+            spacing: 0.1,
+            payload_offset: at,
+            payload_crc: 0,
+            depth: 0,
+        };
+        let big = u64::MAX / 2 + 1;
+        let nodes = [
+            node(u64::MAX, [1, 2], HEADER_SIZE),
+            node(big, [NONE, NONE], HEADER_SIZE + 16),
+            node(big, [NONE, NONE], HEADER_SIZE + 32),
+        ];
+        let h = Header {
+            flags: 0,
+            max_node_points: 64,
+            point_count: u64::MAX,
+            node_count: 3,
+            origin: DVec3::ZERO,
+            bounds,
+            table_offset: HEADER_SIZE + 1024,
+            table_size: 3 * NODE_SIZE,
+            table_crc: 0,
+        };
+        let e = check_structure(&h, &nodes).unwrap_err();
+        assert!(e.contains("node 0's counts overflow"), "{e}");
     }
 }
