@@ -183,7 +183,7 @@ pub fn finite_f64(s: &str) -> std::result::Result<f64, String> {
     let v: f64 = s
         .trim()
         .parse()
-        .map_err(|_| format!("`{}` is not a number", crate::args::shown(s)))?;
+        .map_err(|_| format!("`{}` is not a number", stipple_io::shown(s)))?;
     if v.is_finite() {
         Ok(v)
     } else {
@@ -197,7 +197,7 @@ pub fn finite_f32(s: &str) -> std::result::Result<f32, String> {
     if v.is_finite() {
         Ok(v)
     } else {
-        Err(format!("{} is out of range", crate::args::shown(s)))
+        Err(format!("{} is out of range", stipple_io::shown(s)))
     }
 }
 
@@ -221,16 +221,6 @@ fn positive_f64(s: &str) -> std::result::Result<f64, String> {
     } else {
         Err(format!("{v} must be above zero"))
     }
-}
-
-/// User text as an error shows it: escaped, at most 32 characters.
-pub fn shown(t: &str) -> String {
-    const MAX: usize = 32;
-    let mut out: String = t.chars().take(MAX).flat_map(char::escape_debug).collect();
-    if t.chars().nth(MAX).is_some() {
-        out.push('…');
-    }
-    out
 }
 
 fn parse_light(s: &str) -> std::result::Result<Light, String> {

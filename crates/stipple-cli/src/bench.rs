@@ -67,6 +67,27 @@ type PassTimes = Vec<(&'static str, Vec<f64>, u32, u64)>;
 /// Host-side steps of a frame outside the passes (see `Frame::host_ms`), per frame.
 type HostTimes = Vec<(&'static str, Vec<f64>)>;
 
+/// A GPU frame's host steps as one line: "record 0.10, submit + wait 1.69, …".
+fn host_steps(steps: &[(&str, f64)]) -> String {
+    let parts: Vec<String> = steps
+        .iter()
+        .map(|(step, ms)| format!("{step} {ms:.2}"))
+        .collect();
+    parts.join(", ")
+}
+
+/// One cell of a table benchmark on stderr, with the frame's host steps where it has them.
+fn report_cell(size: u32, name: &str, ms: f64, host: &[(&str, f64)]) {
+    if host.is_empty() {
+        eprintln!("  {size}² {name}: {ms:.1} ms");
+    } else {
+        eprintln!(
+            "  {size}² {name}: {ms:.1} ms (host steps: {} ms)",
+            host_steps(host)
+        );
+    }
+}
+
 /// Times `frames` frames after `warmup`: per-pass times and whole-frame wall times.
 fn time_frames(
     r: &mut Renderer,
@@ -192,11 +213,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
         1e3 / t
     );
     if !host.is_empty() {
-        let steps: Vec<String> = host
-            .iter_mut()
-            .map(|(name, ms)| format!("{name} {:.2}", median(ms)))
-            .collect();
-        println!("  of which host    {} ms (medians)", steps.join(", "));
+        let medians: Vec<(&str, f64)> = host.iter_mut().map(|(n, v)| (*n, median(v))).collect();
+        println!("  of which host    {} ms (medians)", host_steps(&medians));
     }
     if let (Some(g), true) = (r.gpu_mut(), project_ms.is_finite()) {
         // The other projection path, for comparison.
@@ -294,18 +312,7 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
             }
             cloud.set_lit(None).map_err(|e| e.to_string())?;
             let m = median(&mut ms);
-            let host: Vec<String> = last_host
-                .iter()
-                .map(|(step, ms)| format!("{step} {ms:.2}"))
-                .collect();
-            if host.is_empty() {
-                eprintln!("  {size}² {name}: {m:.1} ms");
-            } else {
-                eprintln!(
-                    "  {size}² {name}: {m:.1} ms (host steps: {} ms)",
-                    host.join(", ")
-                );
-            }
+            report_cell(size, name, m, &last_host);
             col.push(1e3 / m);
         }
         cols.push(col);
@@ -381,18 +388,7 @@ fn zhang(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer)
             let m = median(&mut totals);
             let last_host: Vec<(&str, f64)> =
                 host_t.iter_mut().map(|(n, v)| (*n, median(v))).collect();
-            let host: Vec<String> = last_host
-                .iter()
-                .map(|(step, ms)| format!("{step} {ms:.2}"))
-                .collect();
-            if host.is_empty() {
-                eprintln!("  {size}² {name}: {m:.1} ms");
-            } else {
-                eprintln!(
-                    "  {size}² {name}: {m:.1} ms (host steps: {} ms)",
-                    host.join(", ")
-                );
-            }
+            report_cell(size, name, m, &last_host);
             col.push(1e3 / m);
         }
         cols.push(col);

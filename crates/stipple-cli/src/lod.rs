@@ -169,7 +169,7 @@ fn thread_count(s: &str, max: usize) -> std::result::Result<usize, String> {
     let n: usize = s
         .trim()
         .parse()
-        .map_err(|_| format!("`{}` is not a whole number", crate::args::shown(s)))?;
+        .map_err(|_| format!("`{}` is not a whole number", stipple_io::shown(s)))?;
     if (1..=max).contains(&n) {
         Ok(n)
     } else {

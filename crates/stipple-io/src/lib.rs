@@ -203,7 +203,17 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(n)
 }
 
-/// Reads a whole file, transparently decompressing gzip.
+/// User text (a file's token, a flag's value) as an error message shows it: escaped, at
+/// most 32 characters.
+pub fn shown(t: &str) -> String {
+    const MAX: usize = 32;
+    let mut out: String = t.chars().take(MAX).flat_map(char::escape_debug).collect();
+    if t.chars().nth(MAX).is_some() {
+        out.push('…');
+    }
+    out
+}
+
 /// Whether a gzip-compressed file starts with the PLY magic once inflated (a `.nii.gz`
 /// volume must not be reported as a broken PLY file).
 fn gz_holds_ply(path: &Path) -> Result<bool, IoError> {
@@ -214,6 +224,7 @@ fn gz_holds_ply(path: &Path) -> Result<bool, IoError> {
     Ok(&head[..n] == b"ply")
 }
 
+/// Reads a whole file, transparently decompressing gzip.
 pub(crate) fn read_maybe_gz(path: &Path) -> Result<Vec<u8>, IoError> {
     let raw = std::fs::read(path).map_err(|e| IoError::io(path, e))?;
     if raw.starts_with(&[0x1f, 0x8b]) {

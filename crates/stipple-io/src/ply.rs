@@ -158,13 +158,13 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
             ["ply"] if line_no == 1 => {}
             ["format", f, v] => {
                 if *v != "1.0" {
-                    return Err(format!("unsupported PLY version {}", shown(v)));
+                    return Err(format!("unsupported PLY version {}", crate::shown(v)));
                 }
                 encoding = Some(match *f {
                     "ascii" => Encoding::Ascii,
                     "binary_little_endian" => Encoding::BinaryLittleEndian,
                     "binary_big_endian" => Encoding::BinaryBigEndian,
-                    _ => return Err(format!("unknown PLY format `{}`", shown(f))),
+                    _ => return Err(format!("unknown PLY format `{}`", crate::shown(f))),
                 });
             }
             ["comment", ..] | ["obj_info", ..] | [] => {}
@@ -172,7 +172,7 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
                 let count: u64 = count.parse().map_err(|_| {
                     format!(
                         "header line {line_no}: element count `{}` is not a number",
-                        shown(count)
+                        crate::shown(count)
                     )
                 })?;
                 elements.push(Element {
@@ -185,10 +185,12 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
                 let el = elements
                     .last_mut()
                     .ok_or_else(|| format!("header line {line_no}: property before any element"))?;
-                let count = Scalar::parse(c)
-                    .ok_or_else(|| format!("header line {line_no}: unknown type `{}`", shown(c)))?;
-                let item = Scalar::parse(i)
-                    .ok_or_else(|| format!("header line {line_no}: unknown type `{}`", shown(i)))?;
+                let count = Scalar::parse(c).ok_or_else(|| {
+                    format!("header line {line_no}: unknown type `{}`", crate::shown(c))
+                })?;
+                let item = Scalar::parse(i).ok_or_else(|| {
+                    format!("header line {line_no}: unknown type `{}`", crate::shown(i))
+                })?;
                 if matches!(count, Scalar::F32 | Scalar::F64) {
                     return Err(format!(
                         "header line {line_no}: a list count cannot be `{c}`"
@@ -204,8 +206,9 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
                 let el = elements
                     .last_mut()
                     .ok_or_else(|| format!("header line {line_no}: property before any element"))?;
-                let ty = Scalar::parse(t)
-                    .ok_or_else(|| format!("header line {line_no}: unknown type `{}`", shown(t)))?;
+                let ty = Scalar::parse(t).ok_or_else(|| {
+                    format!("header line {line_no}: unknown type `{}`", crate::shown(t))
+                })?;
                 el.props.push(Property::Scalar {
                     name: name.to_string(),
                     ty,
@@ -215,7 +218,7 @@ fn parse_header(data: &[u8]) -> Result<Header, String> {
             _ => {
                 return Err(format!(
                     "header line {line_no} is not understood: `{}`",
-                    shown(line)
+                    crate::shown(line)
                 ))
             }
         }
@@ -268,8 +271,8 @@ impl VertexMap {
                 return Err(format!(
                     "vertex property `{}` (property {k}) gives the same attribute as `{}` \
                      (property {first}): which one is meant is ambiguous",
-                    shown(p.name()),
-                    shown(el.props[first].name())
+                    crate::shown(p.name()),
+                    crate::shown(el.props[first].name())
                 ));
             }
             *slot = Some(k);
@@ -366,16 +369,6 @@ struct Ascii<'a> {
     line_no: usize,
 }
 
-/// A token of the user's file as an error message shows it: escaped, at most 32 characters.
-pub(crate) fn shown(t: &str) -> String {
-    const MAX: usize = 32;
-    let mut out: String = t.chars().take(MAX).flat_map(char::escape_debug).collect();
-    if t.chars().nth(MAX).is_some() {
-        out.push('…');
-    }
-    out
-}
-
 impl<'a> Ascii<'a> {
     /// The next line that holds anything.
     fn next_line(&mut self, what: &str) -> Result<&'a str, String> {
@@ -419,7 +412,7 @@ impl RecordSource for Ascii<'_> {
             t.parse::<f64>().map_err(|_| {
                 format!(
                     "line {at}: `{}` in a `{}` record is not a number",
-                    shown(t),
+                    crate::shown(t),
                     el.name
                 )
             })
@@ -462,7 +455,7 @@ impl RecordSource for Ascii<'_> {
                 "line {at}: more values than a `{}` record has ({}); the first extra one is `{}`",
                 el.name,
                 expected(),
-                shown(t)
+                crate::shown(t)
             ));
         }
         Ok(())

@@ -128,7 +128,7 @@ pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
                     return Err(format!(
                         "line {line_no}: value {} is not finite (`{}`)",
                         bad + 1,
-                        crate::ply::shown(toks[bad])
+                        crate::shown(toks[bad])
                     ));
                 }
                 rows.extend_from_slice(&v);
@@ -148,7 +148,7 @@ pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
                 let bad = toks.iter().find(|s| s.parse::<f64>().is_err()).unwrap();
                 return Err(format!(
                     "line {line_no}: `{}` is not a number",
-                    crate::ply::shown(bad)
+                    crate::shown(bad)
                 ));
             }
         }
