@@ -14,7 +14,7 @@ use stipple_render::{PreparedCloud, ViewParams};
 pub struct EvalArgs {
     /// A mesh with faces (.ply, .ply.gz).
     pub mesh: PathBuf,
-    /// Error image (PNG). Default: <mesh name>-error.png.
+    /// Error image (PNG). Default: `<mesh name>`-error.png.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
     /// Also write the raw rendering (PNG).

@@ -806,7 +806,7 @@ pub struct SplatShape {
 /// - **bend**: the second fundamental form (A, B, C) of the surface, so that near point p
 ///   with unit normal n the surface is h = ½(A u² + 2B uv + C v²) above its tangent plane,
 ///   in the frame ([`tangent_frame`] of n) u = (q − p)·t₁, v = (q − p)·t₂, h = (q − p)·n;
-///   least squares over the neighbourhood ([`jet`]). Splats bent this way (quadric splats)
+///   least squares over the neighbourhood (`jet`). Splats bent this way (quadric splats)
 ///   follow a curved surface to second order: a flat disc is off the surface by r²κ/2 at
 ///   its rim, which is what makes flat splats overshoot curved silhouettes and miss the true
 ///   depth between samples. Limited to [`MAX_BEND`] / radius (noise); degenerate
@@ -1147,7 +1147,7 @@ pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
     });
 }
 
-/// Turns each normal to the slope of its osculating quadric at the point ([`jet`]): PCA's
+/// Turns each normal to the slope of its osculating quadric at the point (`jet`): PCA's
 /// plane is tilted where the neighbourhood is lopsided on a curved surface (random
 /// samples), the quadric's tangent plane is not. The sign is kept; tilts over 30° (creases,
 /// noise) are left alone.

@@ -6,7 +6,7 @@
 //! The two halves are built in parallel (rayon) while they are large.
 //!
 //! The split rule is a function of the box alone, so the out-of-core builder can predict the
-//! top of the tree from a grid of counts ([`crate::build`]) and hand each chunk's box here.
+//! top of the tree from a grid of counts ([`crate::build`](mod@crate::build)) and hand each chunk's box here.
 
 use crate::record::Record;
 use crate::sample;

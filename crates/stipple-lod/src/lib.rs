@@ -4,7 +4,7 @@
 //!
 //! - [`build()`]: inputs (LAS/LAZ streamed, others read whole) to a `.stlod` file, in memory or
 //!   out of core within a memory budget, on all cores.
-//! - [`LodTree`]: the file, opened and checked ([`format`], documented in
+//! - [`LodTree`]: the file, opened and checked ([`format`](mod@format), documented in
 //!   `docs/lod-format.md`).
 //! - [`select()`]: a view-dependent cut under a point budget.
 //! - [`Streamer`]: node payloads in an LRU cache, loaded by background threads.

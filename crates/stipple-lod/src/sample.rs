@@ -20,7 +20,7 @@ const TARGET: f64 = 0.85;
 const ACCEPT: f64 = 0.6;
 
 /// The cell size to try first for `n` samples that are `child_spacing` apart on a surface:
-/// the size at which they would fill [`TARGET`] × m cells.
+/// the size at which they would fill `TARGET` × m cells.
 pub fn first_guess(child_spacing: f32, n: usize, m: usize) -> Option<f32> {
     let s = child_spacing * ((n as f64 / (TARGET * m as f64)).max(1.0).sqrt() as f32);
     (s.is_finite() && s > 0.0).then_some(s)

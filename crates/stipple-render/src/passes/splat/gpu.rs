@@ -4,7 +4,7 @@
 //! points (fixed-point sums with integer atomics) and a per-pixel resolve that runs inside
 //! shade, after its gather. The pass owns its pipelines, its per-pixel scratch buffers and
 //! its per-point shape buffers; the frame schedule (`gpu/renderer.rs`) only calls
-//! [`SplatGpu::record`] and [`SplatGpu::record_resolve`].
+//! `SplatGpu::record` and `SplatGpu::record_resolve`.
 
 use crate::gpu::cloud::GpuCloud;
 use crate::gpu::context::{GpuContext, GpuError};

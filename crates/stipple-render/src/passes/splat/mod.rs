@@ -10,7 +10,7 @@
 //! 2. **ε-z test**: only fragments with depth ≤ z_min + ε count (ε = the median splat
 //!    radius: fragments of one surface layer at a pixel differ by far less, see [`epsilon`]),
 //!    and where a fragment faces the eye and nothing lies more than ε in front of it, only
-//!    fragments facing the eye count ([`reference`]): the far side of a sheet thinner than ε
+//!    fragments facing the eye count ([`reference`](fn@reference)): the far side of a sheet thinner than ε
 //!    (walls, leaves, plates scanned from both sides) does not blend into its near side;
 //! 3. a choice among them, by mode ([`SplatMode`]):
 //!    - **Voronoi rasterization** (§5.1): the fragment with the smallest d/r wins the pixel
@@ -162,7 +162,7 @@ impl DepthQuant {
     }
 
     /// Written as the WGSL twin computes it. Within a level, a fragment facing the eye wins
-    /// over one facing away (see [`reference`]): bit 15, then 15 bits of (d/r)².
+    /// over one facing away (see [`reference`](fn@reference)): bit 15, then 15 bits of (d/r)².
     #[inline]
     pub fn key(&self, depth: f32, q: f32, front: bool) -> u32 {
         let level = ((depth - self.dmin) * self.scale)

@@ -1,0 +1,59 @@
+//! Helpers shared by the render crate's integration tests (each test file includes this
+//! module with `mod common;`; not every file uses every helper).
+#![allow(dead_code)]
+
+use glam::Vec3;
+use stipple_core::rng::Rng;
+use stipple_render::gpu::GpuOptions;
+use stipple_render::{Backend, Renderer};
+
+/// Whether STIPPLE_REQUIRE_GPU=1 makes a missing adapter a failure.
+pub fn gpu_required() -> bool {
+    std::env::var("STIPPLE_REQUIRE_GPU").is_ok_and(|v| v == "1")
+}
+
+/// A GPU renderer, or None (with the reason printed) where there is no adapter; a missing
+/// adapter panics under STIPPLE_REQUIRE_GPU=1.
+pub fn gpu() -> Option<Renderer> {
+    match Renderer::new(Backend::Gpu, GpuOptions::default()) {
+        Ok(r) => Some(r),
+        Err(e) => {
+            if gpu_required() {
+                panic!("STIPPLE_REQUIRE_GPU=1 but there is no usable GPU adapter: {e}");
+            }
+            eprintln!("GPU part skipped: no GPU adapter ({e})");
+            None
+        }
+    }
+}
+
+pub fn cpu() -> Renderer {
+    Renderer::new(Backend::Cpu, GpuOptions::default()).expect("the CPU backend always opens")
+}
+
+/// The CPU renderer, then the GPU one where an adapter exists (see [`gpu`]).
+pub fn backends() -> Vec<Renderer> {
+    let mut r = vec![cpu()];
+    r.extend(gpu());
+    r
+}
+
+/// `n` points uniformly on a sphere, with outward normals.
+pub fn sphere(n: usize, centre: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut rng = Rng::new(seed);
+    let mut p = Vec::with_capacity(n);
+    let mut nn = Vec::with_capacity(n);
+    for _ in 0..n {
+        let d = stipple_core::demo::sphere_point(&mut rng);
+        p.push(centre + d * r);
+        nn.push(d);
+    }
+    (p, nn)
+}
+
+/// Where a test writes what a person should look at when it fails: `target/test-output/`.
+pub fn test_output_dir() -> std::path::PathBuf {
+    let d = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
+    std::fs::create_dir_all(&d).expect("create target/test-output");
+    d
+}
