@@ -15,6 +15,7 @@ pub mod masks;
 pub mod params;
 pub mod passes;
 pub mod pipeline;
+pub mod schedule;
 pub mod shadow;
 
 pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
@@ -729,19 +730,9 @@ impl Renderer {
             match &mut self.inner {
                 Inner::Cpu(r) => {
                     for view in &views {
-                        let mut stats = Vec::new();
                         let p = params(view);
                         let light_pipe = settings.light_pipeline(p.fill_gap);
-                        r.geometry(cloud, &light_pipe, &view.view, None, &mut stats);
-                        let g = r.gbuffer().expect("made by geometry");
-                        cpu::shadow_texture::mark(
-                            &view.view,
-                            &g.depth,
-                            &cloud.cloud.positions,
-                            cloud.cloud.normals.as_deref(),
-                            &p,
-                            &mut lit.counts,
-                        );
+                        r.light_view(cloud, &view.view, &light_pipe, &p, &mut lit.counts);
                     }
                 }
                 Inner::Gpu { renderer, uploaded } => {

@@ -83,75 +83,24 @@ impl CpuRenderer {
         CpuRenderer::default()
     }
 
-    /// Renders a frame: one layer, or with [`Pipeline::layers`] > 1 the peeled layers
-    /// blended front to back (Dobrev §4–5).
+    /// Renders a frame (see [`crate::schedule::frame`]): one layer, or with
+    /// [`Pipeline::layers`] > 1 the peeled layers blended front to back (Dobrev §4–5).
     pub fn render(&mut self, cloud: &PreparedCloud, v: &ViewParams, pipe: &Pipeline) -> Frame {
-        let n = v.pixels();
-        let mut stats = Vec::new();
-        if pipe.layers <= 1 {
-            self.layer(cloud, pipe, v, None, &mut stats);
-            let rgba = self.output(n, v.width as usize, &mut stats);
-            let ga = &self.g.as_ref().expect("made by layer").0;
-            return Frame {
-                width: v.width,
-                height: v.height,
-                rgba,
-                depth: self.surface_depth.clone(),
-                id: ga.id.clone(),
-                stats,
-                layers: vec![],
-                layers_peeled: 1,
-                normals: self
-                    .blended_valid
-                    .then(|| self.blended.normal.iter().map(|n| n.to_array()).collect()),
-                host_ms: Vec::new(),
-            };
-        }
-        // Back faces are kept: the back of a closed surface is a layer of its own.
-        let peel_pipe = Pipeline {
-            backface_culling: false,
-            ..pipe.clone()
-        };
         let gap = cloud.layer_gap(pipe);
-        let mut reference = std::mem::take(&mut self.peel_ref);
-        reference.clear();
-        reference.resize(n, f32::INFINITY);
-        let mut acc = std::mem::take(&mut self.acc);
-        acc.clear();
-        acc.resize(n, [0.0, 0.0, 0.0, 1.0]);
-        let mut layers = Vec::new();
-        let mut first: Option<(Vec<f32>, Vec<u32>)> = None;
-        let mut peeled = 0;
-        for k in 0..pipe.layers {
-            let peel = (k > 0).then_some((&reference[..], gap));
-            let kept = self.layer(cloud, &peel_pipe, v, peel, &mut stats);
-            if kept == 0 {
-                break;
-            }
-            peeled += 1;
-            let ga = &self.g.as_ref().expect("made by layer").0;
-            let (sd, ca) = (&self.surface_depth, &self.colour.0);
-            let alpha = cloud.alpha.as_deref();
-            timed(&mut stats, "blend_layers", || {
-                let covered =
-                    blend_layers::blend(&ga.id, sd, ca, alpha, cloud.mean_alpha, &mut acc);
-                ((), 1, covered)
-            });
-            if pipe.keep_layers {
-                layers.push(self.encode(n, v.width as usize));
-            }
-            if first.is_none() {
-                first = Some((sd.clone(), ga.id.clone()));
-            }
-            reference.copy_from_slice(sd);
-        }
-        let background = shade::srgb_to_linear_table();
-        let bg = pipe.background.map(|c| background[c as usize]);
-        blend_layers::compose(&acc, bg, &mut self.colour.0);
-        let rgba = self.output(n, v.width as usize, &mut stats);
-        self.peel_ref = reference;
-        self.acc = acc;
-        let (depth, id) = first.unwrap_or_else(|| (vec![f32::INFINITY; n], vec![BACKGROUND; n]));
+        let mut x = CpuExec::new(self, cloud, v, pipe, None);
+        let peeled = match crate::schedule::frame(&mut x, pipe, gap) {
+            Ok(p) => p,
+            Err(never) => match never {},
+        };
+        let CpuExec {
+            front,
+            stats,
+            layers,
+            rgba,
+            ..
+        } = x;
+        let n = v.pixels();
+        let (depth, id) = front.unwrap_or_else(|| (vec![f32::INFINITY; n], vec![BACKGROUND; n]));
         Frame {
             width: v.width,
             height: v.height,
@@ -161,14 +110,27 @@ impl CpuRenderer {
             stats,
             layers,
             layers_peeled: peeled,
-            normals: None,
+            // The splat pass's blended normals (one layer only: peeled layers overwrite them).
+            normals: (pipe.layers <= 1 && self.blended_valid)
+                .then(|| self.blended.normal.iter().map(|n| n.to_array()).collect()),
             host_ms: Vec::new(),
         }
     }
 
-    /// sRGB-encodes the current colour image (timed as `output`).
-    fn output(&mut self, n: usize, w: usize, stats: &mut Vec<PassStat>) -> Vec<u8> {
-        timed(stats, "output", || (self.encode(n, w), 1, 0))
+    /// Adds one light image's marks to `counts` (see [`crate::schedule::light_view`]).
+    pub fn light_view(
+        &mut self,
+        cloud: &PreparedCloud,
+        v: &ViewParams,
+        light_pipe: &Pipeline,
+        params: &shadow_texture::MarkParams,
+        counts: &mut [u32],
+    ) {
+        let mut x = CpuExec::new(self, cloud, v, light_pipe, Some(counts));
+        match crate::schedule::light_view(&mut x, light_pipe, params) {
+            Ok(()) => {}
+            Err(never) => match never {},
+        }
     }
 
     fn encode(&self, n: usize, w: usize) -> Vec<u8> {
@@ -190,121 +152,63 @@ impl CpuRenderer {
         out
     }
 
-    /// One layer: project (keeping, with `peel`, only points farther than the reference depth
-    /// plus d̃ at their pixel), the geometry passes, shade and the colour passes. The G-buffer
-    /// ends in `g.0`, the colour in `colour.0` and the surface depth in `surface_depth`.
-    /// Returns the points projected.
-    pub fn layer(
-        &mut self,
-        cloud: &PreparedCloud,
-        pipe: &Pipeline,
-        v: &ViewParams,
-        peel: Option<(&[f32], f32)>,
-        stats: &mut Vec<PassStat>,
-    ) -> u64 {
-        let (w, h) = (v.width as usize, v.height as usize);
-        let n = w * h;
-        let c = &cloud.cloud;
-        let kept = self.geometry(cloud, pipe, v, peel, stats);
-        let ga = &mut self.g.as_mut().expect("made by geometry").0;
-
-        self.colour.0.resize(n, [0.0; 3]);
-        self.colour.1.resize(n, [0.0; 3]);
-        self.surface_depth.resize(n, 0.0);
-        let gap = cloud.layer_gap(pipe);
-        let params = cloud.shade_params(pipe, gap);
-        let input = ShadeInput {
-            positions: &c.positions,
-            normals: c.normals.as_deref().filter(|_| pipe.lighting),
-            albedo: cloud.albedo(pipe),
-            objects: cloud.objects.as_ref().map(|o| &o.index[..]),
-            lit: cloud.lit().map(|l| &l.counts[..]),
-            pixel: self
-                .blended_valid
-                .then(|| (&self.blended.normal[..], &self.blended.albedo[..])),
-        };
-        let (ca, cb) = (&mut self.colour.0, &mut self.colour.1);
-        let sd = &mut self.surface_depth;
-        let sd_b = &mut self.depth_b;
-        sd_b.resize(n, 0.0);
-        let (scratch, shading) = (&mut self.scratch, &mut self.shading);
-        timed(stats, "shade", || {
-            shade::shade(v, ga, &input, &params, ca, sd);
-            ((), 1, 0)
-        });
-
-        for pass in &pipe.colour {
-            timed(stats, pass.name(), || match *pass {
-                ColourPass::Smooth { kernel, iterations } => {
-                    for _ in 0..iterations {
-                        smooth::smooth(w, h, &ga.id, kernel, ca, cb);
-                        std::mem::swap(ca, cb);
-                    }
-                    ((), iterations, 0)
-                }
-                ColourPass::Antialias {
-                    threshold,
-                    strength,
-                } => {
-                    let k = antialias::antialias(
-                        w,
-                        h,
-                        sd,
-                        antialias::AaParams {
-                            far: v.far,
-                            threshold,
-                            strength,
-                        },
-                        ca,
-                        cb,
-                    );
-                    std::mem::swap(ca, cb);
-                    ((), 1, k)
-                }
-                ColourPass::FillAnisotropic {
-                    iterations,
-                    delta,
-                    all_empty,
-                } => {
-                    let mut filled = 0;
-                    for _ in 0..iterations {
-                        filled += fill_anisotropic::fill_anisotropic(
-                            v, &ga.id, delta, all_empty, sd, ca, sd_b, cb,
-                        );
-                        std::mem::swap(sd, sd_b);
-                        std::mem::swap(ca, cb);
-                    }
-                    ((), iterations, filled)
-                }
-                ColourPass::Depiction {
-                    levels,
-                    xi,
-                    epsilon,
-                } => {
-                    depiction::depiction(v, sd, levels, xi, epsilon, scratch, shading, ca, cb);
-                    std::mem::swap(ca, cb);
-                    ((), levels, 0)
-                }
-                ColourPass::Edl { strength, radius } => {
-                    edl::edl(v, sd, strength, radius, ca, cb);
-                    std::mem::swap(ca, cb);
-                    ((), 1, 0)
-                }
-            });
-        }
-        kept
+    /// The G-buffer left by the last projection and geometry passes.
+    pub fn gbuffer(&self) -> Option<&GBuffer> {
+        self.g.as_ref().map(|g| &g.0)
     }
+}
 
-    /// Project (optionally peeling) and the geometry passes: the G-buffer ends in `g.0`.
-    /// Returns the points projected.
-    pub fn geometry(
+/// One frame or light view on the CPU: the steps of [`crate::schedule`], each run when it
+/// is called. The G-buffer ends in `g.0`, the colour in `colour.0` and the surface depth
+/// in `surface_depth` of the renderer.
+pub struct CpuExec<'a> {
+    r: &'a mut CpuRenderer,
+    cloud: &'a PreparedCloud,
+    v: &'a ViewParams,
+    /// The frame's pipeline (lighting, material, background).
+    pipe: &'a Pipeline,
+    stats: Vec<PassStat>,
+    /// The first layer's surface depth and point ids.
+    front: Option<(Vec<f32>, Vec<u32>)>,
+    layers: Vec<Vec<u8>>,
+    rgba: Vec<u8>,
+    /// The shadow counts light views mark.
+    counts: Option<&'a mut [u32]>,
+}
+
+impl<'a> CpuExec<'a> {
+    pub fn new(
+        r: &'a mut CpuRenderer,
+        cloud: &'a PreparedCloud,
+        v: &'a ViewParams,
+        pipe: &'a Pipeline,
+        counts: Option<&'a mut [u32]>,
+    ) -> CpuExec<'a> {
+        CpuExec {
+            r,
+            cloud,
+            v,
+            pipe,
+            stats: Vec::new(),
+            front: None,
+            layers: Vec::new(),
+            rgba: Vec::new(),
+            counts,
+        }
+    }
+}
+
+impl crate::schedule::PassExec for CpuExec<'_> {
+    type Error = std::convert::Infallible;
+
+    fn project(
         &mut self,
-        cloud: &PreparedCloud,
-        pipe: &Pipeline,
-        v: &ViewParams,
-        peel: Option<(&[f32], f32)>,
-        stats: &mut Vec<PassStat>,
-    ) -> u64 {
+        splat: Option<&crate::SplatSettings>,
+        peel: Option<f32>,
+        cull: bool,
+    ) -> Result<Option<u64>, Self::Error> {
+        let (r, cloud, v, pipe) = (&mut *self.r, self.cloud, self.v, self.pipe);
+        let stats = &mut self.stats;
         let n = v.pixels();
         let c = &cloud.cloud;
         // Buffers (reused across frames of the same size).
@@ -312,24 +216,24 @@ impl CpuRenderer {
         let threads = rayon::current_num_threads();
         let private = threads <= 8;
         if private {
-            self.private.resize_with(threads, Vec::new);
-        } else if self.vis.len() != n {
-            self.vis = (0..n).map(|_| AtomicU64::new(project::EMPTY_KEY)).collect();
+            r.private.resize_with(threads, Vec::new);
+        } else if r.vis.len() != n {
+            r.vis = (0..n).map(|_| AtomicU64::new(project::EMPTY_KEY)).collect();
         }
-        let (ga, gb) = self.g.get_or_insert_with(|| {
-            (
+        if r.g
+            .as_ref()
+            .is_none_or(|(a, _)| a.width != v.width || a.height != v.height)
+        {
+            r.g = Some((
                 GBuffer::new(v.width, v.height),
                 GBuffer::new(v.width, v.height),
-            )
-        });
-        if ga.width != v.width || ga.height != v.height {
-            *ga = GBuffer::new(v.width, v.height);
-            *gb = GBuffer::new(v.width, v.height);
+            ));
         }
-        let vis = &self.vis;
+        let ga = &mut r.g.as_mut().expect("made above").0;
+        let vis = &r.vis;
 
-        self.blended_valid = false;
-        if let Some(sp) = &pipe.splat {
+        r.blended_valid = false;
+        if let Some(sp) = splat {
             let radii = cloud.splat_radii();
             let epsilon = cloud.splat_epsilon(sp);
             let deferred = sp.mode == crate::SplatMode::Deferred;
@@ -356,19 +260,19 @@ impl CpuRenderer {
             let blend = sp.mode != crate::SplatMode::Voronoi;
             let lut = shade::srgb_to_linear_table();
             let albedo = blend.then(|| (cloud.albedo(pipe), &lut));
-            let blended = blend.then_some(&mut self.blended);
+            let blended = blend.then_some(&mut r.blended);
             let kept = timed(stats, "splat", || {
                 let k = crate::passes::splat::cpu::splat(v, &input, sp.mode, albedo, ga, blended);
                 (k, 1, k)
             });
-            self.blended_valid = blend;
-            return kept;
+            r.blended_valid = blend;
+            return Ok(Some(kept));
         }
-        let bufs = &mut self.private;
+        let peel = peel.map(|gap| (&r.peel_ref[..], gap));
+        let bufs = &mut r.private;
         let kept = timed(stats, "project", || {
             use rayon::prelude::*;
             let normals = c.normals.as_deref();
-            let cull = pipe.backface_culling;
             let kept = if private {
                 project::project_private(v, &c.positions, normals, cull, peel, bufs, ga)
             } else {
@@ -380,41 +284,212 @@ impl CpuRenderer {
             };
             (kept, 1, kept)
         });
-
-        let gap = cloud.layer_gap(pipe);
-        for pass in &pipe.geometry {
-            timed(stats, pass.name(), || {
-                let (its, changed) = match *pass {
-                    GeometryPass::FillBackground { iterations, radius } => {
-                        iterate(ga, gb, iterations, |s, d| {
-                            fill_background::fill_background(s, d, radius)
-                        })
-                    }
-                    GeometryPass::FillOccluded {
-                        iterations,
-                        layer_gap,
-                        radius,
-                    } => {
-                        let gap = layer_gap.unwrap_or(gap);
-                        iterate(ga, gb, iterations, |s, d| {
-                            fill_occluded::fill_occluded(s, d, gap, radius)
-                        })
-                    }
-                    GeometryPass::Visibility { kernel, threshold } => {
-                        iterate(ga, gb, Iterations::Fixed(1), |s, d| {
-                            visibility::visibility(v, s, d, kernel, threshold)
-                        })
-                    }
-                };
-                ((), its, changed)
-            });
-        }
-        kept
+        Ok(Some(kept))
     }
 
-    /// The G-buffer left by the last [`CpuRenderer::geometry`].
-    pub fn gbuffer(&self) -> Option<&GBuffer> {
-        self.g.as_ref().map(|g| &g.0)
+    fn geometry(&mut self, pass: &GeometryPass, gap: f32) -> Result<(), Self::Error> {
+        let v = self.v;
+        let (ga, gb) = self.r.g.as_mut().expect("made by project");
+        timed(&mut self.stats, pass.name(), || {
+            let (its, changed) = match *pass {
+                GeometryPass::FillBackground { iterations, radius } => {
+                    iterate(ga, gb, iterations, |s, d| {
+                        fill_background::fill_background(s, d, radius)
+                    })
+                }
+                GeometryPass::FillOccluded {
+                    iterations,
+                    layer_gap,
+                    radius,
+                } => {
+                    let gap = layer_gap.unwrap_or(gap);
+                    iterate(ga, gb, iterations, |s, d| {
+                        fill_occluded::fill_occluded(s, d, gap, radius)
+                    })
+                }
+                GeometryPass::Visibility { kernel, threshold } => {
+                    iterate(ga, gb, Iterations::Fixed(1), |s, d| {
+                        visibility::visibility(v, s, d, kernel, threshold)
+                    })
+                }
+            };
+            ((), its, changed)
+        });
+        Ok(())
+    }
+
+    fn shade(&mut self) -> Result<(), Self::Error> {
+        let (r, cloud, v, pipe) = (&mut *self.r, self.cloud, self.v, self.pipe);
+        let n = v.pixels();
+        let c = &cloud.cloud;
+        let ga = &r.g.as_ref().expect("made by project").0;
+        r.colour.0.resize(n, [0.0; 3]);
+        r.colour.1.resize(n, [0.0; 3]);
+        r.surface_depth.resize(n, 0.0);
+        r.depth_b.resize(n, 0.0);
+        let params = cloud.shade_params(pipe, cloud.layer_gap(pipe));
+        let input = ShadeInput {
+            positions: &c.positions,
+            normals: c.normals.as_deref().filter(|_| pipe.lighting),
+            albedo: cloud.albedo(pipe),
+            objects: cloud.objects.as_ref().map(|o| &o.index[..]),
+            lit: cloud.lit().map(|l| &l.counts[..]),
+            pixel: r
+                .blended_valid
+                .then(|| (&r.blended.normal[..], &r.blended.albedo[..])),
+        };
+        let (ca, sd) = (&mut r.colour.0, &mut r.surface_depth);
+        timed(&mut self.stats, "shade", || {
+            shade::shade(v, ga, &input, &params, ca, sd);
+            ((), 1, 0)
+        });
+        Ok(())
+    }
+
+    fn colour(&mut self, pass: &ColourPass) -> Result<(), Self::Error> {
+        let (r, v) = (&mut *self.r, self.v);
+        let (w, h) = (v.width as usize, v.height as usize);
+        let ga = &r.g.as_ref().expect("made by project").0;
+        let (ca, cb) = (&mut r.colour.0, &mut r.colour.1);
+        let (sd, sd_b) = (&mut r.surface_depth, &mut r.depth_b);
+        let (scratch, shading) = (&mut r.scratch, &mut r.shading);
+        timed(&mut self.stats, pass.name(), || match *pass {
+            ColourPass::Smooth { kernel, iterations } => {
+                for _ in 0..iterations {
+                    smooth::smooth(w, h, &ga.id, kernel, ca, cb);
+                    std::mem::swap(ca, cb);
+                }
+                ((), iterations, 0)
+            }
+            ColourPass::Antialias {
+                threshold,
+                strength,
+            } => {
+                let k = antialias::antialias(
+                    w,
+                    h,
+                    sd,
+                    antialias::AaParams {
+                        far: v.far,
+                        threshold,
+                        strength,
+                    },
+                    ca,
+                    cb,
+                );
+                std::mem::swap(ca, cb);
+                ((), 1, k)
+            }
+            ColourPass::FillAnisotropic {
+                iterations,
+                delta,
+                all_empty,
+            } => {
+                let mut filled = 0;
+                for _ in 0..iterations {
+                    filled += fill_anisotropic::fill_anisotropic(
+                        v, &ga.id, delta, all_empty, sd, ca, sd_b, cb,
+                    );
+                    std::mem::swap(sd, sd_b);
+                    std::mem::swap(ca, cb);
+                }
+                ((), iterations, filled)
+            }
+            ColourPass::Depiction {
+                levels,
+                xi,
+                epsilon,
+            } => {
+                depiction::depiction(v, sd, levels, xi, epsilon, scratch, shading, ca, cb);
+                std::mem::swap(ca, cb);
+                ((), levels, 0)
+            }
+            ColourPass::Edl { strength, radius } => {
+                edl::edl(v, sd, strength, radius, ca, cb);
+                std::mem::swap(ca, cb);
+                ((), 1, 0)
+            }
+        });
+        Ok(())
+    }
+
+    fn keep_front(&mut self) -> Result<(), Self::Error> {
+        let r = &*self.r;
+        let ga = &r.g.as_ref().expect("made by project").0;
+        self.front = Some((r.surface_depth.clone(), ga.id.clone()));
+        Ok(())
+    }
+
+    fn begin_peel(&mut self) -> Result<(), Self::Error> {
+        let n = self.v.pixels();
+        let r = &mut *self.r;
+        r.peel_ref.clear();
+        r.peel_ref.resize(n, f32::INFINITY);
+        r.acc.clear();
+        r.acc.resize(n, [0.0, 0.0, 0.0, 1.0]);
+        Ok(())
+    }
+
+    fn blend_layer(&mut self) -> Result<(), Self::Error> {
+        let (r, cloud) = (&mut *self.r, self.cloud);
+        let ga = &r.g.as_ref().expect("made by project").0;
+        let (sd, ca, acc) = (&r.surface_depth, &r.colour.0, &mut r.acc);
+        let alpha = cloud.alpha.as_deref();
+        timed(&mut self.stats, "blend_layers", || {
+            let covered = blend_layers::blend(&ga.id, sd, ca, alpha, cloud.mean_alpha, acc);
+            ((), 1, covered)
+        });
+        Ok(())
+    }
+
+    fn keep_layer(&mut self, _k: u32) -> Result<(), Self::Error> {
+        let v = self.v;
+        self.layers
+            .push(self.r.encode(v.pixels(), v.width as usize));
+        Ok(())
+    }
+
+    fn peel_behind(&mut self) -> Result<(), Self::Error> {
+        let r = &mut *self.r;
+        r.peel_ref.copy_from_slice(&r.surface_depth);
+        Ok(())
+    }
+
+    fn compose(&mut self) -> Result<(), Self::Error> {
+        let r = &mut *self.r;
+        let lut = shade::srgb_to_linear_table();
+        let bg = self.pipe.background.map(|c| lut[c as usize]);
+        blend_layers::compose(&r.acc, bg, &mut r.colour.0);
+        Ok(())
+    }
+
+    fn output(&mut self) -> Result<(), Self::Error> {
+        let (r, v) = (&*self.r, self.v);
+        self.rgba = timed(&mut self.stats, "output", || {
+            (r.encode(v.pixels(), v.width as usize), 1, 0)
+        });
+        Ok(())
+    }
+
+    fn mark(&mut self, params: &shadow_texture::MarkParams) -> Result<(), Self::Error> {
+        let (r, cloud, v) = (&*self.r, self.cloud, self.v);
+        let g = &r.g.as_ref().expect("made by project").0;
+        let counts = self
+            .counts
+            .as_deref_mut()
+            .expect("a light view is given the counts it marks");
+        timed(&mut self.stats, "shadow_texture", || {
+            let k = shadow_texture::mark(
+                v,
+                &g.depth,
+                &cloud.cloud.positions,
+                cloud.cloud.normals.as_deref(),
+                params,
+                counts,
+            );
+            ((), 1, k)
+        });
+        Ok(())
     }
 }
 
