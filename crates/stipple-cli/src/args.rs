@@ -8,9 +8,9 @@ use stipple_core::demo::{self, DemoScene};
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::gpu::{GpuOptions, ProjectionPath};
 use stipple_render::pipeline::{
-    ColourPass, GeometryPass, Iterations, Kernel, Light, Pipeline, RawSettings, RawShading,
+    ColourPass, GeometryPass, Iterations, Kernel, Pipeline, RawSettings, RawShading,
 };
-use stipple_render::{Backend, PreparedCloud, Renderer};
+use stipple_render::{Backend, Light, PreparedCloud, Renderer};
 use stipple_render::{SplatMode, SplatSettings};
 
 #[derive(clap::Args, Clone)]
@@ -271,24 +271,32 @@ fn parse_colour(s: &str) -> std::result::Result<[u8; 3], String> {
 }
 
 /// Which pipeline renders the cloud.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum PipelineChoice {
     /// Splats where points land apart on screen, Dobrev where they are dense (normals are
     /// estimated where missing); raw for trees.
     Auto,
+    /// Image-space filters and Phong lighting (Dobrev et al.).
     Dobrev,
+    /// Surface splats (Zhang & Pajarola).
+    #[value(alias = "splats", alias = "zhang")]
     Splat,
+    /// Visibility, anisotropic filling and shape depiction from depth alone (Pintus et al.).
+    #[value(alias = "pintus")]
     Raw,
 }
 
-fn parse_pipeline(s: &str) -> std::result::Result<PipelineChoice, String> {
-    match s {
-        "auto" => Ok(PipelineChoice::Auto),
-        "dobrev" => Ok(PipelineChoice::Dobrev),
-        "splat" | "splats" | "zhang" => Ok(PipelineChoice::Splat),
-        "raw" | "pintus" => Ok(PipelineChoice::Raw),
-        _ => Err(format!("unknown pipeline `{s}` (auto, dobrev, splat, raw)")),
-    }
+/// Shading of the raw pipeline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ShadingChoice {
+    /// Multi-level shape depiction (--depiction-levels).
+    Depiction,
+    /// One level: sharp lines and directional light.
+    DepictionSingle,
+    /// Eye-dome lighting.
+    Edl,
+    /// The colour only.
+    None,
 }
 
 /// `--pipeline auto` draws splats when the cloud's median point spacing on screen exceeds
@@ -317,7 +325,12 @@ pub struct SplatArgs {
     /// shaded with its point's normal) or deferred (Zhang & Pajarola's single-pass deferred
     /// blending: splats graph-coloured into groups, one pass, per-pixel compositing; see
     /// --splat-c).
-    #[arg(long = "splat", default_value = "blend", value_name = "MODE")]
+    #[arg(
+        long = "splat",
+        default_value = "blend",
+        value_name = "MODE",
+        value_enum
+    )]
     pub splat_mode: SplatMode,
     /// Multiplies every splat radius (radii: 0.6 × the 16th-neighbour distance, or the
     /// file's `radius`).
@@ -392,18 +405,6 @@ fn parse_kernel(s: &str) -> std::result::Result<u32, String> {
     }
 }
 
-fn parse_shading(s: &str) -> std::result::Result<RawShading, String> {
-    match s {
-        "depiction" => Ok(RawShading::Depiction(0)),
-        "depiction-single" => Ok(RawShading::Depiction(1)),
-        "edl" => Ok(RawShading::Edl),
-        "none" => Ok(RawShading::None),
-        _ => Err(format!(
-            "unknown shading `{s}` (depiction, depiction-single, edl, none)"
-        )),
-    }
-}
-
 /// Settings of the raw-cloud pipeline (Pintus et al. §4–6).
 #[derive(clap::Args, Clone)]
 #[command(next_help_heading = "Raw clouds (Pintus et al. §4-6; --raw, and .stlod trees)")]
@@ -413,7 +414,7 @@ pub struct RawArgs {
     /// (image-space filters and Phong lighting), splat (surface splats, Zhang & Pajarola), or
     /// raw (screen-space visibility, anisotropic filling and shape depiction from depth alone,
     /// Pintus et al.; no normals needed).
-    #[arg(long, default_value = "auto", value_parser = parse_pipeline, value_name = "NAME")]
+    #[arg(long, default_value = "auto", value_enum, value_name = "NAME")]
     pub pipeline: PipelineChoice,
     /// Shorthand for --pipeline raw.
     #[arg(long)]
@@ -439,8 +440,8 @@ pub struct RawArgs {
     pub fill_delta: f32,
     /// Shading: depiction (multi-level shape depiction), depiction-single (one level: sharp
     /// lines and directional light), edl (eye-dome lighting), or none (colour only).
-    #[arg(long, default_value = "depiction", value_parser = parse_shading)]
-    pub shading: RawShading,
+    #[arg(long, default_value = "depiction", value_enum)]
+    pub shading: ShadingChoice,
     /// Levels of the multi-level depiction (more = broader, ambient-occlusion-like shading).
     #[arg(long, default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=32))]
     pub depiction_levels: u32,
@@ -493,8 +494,10 @@ impl RawArgs {
             ));
         }
         let shading = match self.shading {
-            RawShading::Depiction(0) => RawShading::Depiction(self.depiction_levels),
-            s => s,
+            ShadingChoice::Depiction => RawShading::Depiction(self.depiction_levels),
+            ShadingChoice::DepictionSingle => RawShading::Depiction(1),
+            ShadingChoice::Edl => RawShading::Edl,
+            ShadingChoice::None => RawShading::None,
         };
         let mut p = Pipeline::raw(RawSettings {
             kernel: self.visibility_kernel,
@@ -546,7 +549,7 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub no_smooth: bool,
     /// Smoothing kernel: box, gauss, or alleviated (Gaussian with centre weight 16/28).
-    #[arg(long, default_value = "alleviated", value_parser = Kernel::parse)]
+    #[arg(long, default_value = "alleviated", value_enum)]
     pub smooth_kernel: Kernel,
     /// Smoothing iterations.
     #[arg(long, default_value_t = 1)]
@@ -829,23 +832,15 @@ pub struct BackendArgs {
     /// Where the passes run: cpu, gpu, or auto (a suitable hardware GPU adapter if there is
     /// one, else the CPU, saying why once; software adapters like lavapipe only with gpu). `stipple devices` lists the adapters; WGPU_BACKEND=vulkan|gl|…
     /// restricts the search.
-    #[arg(long, default_value = "auto", value_parser = Backend::parse)]
+    #[arg(long, default_value = "auto", value_enum)]
     pub backend: Backend,
     /// GPU projection: compute (the compute rasterizer, 64-bit atomics or the 32-bit two-pass
     /// fallback) or hardware (a PointList render pipeline with a depth test, the baseline).
-    #[arg(long, default_value = "compute", value_parser = parse_projection)]
+    #[arg(long, default_value = "compute", value_enum)]
     pub projection: ProjectionPath,
     /// GPU: use the 32-bit two-pass projection even where 64-bit atomics exist.
     #[arg(long)]
     pub gpu_32bit: bool,
-}
-
-fn parse_projection(s: &str) -> std::result::Result<ProjectionPath, String> {
-    match s {
-        "compute" => Ok(ProjectionPath::Compute),
-        "hardware" | "hw" => Ok(ProjectionPath::Hardware),
-        _ => Err(format!("unknown projection `{s}` (compute, hardware)")),
-    }
 }
 
 impl BackendArgs {

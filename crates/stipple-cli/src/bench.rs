@@ -2,6 +2,7 @@
 //! throughput. Timing thresholds live here and in BENCHMARKS.md, never in tests.
 
 use crate::args::{BackendArgs, CameraArgs, LookArgs, PipelineArgs, SourceArgs};
+use crate::figures::median;
 use crate::Result;
 use std::time::Instant;
 use stipple_render::gpu::ProjectionPath;
@@ -49,19 +50,6 @@ pub struct BenchArgs {
 /// Zhang & Pajarola Table 2, Dragon row (fps on a GeForce 7800 GTX; image size not given).
 const ZHANG_DRAGON: [(&str, f64); 3] =
     [("2+1-pass", 15.04), ("c = 0.8", 19.70), ("c = 0.4", 22.62)];
-
-pub fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let m = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[m]
-    } else {
-        0.5 * (v[m - 1] + v[m])
-    }
-}
 
 type PassTimes = Vec<(&'static str, Vec<f64>, u32, u64)>;
 /// Host-side steps of a frame outside the passes (see `Frame::host_ms`), per frame.

@@ -439,7 +439,7 @@ pub fn bench(
         r.render(&c, &cam, &pipe).map_err(|e| e.to_string())?;
         frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
     }
-    let med = |v: &mut Vec<f64>| crate::bench::median(v);
+    let med = |v: &mut Vec<f64>| crate::figures::median(v);
     let st = streamer.stats();
     println!(
         "stipple bench: {} ({} points, {} nodes), {}x{}, {}",

@@ -65,7 +65,7 @@ pub fn apply(
         }
     }
     aim_area_lights(&mut pipe.lights, cloud);
-    shadow::validate_lights(&pipe.lights).map_err(|e| format!("--light: {e}"))?;
+    stipple_render::lights::validate(&pipe.lights).map_err(|e| format!("--light: {e}"))?;
     pipe.layers = layers(look, scene);
     if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&pipe.layers) {
         return Err(format!(

@@ -3,6 +3,7 @@
 mod args;
 mod bench;
 mod eval;
+mod figures;
 mod lod;
 mod look;
 mod memory;

@@ -443,7 +443,7 @@ fn light(l: &LightSpec, centre: DVec3) -> std::result::Result<Light, String> {
                 shape,
                 samples: l.samples.unwrap_or(16),
             });
-            stipple_render::shadow::validate_lights(&[a])?;
+            stipple_render::lights::validate(&[a]).map_err(|e| e.to_string())?;
             Ok(a)
         }
         k => Err(format!(

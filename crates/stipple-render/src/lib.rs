@@ -11,6 +11,7 @@ pub mod cpu;
 pub mod eval;
 pub mod gbuffer;
 pub mod gpu;
+pub mod lights;
 pub mod masks;
 pub mod params;
 pub mod passes;
@@ -19,11 +20,10 @@ pub mod schedule;
 pub mod shadow;
 
 pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
+pub use lights::{AreaLight, AreaShape, Light};
 pub use params::ViewParams;
 pub use passes::splat::{SplatMode, SplatSettings};
-pub use pipeline::{
-    AreaLight, AreaShape, ColourPass, GeometryPass, Iterations, Kernel, Light, Material, Pipeline,
-};
+pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Material, Pipeline};
 pub use shadow::LitTexture;
 
 use stipple_core::camera::CameraError;
@@ -37,28 +37,37 @@ pub enum RenderError {
     EmptyCloud,
     #[error(transparent)]
     Gpu(#[from] gpu::GpuError),
-    #[error("{0}")]
-    Invalid(String),
+    #[error(transparent)]
+    Pipeline(#[from] pipeline::PipelineError),
+    #[error(transparent)]
+    Lights(#[from] lights::LightError),
+    #[error(transparent)]
+    Shadow(#[from] shadow::ShadowError),
+    #[error(transparent)]
+    Objects(#[from] ObjectError),
+}
+
+/// An [`ObjectTable`] that does not fit its cloud.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ObjectError {
+    #[error("object table for {table} points, but the cloud has {cloud}")]
+    Points { table: usize, cloud: usize },
+    #[error("{0} objects (1 to {MAX_OBJECTS})")]
+    Count(usize),
+    #[error("a point belongs to object {object}, but there are {materials} materials")]
+    Material { object: u32, materials: usize },
 }
 
 /// Which implementation runs the passes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Backend {
+    /// The CPU reference backend, on all cores.
     Cpu,
+    /// A GPU adapter, software ones (lavapipe) included; none is an error.
     Gpu,
     /// A GPU when one with the needed features exists, else the CPU.
     Auto,
-}
-
-impl Backend {
-    pub fn parse(s: &str) -> Result<Backend, String> {
-        match s {
-            "cpu" => Ok(Backend::Cpu),
-            "gpu" => Ok(Backend::Gpu),
-            "auto" => Ok(Backend::Auto),
-            _ => Err(format!("unknown backend `{s}` (cpu, gpu, auto)")),
-        }
-    }
 }
 
 /// A scene's objects: the object of each point and each object's material.
@@ -181,27 +190,25 @@ impl PreparedCloud {
     /// match the cloud.
     pub fn with_objects(mut self, objects: ObjectTable) -> Result<PreparedCloud, RenderError> {
         if objects.index.len() != self.cloud.len() {
-            return Err(RenderError::Invalid(format!(
-                "object table for {} points, but the cloud has {}",
-                objects.index.len(),
-                self.cloud.len()
-            )));
+            return Err(ObjectError::Points {
+                table: objects.index.len(),
+                cloud: self.cloud.len(),
+            }
+            .into());
         }
         if objects.materials.is_empty() || objects.materials.len() > MAX_OBJECTS {
-            return Err(RenderError::Invalid(format!(
-                "{} objects (1 to {MAX_OBJECTS})",
-                objects.materials.len()
-            )));
+            return Err(ObjectError::Count(objects.materials.len()).into());
         }
         if let Some(&o) = objects
             .index
             .iter()
             .find(|&&o| o as usize >= objects.materials.len())
         {
-            return Err(RenderError::Invalid(format!(
-                "a point belongs to object {o}, but there are {} materials",
-                objects.materials.len()
-            )));
+            return Err(ObjectError::Material {
+                object: o as u32,
+                materials: objects.materials.len(),
+            }
+            .into());
         }
         self.objects = Some(objects);
         self.key = next_key();
@@ -212,11 +219,11 @@ impl PreparedCloud {
     pub fn set_lit(&mut self, lit: Option<LitTexture>) -> Result<(), RenderError> {
         if let Some(l) = &lit {
             if l.counts.len() != self.cloud.len() {
-                return Err(RenderError::Invalid(format!(
-                    "shadow texture for {} points, but the cloud has {}",
-                    l.counts.len(),
-                    self.cloud.len()
-                )));
+                return Err(shadow::ShadowError::Points {
+                    texture: l.counts.len(),
+                    cloud: self.cloud.len(),
+                }
+                .into());
             }
         }
         self.lit = lit;
@@ -634,7 +641,7 @@ impl Renderer {
         if cloud.cloud.is_empty() {
             return Err(RenderError::EmptyCloud);
         }
-        pipe.validate().map_err(RenderError::Invalid)?;
+        pipe.validate()?;
         let t0 = std::time::Instant::now();
         let v = ViewParams::new(camera, cloud.cloud.origin);
         let pipe = &cloud.resolve(pipe, &v);
@@ -676,15 +683,15 @@ impl Renderer {
         if cloud.cloud.is_empty() {
             return Err(RenderError::EmptyCloud);
         }
-        shadow::validate_lights(lights).map_err(RenderError::Invalid)?;
-        settings.validate().map_err(RenderError::Invalid)?;
+        lights::validate(lights)?;
+        settings.validate()?;
         let mut lit = start.unwrap_or_else(|| LitTexture::new(cloud.cloud.len()));
         if lit.counts.len() != cloud.cloud.len() {
-            return Err(RenderError::Invalid(format!(
-                "shadow texture for {} points, but the cloud has {}",
-                lit.counts.len(),
-                cloud.cloud.len()
-            )));
+            return Err(shadow::ShadowError::Points {
+                texture: lit.counts.len(),
+                cloud: cloud.cloud.len(),
+            }
+            .into());
         }
         let gap = settings
             .layer_gap

@@ -4,6 +4,8 @@
 //! A frame has two fixed stages and two ordered lists around them:
 //! `project` → geometry passes (on depth + point id) → `shade` → colour passes.
 
+use crate::lights::{Light, LightError};
+
 /// How many times an iterative pass runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Iterations {
@@ -34,10 +36,12 @@ impl Iterations {
 
 /// Low-pass kernels of Dobrev Table 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum Kernel {
     /// 1/9 everywhere.
     Box,
     /// 1 2 1 / 2 4 2 / 1 2 1, over 16.
+    #[cfg_attr(feature = "clap", value(alias = "gaussian"))]
     Gauss,
     /// The Gaussian with the centre weighted 16 (of 28): less blur (the paper's choice).
     Alleviated,
@@ -50,15 +54,6 @@ impl Kernel {
             Kernel::Box => [1.0; 9],
             Kernel::Gauss => [1.0, 2.0, 1.0, 2.0, 4.0, 2.0, 1.0, 2.0, 1.0],
             Kernel::Alleviated => [1.0, 2.0, 1.0, 2.0, 16.0, 2.0, 1.0, 2.0, 1.0],
-        }
-    }
-
-    pub fn parse(s: &str) -> Result<Kernel, String> {
-        match s {
-            "box" => Ok(Kernel::Box),
-            "gauss" | "gaussian" => Ok(Kernel::Gauss),
-            "alleviated" => Ok(Kernel::Alleviated),
-            _ => Err(format!("unknown kernel `{s}` (box, gauss, alleviated)")),
         }
     }
 }
@@ -113,48 +108,6 @@ pub enum ColourPass {
     Edl { strength: f32, radius: f32 },
 }
 
-/// Where a light is.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Light {
-    /// At the eye (the default).
-    Headlight,
-    /// Coming from a world direction (pointing from the scene towards the light).
-    Directional([f64; 3]),
-    /// At a world position.
-    Point([f64; 3]),
-    /// An area light (Dobrev §6): shaded as a point light at its centre; its shadow texture
-    /// averages `samples` point lights spread over its area.
-    Area(AreaLight),
-}
-
-/// A flat light: a rectangle or a disc centred at `centre`, facing `facing`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct AreaLight {
-    pub centre: [f64; 3],
-    /// The direction the emitting face looks (need not be unit length).
-    pub facing: [f64; 3],
-    pub shape: AreaShape,
-    /// Monte Carlo samples for the shadow texture (1 to [`crate::shadow::MAX_SAMPLES`]).
-    pub samples: u32,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum AreaShape {
-    Rectangle { width: f64, height: f64 },
-    Disc { radius: f64 },
-}
-
-impl Light {
-    /// The position shading uses (the centre of an area light), if the light has one.
-    pub fn position(&self) -> Option<[f64; 3]> {
-        match self {
-            Light::Point(p) => Some(*p),
-            Light::Area(a) => Some(a.centre),
-            Light::Headlight | Light::Directional(_) => None,
-        }
-    }
-}
-
 /// Phong material (Dobrev §3.1: ambient, diffuse, specular).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
@@ -184,7 +137,7 @@ pub struct Pipeline {
     pub backface_culling: bool,
     pub geometry: Vec<GeometryPass>,
     pub colour: Vec<ColourPass>,
-    /// The lights (1 to [`crate::shadow::MAX_LIGHTS`]; the Phong terms add up).
+    /// The lights (1 to [`crate::lights::MAX_LIGHTS`]; the Phong terms add up).
     pub lights: Vec<Light>,
     /// The material of a plain cloud (a scene's objects carry their own, see
     /// [`crate::ObjectTable`]).
@@ -423,41 +376,51 @@ pub fn layer_gap(pipe: &Pipeline, spacing: f32) -> f32 {
 }
 
 impl Pipeline {
-    /// Checks what a frame cannot run with: the lights (see [`crate::shadow::validate_lights`])
+    /// Checks what a frame cannot run with: the lights (see [`crate::lights::validate`])
     /// and the layer count (1 to [`MAX_LAYERS`]).
-    pub fn validate(&self) -> Result<(), String> {
-        crate::shadow::validate_lights(&self.lights)?;
+    pub fn validate(&self) -> Result<(), PipelineError> {
+        crate::lights::validate(&self.lights)?;
         if let Some(s) = &self.splat {
             if self.layers > 1 {
-                return Err(
-                    "depth peeling of splats (transparent splats) is not implemented \
-                            yet: use --layers 1 with the splat pipeline"
-                        .into(),
-                );
+                return Err(PipelineError::PeeledSplats);
             }
             if !(s.scale.is_finite() && s.scale > 0.0) {
-                return Err(format!("splat scale {}: it must be positive", s.scale));
+                return Err(PipelineError::SplatScale(s.scale));
             }
             if let Some(e) = s.epsilon {
                 if !(e.is_finite() && e >= 0.0) {
-                    return Err(format!("splat epsilon {e}: it must be 0 or more"));
+                    return Err(PipelineError::SplatEpsilon(e));
                 }
             }
             if !(s.c > 0.0 && s.c <= 1.0) {
-                return Err(format!(
-                    "splat grouping c = {}: the overlap relaxation must lie in (0, 1]",
-                    s.c
-                ));
+                return Err(PipelineError::SplatOverlap(s.c));
             }
         }
         if !(1..=MAX_LAYERS).contains(&self.layers) {
-            return Err(format!(
-                "{} layers: depth peeling takes 1 to {MAX_LAYERS}",
-                self.layers
-            ));
+            return Err(PipelineError::Layers(self.layers));
         }
         Ok(())
     }
+}
+
+/// What a frame cannot run with (see [`Pipeline::validate`]).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum PipelineError {
+    #[error(transparent)]
+    Lights(#[from] LightError),
+    #[error(
+        "depth peeling of splats (transparent splats) is not implemented yet: use --layers 1 \
+         with the splat pipeline"
+    )]
+    PeeledSplats,
+    #[error("splat scale {0}: it must be positive")]
+    SplatScale(f32),
+    #[error("splat epsilon {0}: it must be 0 or more")]
+    SplatEpsilon(f32),
+    #[error("splat grouping c = {0}: the overlap relaxation must lie in (0, 1]")]
+    SplatOverlap(f32),
+    #[error("{0} layers: depth peeling takes 1 to {MAX_LAYERS}")]
+    Layers(u32),
 }
 
 /// The most layers a frame peels.

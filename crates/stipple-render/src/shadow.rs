@@ -40,13 +40,13 @@
 //! A texture holds up to [`MAX_LIGHTS`] lights and [`MAX_SAMPLES`] samples each: one byte of
 //! a u32 per point and light, the count of samples that lit it.
 
+pub use crate::lights::{light_samples, sample_position};
 use crate::params::ViewParams;
-use crate::pipeline::{AreaShape, GeometryPass, Iterations, Light, Pipeline};
+use crate::pipeline::{GeometryPass, Iterations, Pipeline};
 use glam::{DVec3, Vec3};
 use stipple_core::{Bounds, Camera, Projection};
 
-pub const MAX_LIGHTS: usize = 4;
-pub const MAX_SAMPLES: u32 = 255;
+pub use crate::lights::{MAX_LIGHTS, MAX_SAMPLES};
 
 /// Per-point lit counts for up to four lights, and the samples taken for each.
 #[derive(Clone, Debug, PartialEq)]
@@ -129,82 +129,33 @@ impl ShadowSettings {
         }
     }
 
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), ShadowError> {
         if self.size != 0 && !(16..=8192).contains(&self.size) {
-            return Err(format!(
-                "shadow map size {}: must be 16 to 8192 (or 0 for automatic)",
-                self.size
-            ));
+            return Err(ShadowError::MapSize(self.size));
         }
         if !(self.slope_cap >= 1.0 && self.slope_cap.is_finite()) {
-            return Err(format!("slope cap {}: must be at least 1", self.slope_cap));
+            return Err(ShadowError::SlopeCap(self.slope_cap));
         }
         if let Some(g) = self.layer_gap {
             if !(g > 0.0 && g.is_finite()) {
-                return Err(format!("layer gap {g}: must be a positive distance"));
+                return Err(ShadowError::LayerGap(g));
             }
         }
         Ok(())
     }
 }
 
-/// How many shadow samples a light takes (0: it casts no shadows: headlights and
-/// directional lights).
-pub fn light_samples(light: &Light) -> u32 {
-    match light {
-        Light::Point(_) => 1,
-        Light::Area(a) => a.samples,
-        Light::Headlight | Light::Directional(_) => 0,
-    }
-}
-
-/// The R2 low-discrepancy sequence (Roberts 2018), shifted so that sample 0 is (0.5, 0.5).
-fn r2(k: u32) -> (f64, f64) {
-    const A1: f64 = 0.754_877_666_246_692_8;
-    const A2: f64 = 0.569_840_290_998_053_3;
-    ((0.5 + A1 * k as f64).fract(), (0.5 + A2 * k as f64).fract())
-}
-
-/// Two unit vectors spanning the plane perpendicular to `n`.
-fn plane_basis(n: DVec3) -> (DVec3, DVec3) {
-    let n = n.normalize_or_zero();
-    let helper = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
-    let u = n.cross(helper).normalize();
-    (u, n.cross(u))
-}
-
-/// World position of sample `k` of a light (its position for a point light; sample 0 of an
-/// area light is its centre). None for lights without a position.
-pub fn sample_position(light: &Light, k: u32) -> Option<DVec3> {
-    match light {
-        Light::Point(p) => Some(DVec3::from(*p)),
-        Light::Area(a) => {
-            let (s, t) = r2(k);
-            let (u, w) = plane_basis(DVec3::from(a.facing));
-            let c = DVec3::from(a.centre);
-            Some(match a.shape {
-                AreaShape::Rectangle { width, height } => {
-                    c + u * ((s - 0.5) * width) + w * ((t - 0.5) * height)
-                }
-                AreaShape::Disc { radius } => {
-                    // Shirley–Chiu concentric map of the square onto the disc.
-                    let (x, y) = (2.0 * s - 1.0, 2.0 * t - 1.0);
-                    let (r, phi) = if x == 0.0 && y == 0.0 {
-                        (0.0, 0.0)
-                    } else if x.abs() > y.abs() {
-                        (x, std::f64::consts::FRAC_PI_4 * (y / x))
-                    } else {
-                        (
-                            y,
-                            std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (x / y),
-                        )
-                    };
-                    c + (u * phi.cos() + w * phi.sin()) * (r * radius)
-                }
-            })
-        }
-        Light::Headlight | Light::Directional(_) => None,
-    }
+/// What a shadow texture cannot be made or used with.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ShadowError {
+    #[error("shadow map size {0}: must be 16 to 8192 (or 0 for automatic)")]
+    MapSize(u32),
+    #[error("slope cap {0}: must be at least 1")]
+    SlopeCap(f32),
+    #[error("layer gap {0}: must be a positive distance")]
+    LayerGap(f32),
+    #[error("shadow texture for {texture} points, but the cloud has {cloud}")]
+    Points { texture: usize, cloud: usize },
 }
 
 /// One rendering from a light position.
@@ -356,90 +307,9 @@ pub fn light_views(
         .collect()
 }
 
-/// The lights of a pipeline checked for shadow texturing: at most [`MAX_LIGHTS`], area
-/// lights with 1 to [`MAX_SAMPLES`] samples and a positive size.
-pub fn validate_lights(lights: &[Light]) -> Result<(), String> {
-    if lights.is_empty() || lights.len() > MAX_LIGHTS {
-        return Err(format!(
-            "{} lights: 1 to {MAX_LIGHTS} are supported",
-            lights.len()
-        ));
-    }
-    for (i, l) in lights.iter().enumerate() {
-        let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
-        match l {
-            Light::Point(p) if !finite(p) => {
-                return Err(format!("light {}: position is not finite", i + 1))
-            }
-            Light::Directional(d) if !finite(d) || DVec3::from(*d).length() == 0.0 => {
-                return Err(format!("light {}: direction must be non-zero", i + 1))
-            }
-            Light::Area(a) => {
-                if !(1..=MAX_SAMPLES).contains(&a.samples) {
-                    return Err(format!(
-                        "light {}: {} samples (1 to {MAX_SAMPLES})",
-                        i + 1,
-                        a.samples
-                    ));
-                }
-                if !finite(&a.centre) || !finite(&a.facing) || DVec3::from(a.facing).length() == 0.0
-                {
-                    return Err(format!(
-                        "light {}: centre and facing direction must be finite and non-zero",
-                        i + 1
-                    ));
-                }
-                let ok = match a.shape {
-                    AreaShape::Rectangle { width, height } => width > 0.0 && height > 0.0,
-                    AreaShape::Disc { radius } => radius > 0.0,
-                };
-                if !ok {
-                    return Err(format!("light {}: its size must be positive", i + 1));
-                }
-            }
-            _ => {}
-        }
-    }
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pipeline::AreaLight;
-
-    #[test]
-    fn area_samples_start_at_the_centre_and_stay_on_the_light() {
-        for shape in [
-            AreaShape::Rectangle {
-                width: 2.0,
-                height: 1.0,
-            },
-            AreaShape::Disc { radius: 0.5 },
-        ] {
-            let l = Light::Area(AreaLight {
-                centre: [1.0, 5.0, 2.0],
-                facing: [0.0, -1.0, 0.0],
-                shape,
-                samples: 30,
-            });
-            assert_eq!(sample_position(&l, 0), Some(DVec3::new(1.0, 5.0, 2.0)));
-            let mut xs = Vec::new();
-            for k in 0..30 {
-                let p = sample_position(&l, k).unwrap() - DVec3::new(1.0, 5.0, 2.0);
-                assert!(p.y.abs() < 1e-12, "in the light's plane");
-                match shape {
-                    AreaShape::Rectangle { .. } => {
-                        assert!(p.x.abs() <= 1.0 + 1e-12 && p.z.abs() <= 1.0 + 1e-12)
-                    }
-                    AreaShape::Disc { radius } => assert!(p.length() <= radius + 1e-12),
-                }
-                xs.push(p);
-            }
-            // Spread: the samples are distinct and cover both sides of the centre.
-            assert!(xs.iter().any(|p| p.x > 0.2) && xs.iter().any(|p| p.x < -0.2));
-        }
-    }
 
     #[test]
     fn a_distant_light_gets_one_view_a_light_inside_gets_a_cube() {

@@ -15,8 +15,9 @@ pub mod smooth;
 pub mod visibility;
 
 use crate::gbuffer::{GBuffer, PassStat, BACKGROUND};
+use crate::lights::Light;
 use crate::params::ViewParams;
-use crate::pipeline::{ColourPass, GeometryPass, Iterations, Light, Pipeline};
+use crate::pipeline::{ColourPass, GeometryPass, Iterations, Pipeline};
 use crate::{Frame, PreparedCloud};
 use glam::DVec3;
 use shade::{Albedo, LocalLight, ShadeInput, ShadeParams};

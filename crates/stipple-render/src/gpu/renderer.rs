@@ -27,11 +27,13 @@ use wgpu::BufferUsages;
 
 /// How `project` runs on the GPU.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum ProjectionPath {
     /// The compute rasterizer (64-bit atomics, or the 32-bit two-pass fallback).
     #[default]
     Compute,
     /// The hardware PointList baseline.
+    #[cfg_attr(feature = "clap", value(alias = "hw"))]
     Hardware,
 }
 

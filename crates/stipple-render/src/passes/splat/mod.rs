@@ -70,6 +70,7 @@ pub use stipple_core::normals::SplatShape;
 
 /// How splat fragments that pass the ε-z test make a pixel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum SplatMode {
     /// The fragment nearest its splat's centre (relative to its radius) wins.
     Voronoi,
@@ -84,20 +85,6 @@ pub enum SplatMode {
     /// the Voronoi distance), then per pixel the compositing of Fig. 5 over the groups.
     /// Equals `Blend` where no two splats of a group overlap a pixel.
     Deferred,
-}
-
-impl std::str::FromStr for SplatMode {
-    type Err = String;
-    fn from_str(s: &str) -> Result<SplatMode, String> {
-        match s {
-            "voronoi" => Ok(SplatMode::Voronoi),
-            "blend" => Ok(SplatMode::Blend),
-            "deferred" => Ok(SplatMode::Deferred),
-            _ => Err(format!(
-                "unknown splat mode `{s}` (blend, voronoi, deferred)"
-            )),
-        }
-    }
 }
 
 /// Settings of the splat pass.
