@@ -394,7 +394,7 @@ fn parse_kernel(s: &str) -> std::result::Result<u32, String> {
     if s == "auto" {
         return Ok(0);
     }
-    let k = stipple_render::cpu::visibility::KERNELS;
+    let k = stipple_render::pipeline::VISIBILITY_KERNELS;
     match s.parse::<u32>() {
         Ok(n) if k.contains(&n) => Ok(n),
         _ => Err(format!(
@@ -577,6 +577,11 @@ pub struct PipelineArgs {
     /// Background colour: r,g,b or #rrggbb [default: 24,26,31, or a scene's].
     #[arg(long, value_parser = parse_colour)]
     pub background: Option<[u8; 3]>,
+    /// Depth cueing: far points fade into the background colour, by this fraction at the far
+    /// plane (0 = off, 1 = the farthest points vanish); separates near from far at a glance,
+    /// e.g. canopy from ground in LiDAR. Any pipeline.
+    #[arg(long, value_parser = finite_f32, default_value_t = 0.0, value_name = "S")]
+    pub depth_cue: f32,
     #[command(flatten)]
     pub raw: RawArgs,
     #[command(flatten)]
@@ -589,8 +594,8 @@ impl PipelineArgs {
     pub fn build_for(&self, has_normals: bool) -> Result<Pipeline> {
         let background = self.background.unwrap_or(DEFAULT_BACKGROUND);
         match self.raw.choice() {
-            PipelineChoice::Raw => self.raw.build(background),
-            PipelineChoice::Auto if !has_normals => self.raw.build(background),
+            PipelineChoice::Raw => self.raw_pipeline(background),
+            PipelineChoice::Auto if !has_normals => self.raw_pipeline(background),
             PipelineChoice::Splat => {
                 let mut p = self.build()?;
                 p.geometry.clear();
@@ -618,7 +623,7 @@ impl PipelineArgs {
         let background = self.background.unwrap_or(DEFAULT_BACKGROUND);
         let splat = self.splat.settings()?;
         // Built (and so checked) whichever pipeline is chosen: a bad raw flag is an error.
-        let mut raw = self.raw.build(background)?;
+        let mut raw = self.raw_pipeline(background)?;
         if self.points_only {
             // The points alone, in every pipeline.
             raw.geometry.clear();
@@ -740,6 +745,29 @@ impl PipelineArgs {
         Ok((p, notes))
     }
 
+    /// The raw pipeline, with depth cueing if asked for.
+    fn raw_pipeline(&self, background: [u8; 3]) -> Result<Pipeline> {
+        let mut p = self.raw.build(background)?;
+        self.add_depth_cue(&mut p)?;
+        Ok(p)
+    }
+
+    /// Appends `--depth-cue` to the colour passes (last: it fades the finished image).
+    fn add_depth_cue(&self, p: &mut Pipeline) -> Result<()> {
+        let s = self.depth_cue;
+        if !(0.0..=1.0).contains(&s) {
+            return Err(format!("--depth-cue {s}: must lie in 0..1"));
+        }
+        if s > 0.0 {
+            let lut = stipple_render::srgb::srgb_to_linear_table();
+            p.colour.push(ColourPass::DepthCue {
+                strength: s,
+                colour: p.background.map(|c| lut[c as usize]),
+            });
+        }
+        Ok(())
+    }
+
     /// The Dobrev pipeline.
     pub fn build(&self) -> Result<Pipeline> {
         if let Some(g) = self.layer_gap {
@@ -763,6 +791,7 @@ impl PipelineArgs {
             ..Pipeline::default()
         };
         if self.points_only {
+            self.add_depth_cue(&mut p)?;
             return Ok(p);
         }
         if !self.no_fill_background {
@@ -790,6 +819,7 @@ impl PipelineArgs {
                 strength: self.aa_strength,
             });
         }
+        self.add_depth_cue(&mut p)?;
         Ok(p)
     }
 }

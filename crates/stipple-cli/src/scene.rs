@@ -388,16 +388,12 @@ fn place(
         let grey = c.intensity.as_ref().map(|i| {
             let scale = stipple_render::intensity_scale(i).unwrap_or(1.0);
             i.iter()
-                .map(|&t| stipple_render::cpu::shade::intensity_grey(t, scale))
+                .map(|&t| stipple_render::srgb::intensity_grey(t, scale))
                 .collect::<Vec<u8>>()
         });
         c.colors = Some(match grey {
             Some(g) => g.into_iter().map(|v| [v; 3]).collect(),
-            None => vec![
-                m.base_colour
-                    .map(stipple_render::cpu::shade::linear_to_srgb8);
-                c.len()
-            ],
+            None => vec![m.base_colour.map(stipple_render::srgb::linear_to_srgb8); c.len()],
         });
     }
     if opacity < 1.0 || c.opacity.is_some() {

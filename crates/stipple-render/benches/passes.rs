@@ -4,7 +4,10 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use stipple_core::demo::{generate, DemoScene};
 use stipple_core::Camera;
-use stipple_render::cpu::{antialias, fill_background, fill_occluded, project, smooth};
+use stipple_render::passes::{
+    antialias::cpu as antialias, fill_background::cpu as fill_background,
+    fill_occluded::cpu as fill_occluded, project::cpu as project, smooth::cpu as smooth,
+};
 use stipple_render::{GBuffer, Kernel, PreparedCloud, ViewParams};
 
 fn setup() -> (PreparedCloud, ViewParams) {

@@ -8,16 +8,19 @@
 //! for the passes.
 
 pub mod cpu;
+pub mod device;
 pub mod eval;
 pub mod gbuffer;
 pub mod gpu;
 pub mod lights;
 pub mod masks;
+pub mod material;
 pub mod params;
 pub mod passes;
 pub mod pipeline;
 pub mod schedule;
 pub mod shadow;
+pub mod srgb;
 
 pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
 pub use lights::{AreaLight, AreaShape, Light};
@@ -236,8 +239,8 @@ impl PreparedCloud {
     }
 
     /// The Phong terms by object.
-    pub fn terms(&self, pipe: &Pipeline) -> Vec<cpu::shade::Terms> {
-        let t = |m: &Material| cpu::shade::Terms {
+    pub fn terms(&self, pipe: &Pipeline) -> Vec<passes::shade::cpu::Terms> {
+        let t = |m: &Material| passes::shade::cpu::Terms {
             ambient: m.ambient,
             diffuse: m.diffuse,
             specular: m.specular,
@@ -726,9 +729,9 @@ impl Renderer {
                 let z = (centre - glam::Vec3::from(v.eye).as_dvec3())
                     .dot(glam::Vec3::from(v.forward).as_dvec3())
                     .max(v.near as f64) as f32;
-                cpu::shadow_texture::MarkParams {
+                passes::shadow_texture::cpu::MarkParams {
                     gap,
-                    fill_gap: cpu::shadow_texture::light_gap(v, gap, z),
+                    fill_gap: passes::shadow_texture::cpu::light_gap(v, gap, z),
                     slope_cap: settings.slope_cap,
                     face: view.face,
                     light: l as u32,

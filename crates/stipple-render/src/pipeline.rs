@@ -5,6 +5,7 @@
 //! `project` → geometry passes (on depth + point id) → `shade` → colour passes.
 
 use crate::lights::{Light, LightError};
+pub use crate::material::{Material, Terms};
 
 /// How many times an iterative pass runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -58,6 +59,9 @@ impl Kernel {
     }
 }
 
+/// The visibility kernel sizes accepted (k of a k×k neighbourhood).
+pub const VISIBILITY_KERNELS: std::ops::RangeInclusive<u32> = 3..=15;
+
 /// Passes that work on the visibility G-buffer (depth + point id), before shading.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum GeometryPass {
@@ -106,29 +110,9 @@ pub enum ColourPass {
     /// Eye-dome lighting (as in Potree and CloudCompare): darkens pixels by how much nearer
     /// their neighbours at `radius` pixels are, in log2 depth; background neighbours outline.
     Edl { strength: f32, radius: f32 },
-}
-
-/// Phong material (Dobrev §3.1: ambient, diffuse, specular).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Material {
-    pub ambient: f32,
-    pub diffuse: f32,
-    pub specular: f32,
-    pub shininess: f32,
-    /// Linear RGB albedo for clouds without colours.
-    pub base_colour: [f32; 3],
-}
-
-impl Default for Material {
-    fn default() -> Self {
-        Material {
-            ambient: 0.2,
-            diffuse: 0.75,
-            specular: 0.25,
-            shininess: 32.0,
-            base_colour: [0.62, 0.62, 0.60],
-        }
-    }
+    /// Depth cueing: covered pixels fade towards `colour` (linear RGB) by `strength` × their
+    /// depth between the near and far planes (see [`crate::passes::depth_cue`]).
+    DepthCue { strength: f32, colour: [f32; 3] },
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -321,7 +305,7 @@ pub fn auto_kernel(spacing_px: f32) -> u32 {
     if !spacing_px.is_finite() {
         return 9;
     }
-    ((8.0 * spacing_px).ceil() as u32 + 4).clamp(4, *crate::cpu::visibility::KERNELS.end())
+    ((8.0 * spacing_px).ceil() as u32 + 4).clamp(4, *VISIBILITY_KERNELS.end())
 }
 
 impl Pipeline {
@@ -444,6 +428,21 @@ impl ColourPass {
             ColourPass::FillAnisotropic { .. } => "fill_anisotropic",
             ColourPass::Depiction { .. } => "depiction",
             ColourPass::Edl { .. } => "edl",
+            ColourPass::DepthCue { .. } => "depth_cue",
+        }
+    }
+
+    /// The pixel pass that runs this colour pass on both backends, for colour passes that
+    /// are pixel passes (see [`crate::passes::pixel`]): a new pixel pass is registered here.
+    pub fn pixel(&self) -> Option<Box<dyn crate::passes::pixel::PixelPass>> {
+        match *self {
+            ColourPass::DepthCue { strength, colour } => {
+                Some(Box::new(crate::passes::depth_cue::DepthCue {
+                    strength,
+                    colour,
+                }))
+            }
+            _ => None,
         }
     }
 }

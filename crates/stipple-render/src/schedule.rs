@@ -18,7 +18,7 @@
 //! and the rules around them (culling only without peeling, stopping at an empty layer,
 //! which layer's depth is the frame's), live here and nowhere else.
 
-use crate::cpu::shadow_texture::MarkParams;
+use crate::passes::shadow_texture::cpu::MarkParams;
 use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
 use crate::SplatSettings;
 

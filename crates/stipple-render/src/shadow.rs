@@ -2,7 +2,7 @@
 //!
 //! A shadow texture stores per point whether a light reaches it: m ∈ [0, 1], the fraction of
 //! the light's sample positions that see the point. Shading then uses c = k_a + m (k_d + k_s)
-//! (see `cpu/shade.rs`).
+//! (see `passes/shade/cpu.rs`).
 //!
 //! For each sample position of a light:
 //! 1. the cloud is rendered from the light ([`light_views`]: one perspective view framing the
@@ -67,7 +67,7 @@ impl LitTexture {
 
     /// The lit value m of point `i` under light `l`.
     pub fn value(&self, i: usize, l: usize) -> f32 {
-        crate::cpu::shade::lit_values(self.counts[i], &self.samples)[l]
+        crate::passes::shade::cpu::lit_values(self.counts[i], &self.samples)[l]
     }
 }
 
@@ -330,7 +330,7 @@ mod tests {
             let d = p - Vec3::from(v[0].view.eye);
             let face = dominant_face(d) as usize;
             assert!(
-                crate::cpu::project::project_point(&v[face].view, p).is_some(),
+                crate::passes::project::cpu::project_point(&v[face].view, p).is_some(),
                 "{p} in face {face}"
             );
         }

@@ -14,11 +14,13 @@ use std::sync::atomic::AtomicU64;
 use std::sync::Arc;
 use stipple_core::rng::Rng;
 use stipple_core::{Camera, PointCloud, Projection};
-use stipple_render::cpu::{
-    antialias, depiction, edl, fill_anisotropic, fill_background, fill_occluded, project, shade,
-    smooth, visibility,
-};
 use stipple_render::gpu::{GpuCloud, GpuContext, GpuOptions, GpuRenderer, ProjectionPath};
+use stipple_render::passes::{
+    antialias::cpu as antialias, depiction::cpu as depiction, edl::cpu as edl,
+    fill_anisotropic::cpu as fill_anisotropic, fill_background::cpu as fill_background,
+    fill_occluded::cpu as fill_occluded, project::cpu as project, shade::cpu as shade,
+    smooth::cpu as smooth, visibility::cpu as visibility,
+};
 use stipple_render::{
     ColourPass, GBuffer, GeometryPass, Iterations, Kernel, Pipeline, PreparedCloud, ViewParams,
     BACKGROUND,
@@ -593,4 +595,89 @@ fn raw_operators_match_the_cpu() {
             assert_close(&gc, &want, 1.0 / 255.0, &what);
         }
     }
+}
+
+/// Every pixel pass (see `passes::pixel`) on the GPU against its CPU kernel, alone and at
+/// the end of a whole frame run through both backends by the one schedule.
+#[test]
+fn pixel_passes_match_the_cpu() {
+    use stipple_render::passes::pixel::PixelImages;
+    let Some(ctx) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let mut r = GpuRenderer::new(ctx).unwrap();
+    let cam = camera(77, 59, true);
+    let v = ViewParams::new(&cam, DVec3::ZERO);
+    let g = random_gbuffer(v.width, v.height, 12);
+    let mut rng = Rng::new(6);
+    let colour: Vec<[f32; 3]> = (0..v.pixels())
+        .map(|_| [rng.f32(), rng.f32(), rng.f32()])
+        .collect();
+    let passes = [
+        ColourPass::DepthCue {
+            strength: 0.7,
+            colour: [0.1, 0.2, 0.3],
+        },
+        ColourPass::DepthCue {
+            strength: 1.0,
+            colour: [0.0; 3],
+        },
+    ];
+    for pass in passes {
+        let pp = pass.pixel().expect("a pixel pass");
+        let (out, _, stat) = r.colour_pass(&v, &g.id, &g.depth, &colour, &pass).unwrap();
+        let mut want = vec![[0.0; 3]; v.pixels()];
+        let input = PixelImages {
+            id: &g.id,
+            depth: &g.depth,
+            colour: &colour,
+        };
+        let count = pp.cpu(&v, &input, &mut want);
+        assert_eq!(stat.count, count, "{pass:?}: count");
+        assert_eq!(stat.name, pp.name());
+        let changed = (0..v.pixels()).filter(|&k| want[k] != colour[k]).count();
+        assert!(
+            changed > v.pixels() / 4,
+            "{pass:?} changed only {changed} pixels"
+        );
+        for k in 0..v.pixels() {
+            for i in 0..3 {
+                assert!(
+                    (out[k][i] - want[k][i]).abs() <= 1e-5,
+                    "{pass:?} at {k}: gpu {:?} cpu {:?}",
+                    out[k],
+                    want[k]
+                );
+            }
+        }
+    }
+
+    // A whole frame with the pass at the end, through the public renderer on both backends.
+    let cloud = PreparedCloud::new(stipple_core::demo::generate(
+        stipple_core::demo::DemoScene::PlaneObjects,
+        40_000,
+        3,
+    ));
+    let mut cam = camera(96, 72, true);
+    cam.eye = DVec3::new(3.0, 2.4, 4.0);
+    cam.target = DVec3::new(0.0, 0.3, 0.0);
+    cam.fit_clip(DVec3::splat(-2.5), DVec3::splat(2.5));
+    let mut pipe = Pipeline::default();
+    pipe.colour.push(passes[0]);
+    let mut cpu =
+        stipple_render::Renderer::new(stipple_render::Backend::Cpu, GpuOptions::default()).unwrap();
+    let mut gpu =
+        stipple_render::Renderer::new(stipple_render::Backend::Gpu, GpuOptions::default()).unwrap();
+    let a = cpu.render(&cloud, &cam, &pipe).unwrap();
+    let b = gpu.render(&cloud, &cam, &pipe).unwrap();
+    assert!(a.stats.iter().any(|s| s.name == "depth_cue"));
+    assert!(b.stats.iter().any(|s| s.name == "depth_cue"));
+    let n = a.rgba.len() / 4;
+    let close = (0..n)
+        .filter(|&k| (0..3).all(|i| a.rgba[4 * k + i].abs_diff(b.rgba[4 * k + i]) <= 2))
+        .count();
+    assert!(
+        close as f64 >= 0.99 * n as f64,
+        "whole frame with depth cueing: {close} of {n} pixels agree"
+    );
 }

@@ -159,7 +159,7 @@ fn blending_matches_the_analytic_composite() {
     let c = PreparedCloud::new(cloud(&parts));
     let cam = top_camera(96);
     let background = [10u8, 20, 30];
-    let lut = stipple_render::cpu::shade::srgb_to_linear_table();
+    let lut = stipple_render::srgb::srgb_to_linear_table();
     let lin = |c: [u8; 3]| c.map(|v| lut[v as usize]);
     let mut want = [0.0f32; 3];
     let mut t = 1.0;
@@ -172,7 +172,7 @@ fn blending_matches_the_analytic_composite() {
     for i in 0..3 {
         want[i] += t * lin(background)[i];
     }
-    let want = want.map(stipple_render::cpu::shade::linear_to_srgb8);
+    let want = want.map(stipple_render::srgb::linear_to_srgb8);
     for mut r in backends() {
         let pipe = with_gap(
             Pipeline {

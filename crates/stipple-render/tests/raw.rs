@@ -3,8 +3,8 @@
 
 use glam::DVec3;
 use stipple_core::{Camera, PointCloud, Projection};
-use stipple_render::cpu::{depiction, edl};
 use stipple_render::eval::{compare, mesh_depth, DepthError};
+use stipple_render::passes::{depiction::cpu as depiction, edl::cpu as edl};
 use stipple_render::pipeline::{RawSettings, RawShading};
 use stipple_render::{render, Backend, Pipeline, PreparedCloud, ViewParams, HOLE};
 

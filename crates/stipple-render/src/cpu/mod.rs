@@ -1,26 +1,18 @@
 //! The CPU backend: rayon implementations of every pass, the executable reference the GPU
 //! backend is compared against. One module per pass, named as the pass.
 
-pub mod antialias;
-pub mod blend_layers;
-pub mod depiction;
-pub mod edl;
-pub mod fill_anisotropic;
-pub mod fill_background;
-pub mod fill_occluded;
-pub mod project;
-pub mod shade;
-pub mod shadow_texture;
-pub mod smooth;
-pub mod visibility;
-
 use crate::gbuffer::{GBuffer, PassStat, BACKGROUND};
-use crate::lights::Light;
 use crate::params::ViewParams;
+use crate::passes::{
+    antialias::cpu as antialias, blend_layers::cpu as blend_layers, depiction::cpu as depiction,
+    edl::cpu as edl, fill_anisotropic::cpu as fill_anisotropic,
+    fill_background::cpu as fill_background, fill_occluded::cpu as fill_occluded,
+    project::cpu as project, shade::cpu as shade, shadow_texture::cpu as shadow_texture,
+    smooth::cpu as smooth, visibility::cpu as visibility,
+};
 use crate::pipeline::{ColourPass, GeometryPass, Iterations, Pipeline};
 use crate::{Frame, PreparedCloud};
-use glam::DVec3;
-use shade::{Albedo, LocalLight, ShadeInput, ShadeParams};
+use shade::ShadeInput;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -354,6 +346,19 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let (ca, cb) = (&mut r.colour.0, &mut r.colour.1);
         let (sd, sd_b) = (&mut r.surface_depth, &mut r.depth_b);
         let (scratch, shading) = (&mut r.scratch, &mut r.shading);
+        if let Some(pp) = pass.pixel() {
+            timed(&mut self.stats, pp.name(), || {
+                let input = crate::passes::pixel::PixelImages {
+                    id: &ga.id,
+                    depth: sd,
+                    colour: ca,
+                };
+                let k = pp.cpu(v, &input, cb);
+                std::mem::swap(ca, cb);
+                ((), 1, k)
+            });
+            return Ok(());
+        }
         timed(&mut self.stats, pass.name(), || match *pass {
             ColourPass::Smooth { kernel, iterations } => {
                 for _ in 0..iterations {
@@ -410,6 +415,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 std::mem::swap(ca, cb);
                 ((), 1, 0)
             }
+            ColourPass::DepthCue { .. } => unreachable!("a pixel pass, run above"),
         });
         Ok(())
     }
@@ -491,58 +497,5 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             ((), 1, k)
         });
         Ok(())
-    }
-}
-
-/// The shade pass's parameters: the pipeline's lights in the cloud's local frame (`origin`),
-/// the material terms by object and the shadow samples taken per light.
-pub fn shade_params(
-    origin: DVec3,
-    pipe: &Pipeline,
-    gap: f32,
-    materials: Vec<shade::Terms>,
-    samples: [u32; 4],
-) -> ShadeParams {
-    let lights = pipe
-        .lights
-        .iter()
-        .take(crate::shadow::MAX_LIGHTS)
-        .map(|l| match *l {
-            Light::Headlight => LocalLight::Headlight,
-            Light::Directional(d) => {
-                LocalLight::Directional(DVec3::from(d).normalize_or_zero().as_vec3())
-            }
-            Light::Point(p) => LocalLight::Point((DVec3::from(p) - origin).as_vec3()),
-            Light::Area(a) => LocalLight::Point((DVec3::from(a.centre) - origin).as_vec3()),
-        })
-        .collect();
-    let lut = shade::srgb_to_linear_table();
-    ShadeParams {
-        lights,
-        samples,
-        materials,
-        // Splats hit their own (bent) surface already: the tangent-plane correction would
-        // only flatten it again.
-        max_correction: if pipe.splat.is_some() { -1.0 } else { gap },
-        background: pipe.background.map(|c| lut[c as usize]),
-    }
-}
-
-impl PreparedCloud {
-    /// [`shade_params`] for this cloud (its objects' materials, its shadow texture's samples).
-    pub fn shade_params(&self, pipe: &Pipeline, gap: f32) -> ShadeParams {
-        let samples = self.lit().map_or([0; 4], |l| l.samples);
-        shade_params(self.cloud.origin, pipe, gap, self.terms(pipe), samples)
-    }
-
-    pub fn albedo(&self, pipe: &Pipeline) -> Albedo<'_> {
-        let c = &self.cloud;
-        if let Some(col) = &c.colors {
-            Albedo::Colours(col)
-        } else if let (Some(i), Some(s)) = (&c.intensity, self.intensity_scale) {
-            Albedo::Intensity(i, s)
-        } else {
-            Albedo::Constant(pipe.material.base_colour)
-        }
     }
 }

@@ -1,15 +1,15 @@
 //! The GPU's side of [`crate::schedule`]: each step of the frame recorded into one command
 //! buffer, with the cursor of which ping-pong images hold the current G-buffer and colour.
 
-use super::cloud::GpuCloud;
-use super::context::GpuError;
 use super::record::{Cursor, Rec};
 use super::renderer::ProjectionPath;
 use super::resources::{FrameBuffers, Kit};
-use super::shade::ShadeBlock;
 use super::steps::*;
-use crate::cpu::shadow_texture::MarkParams;
+use crate::device::cloud::GpuCloud;
+use crate::device::context::GpuError;
 use crate::params::ViewParams;
+use crate::passes::shade::gpu::ShadeBlock;
+use crate::passes::shadow_texture::cpu::MarkParams;
 use crate::passes::splat::gpu::SplatGpu;
 use crate::pipeline::{ColourPass, GeometryPass};
 use crate::schedule::PassExec;

@@ -1,9 +1,9 @@
 //! Recording a frame: the command encoder with its counter slots and timestamp queries,
 //! submission, statistics and readback.
 
-use super::context::{GpuContext, GpuError};
 use super::resources::*;
-use super::util::Arena;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::util::Arena;
 use crate::gbuffer::{GBuffer, PassStat};
 use std::sync::Arc;
 use std::time::Instant;

@@ -2,23 +2,23 @@
 //! buffer (no CPU round trip between passes), with every pipeline, layout and buffer created
 //! once and reused while the frame size stays the same.
 
-use super::blend_layers::BlendLayers;
-use super::cloud::GpuCloud;
-use super::context::{GpuContext, GpuError};
-use super::depiction::Depiction;
 use super::exec::{GpuExec, Shading};
-use super::fill::window_cells;
-use super::iterate::IterateBlock;
-use super::project::{ChunkBlock, Project};
-use super::project_hw::{ProjectHw, Targets};
 use super::record::*;
 use super::resources::*;
-use super::shade::{Shade, ShadeBlock};
 use super::steps::*;
-use super::util::{self, Arena, Res};
-use crate::cpu::shade::{srgb_to_linear_table, SrgbEncoder};
+use crate::device::cloud::GpuCloud;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::iterate::IterateBlock;
+use crate::device::util::{self, Arena, Res};
 use crate::gbuffer::{GBuffer, PassStat};
 use crate::params::ViewParams;
+use crate::passes::blend_layers::gpu::BlendLayers;
+use crate::passes::depiction::gpu::Depiction;
+use crate::passes::fill::gpu::window_cells;
+use crate::passes::project::gpu::{ChunkBlock, Project};
+use crate::passes::project::gpu_hw::{ProjectHw, Targets};
+use crate::passes::shade::cpu::{srgb_to_linear_table, SrgbEncoder};
+use crate::passes::shade::gpu::{Shade, ShadeBlock};
 use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
 use crate::Frame;
 use std::sync::Arc;
@@ -98,8 +98,8 @@ impl GpuRenderer {
             usage: BufferUsages::STORAGE | BufferUsages::INDIRECT,
             mapped_at_creation: false,
         });
-        let iterate = super::iterate::new(&ctx);
-        let (vis_table, vis_ranges) = super::visibility::offset_table();
+        let iterate = crate::device::iterate::new(&ctx);
+        let (vis_table, vis_ranges) = crate::passes::visibility::gpu::offset_table();
         let kit = Kit {
             cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
             cell_ranges,
@@ -117,8 +117,8 @@ impl GpuRenderer {
             }),
             timer,
             project: Project::new(&ctx),
-            fill_background: super::fill_background::new(&ctx),
-            fill_occluded: super::fill_occluded::new(&ctx),
+            fill_background: crate::passes::fill_background::gpu::new(&ctx),
+            fill_occluded: crate::passes::fill_occluded::gpu::new(&ctx),
             iterate_group: iterate.bind(
                 d,
                 &[
@@ -133,27 +133,28 @@ impl GpuRenderer {
             indirect,
             view,
             shade: Shade::new(&ctx),
-            smooth: super::smooth::new(&ctx),
-            antialias: super::antialias::new(&ctx),
-            output: super::output::new(&ctx),
-            visibility: super::visibility::new(&ctx),
+            smooth: crate::passes::smooth::gpu::new(&ctx),
+            antialias: crate::passes::antialias::gpu::new(&ctx),
+            output: crate::passes::output::gpu::new(&ctx),
+            visibility: crate::passes::visibility::gpu::new(&ctx),
             vis_offsets: util::storage_init(
                 d,
                 "visibility offsets",
                 bytemuck::cast_slice(&vis_table),
             ),
             vis_ranges,
-            fill_anisotropic: super::fill_anisotropic::new(&ctx),
+            fill_anisotropic: crate::passes::fill_anisotropic::gpu::new(&ctx),
             depiction: Depiction::new(&ctx),
-            edl: super::edl::new(&ctx),
+            edl: crate::passes::edl::gpu::new(&ctx),
             materials: d.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("materials"),
-                size: std::mem::size_of::<super::shade::MaterialTable>() as u64,
+                size: std::mem::size_of::<crate::passes::shade::gpu::MaterialTable>() as u64,
                 usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
             blend: BlendLayers::new(&ctx),
-            mark: super::shadow_texture::new(&ctx),
+            mark: crate::passes::shadow_texture::gpu::new(&ctx),
+            pixel: Default::default(),
         };
         let splat = crate::passes::splat::gpu::SplatGpu::new(&ctx);
         ctx.take_errors()?;
@@ -291,6 +292,13 @@ impl GpuRenderer {
         };
         let mut f = self.frame.take().expect("prepared");
         ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
+        ensure_pixel_passes(
+            &self.ctx,
+            &mut self.kit,
+            &self.arena.buffer,
+            &mut f,
+            &pipe.colour,
+        );
         let n = v.width as u64 * v.height as u64;
         if layers > 1 && pipe.keep_layers {
             let bytes = 4 * n * layers as u64;
@@ -384,7 +392,7 @@ impl GpuRenderer {
     pub fn shadow_views(
         &mut self,
         cloud: &GpuCloud,
-        marks: &[(ViewParams, crate::cpu::shadow_texture::MarkParams)],
+        marks: &[(ViewParams, crate::passes::shadow_texture::cpu::MarkParams)],
         settings: &crate::shadow::ShadowSettings,
     ) -> Result<(), GpuError> {
         if cloud.chunks.iter().any(|c| c.lit.is_none()) {
@@ -531,7 +539,14 @@ impl GpuRenderer {
         pass: &ColourPass,
     ) -> Result<ColourPassResult, GpuError> {
         self.prepare(v)?;
-        let f = self.frame.take().expect("prepared");
+        let mut f = self.frame.take().expect("prepared");
+        ensure_pixel_passes(
+            &self.ctx,
+            &mut self.kit,
+            &self.arena.buffer,
+            &mut f,
+            std::slice::from_ref(pass),
+        );
         let r = (|| {
             let kit = &self.kit;
             let q = &self.ctx.queue;

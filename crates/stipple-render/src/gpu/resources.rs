@@ -1,21 +1,21 @@
 //! The GPU frame's long-lived resources: pipelines and tables made once (`Kit`), the
 //! per-pixel buffers of one frame size and the bind groups over them.
 
-use super::antialias::AntialiasBlock;
-use super::blend_layers::{BlendBlock, BlendLayers};
-use super::cloud::GpuCloud;
-use super::context::GpuContext;
-use super::depiction::{Depiction, DepictionBlock};
-use super::edl::EdlBlock;
-use super::fill::FillBlock;
-use super::fill_anisotropic::FillAnisotropicBlock;
-use super::project::{ChunkBlock, Project, ResolveBlock};
-use super::project_hw::{ProjectHw, Targets};
-use super::shade::{GatherBlock, Shade, ShadeBlock};
-use super::shadow_texture::MarkBlock;
-use super::smooth::SmoothBlock;
-use super::util::{self, Pass, Res};
-use super::visibility::VisibilityBlock;
+use crate::device::cloud::GpuCloud;
+use crate::device::context::GpuContext;
+use crate::device::util::{self, Pass, Res};
+use crate::passes::antialias::gpu::AntialiasBlock;
+use crate::passes::blend_layers::gpu::{BlendBlock, BlendLayers};
+use crate::passes::depiction::gpu::{Depiction, DepictionBlock};
+use crate::passes::edl::gpu::EdlBlock;
+use crate::passes::fill::gpu::FillBlock;
+use crate::passes::fill_anisotropic::gpu::FillAnisotropicBlock;
+use crate::passes::project::gpu::{ChunkBlock, Project, ResolveBlock};
+use crate::passes::project::gpu_hw::{ProjectHw, Targets};
+use crate::passes::shade::gpu::{GatherBlock, Shade, ShadeBlock};
+use crate::passes::shadow_texture::gpu::MarkBlock;
+use crate::passes::smooth::gpu::SmoothBlock;
+use crate::passes::visibility::gpu::VisibilityBlock;
 use std::mem::size_of;
 use wgpu::{Buffer, BufferUsages};
 
@@ -64,6 +64,8 @@ pub(crate) struct Kit {
     pub(crate) materials: Buffer,
     pub(crate) blend: BlendLayers,
     pub(crate) mark: Pass,
+    /// Pixel passes' pipelines, made when a frame first uses them (by pass name).
+    pub(crate) pixel: std::collections::HashMap<&'static str, Pass>,
 }
 
 pub(crate) struct FrameBuffers {
@@ -96,6 +98,9 @@ pub(crate) struct FrameBuffers {
     pub(crate) groups: Option<FrameGroups>,
     /// The per-chunk groups of the last cloud rendered at this size.
     pub(crate) cloud: Option<CloudGroups>,
+    /// Pixel passes' bind groups over these buffers, made when first used, by pass name,
+    /// geometry image and colour image.
+    pub(crate) pixel: std::collections::HashMap<(&'static str, usize, usize), wgpu::BindGroup>,
 }
 
 impl FrameBuffers {
@@ -131,6 +136,7 @@ impl FrameBuffers {
             targets: None,
             groups: None,
             cloud: None,
+            pixel: Default::default(),
         }
     }
 
@@ -469,5 +475,46 @@ pub(crate) fn ensure_cloud(
 ) {
     if f.cloud.as_ref().map(|c| c.key) != Some(cloud.key) {
         f.cloud = Some(CloudGroups::new(ctx, kit, arena, f, cloud));
+    }
+}
+
+/// Makes the pipelines of the pixel passes in `passes` and their bind groups over `f`
+/// unless they exist (see [`crate::passes::pixel`]).
+pub(crate) fn ensure_pixel_passes(
+    ctx: &GpuContext,
+    kit: &mut Kit,
+    arena: &Buffer,
+    f: &mut FrameBuffers,
+    passes: &[crate::pipeline::ColourPass],
+) {
+    use crate::device::util::{DYNAMIC, READ, UNIFORM, WRITE};
+    let d = &ctx.device;
+    for pp in passes.iter().filter_map(|p| p.pixel()) {
+        let name = pp.name();
+        let pass = kit.pixel.entry(name).or_insert_with(|| {
+            Pass::new(
+                d,
+                pp.module(),
+                name,
+                &[UNIFORM, DYNAMIC, READ, READ, READ, WRITE],
+            )
+        });
+        for g in 0..2 {
+            for c in 0..2 {
+                f.pixel.entry((name, g, c)).or_insert_with(|| {
+                    pass.bind(
+                        d,
+                        &[
+                            Res::Buf(&kit.view),
+                            Res::Arena(arena, crate::device::util::BLOCK),
+                            Res::Buf(&f.id[g]),
+                            Res::Buf(&f.surface),
+                            Res::Buf(&f.colour[c]),
+                            Res::Buf(&f.colour[1 - c]),
+                        ],
+                    )
+                });
+            }
+        }
     }
 }

@@ -1,24 +1,24 @@
 //! One recording function per step of the frame: each records its pass (or passes) into
 //! the frame's command encoder and ends a statistics section.
 
-use super::antialias::AntialiasBlock;
-use super::blend_layers::BlendBlock;
-use super::cloud::GpuCloud;
-use super::context::GpuError;
-use super::depiction::DepictionBlock;
-use super::edl::EdlBlock;
-use super::fill::FillBlock;
-use super::fill_anisotropic::FillAnisotropicBlock;
-use super::iterate::IterateBlock;
-use super::project::{ChunkBlock, ResolveBlock, POINTS_PER_GROUP};
-use super::project_hw::Targets;
 use super::record::*;
 use super::resources::*;
-use super::shade::{GatherBlock, ShadeBlock};
-use super::shadow_texture::MarkBlock;
-use super::smooth::SmoothBlock;
-use super::visibility::VisibilityBlock;
+use crate::device::cloud::GpuCloud;
+use crate::device::context::GpuError;
+use crate::device::iterate::IterateBlock;
 use crate::params::ViewParams;
+use crate::passes::antialias::gpu::AntialiasBlock;
+use crate::passes::blend_layers::gpu::BlendBlock;
+use crate::passes::depiction::gpu::DepictionBlock;
+use crate::passes::edl::gpu::EdlBlock;
+use crate::passes::fill::gpu::FillBlock;
+use crate::passes::fill_anisotropic::gpu::FillAnisotropicBlock;
+use crate::passes::project::gpu::{ChunkBlock, ResolveBlock, POINTS_PER_GROUP};
+use crate::passes::project::gpu_hw::Targets;
+use crate::passes::shade::gpu::{GatherBlock, ShadeBlock};
+use crate::passes::shadow_texture::gpu::MarkBlock;
+use crate::passes::smooth::gpu::SmoothBlock;
+use crate::passes::visibility::gpu::VisibilityBlock;
 use crate::pipeline::{ColourPass, GeometryPass, Iterations};
 use wgpu::{Buffer, CommandEncoder};
 
@@ -377,6 +377,22 @@ pub(crate) fn record_colour(
     rec.start();
     let q = rec.queries();
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    if let Some(pp) = pass.pixel() {
+        let off = rec.arena.push_bytes(&pp.block(v))?;
+        let missing = || GpuError::Wgpu(format!("pixel pass {} was not set up", pp.name()));
+        let pipeline = &kit.pixel.get(pp.name()).ok_or_else(missing)?.pipeline;
+        let group = f
+            .pixel
+            .get(&(pp.name(), cur.g, cur.colour))
+            .ok_or_else(missing)?;
+        let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
+        p.set_pipeline(pipeline);
+        p.set_bind_group(0, group, &[off]);
+        p.dispatch_workgroups(gx, gy, 1);
+        drop(p);
+        cur.colour = 1 - cur.colour;
+        return rec.end(pp.name(), 1, vec![], q);
+    }
     match *pass {
         ColourPass::Smooth { kernel, iterations } => {
             let off = rec.arena.push(&SmoothBlock::new(kernel))?;
@@ -452,7 +468,7 @@ pub(crate) fn record_colour(
             epsilon,
         } => {
             let mut offs = Vec::new();
-            for (k, weight) in crate::cpu::depiction::level_weights(levels, xi)
+            for (k, weight) in crate::passes::depiction::cpu::level_weights(levels, xi)
                 .into_iter()
                 .enumerate()
             {
@@ -489,6 +505,7 @@ pub(crate) fn record_colour(
             cur.colour = 1 - cur.colour;
             rec.end("edl", 1, vec![], q)
         }
+        ColourPass::DepthCue { .. } => unreachable!("a pixel pass, recorded above"),
     }
 }
 
@@ -560,7 +577,7 @@ pub(crate) fn record_mark(
     f: &FrameBuffers,
     cur: &Cursor,
     cloud: &GpuCloud,
-    mp: &crate::cpu::shadow_texture::MarkParams,
+    mp: &crate::passes::shadow_texture::cpu::MarkParams,
 ) -> Result<(), GpuError> {
     let ctx = rec.ctx;
     rec.start();

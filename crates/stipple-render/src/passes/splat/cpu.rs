@@ -4,9 +4,9 @@
 //! module docs over its own list on one thread.
 
 use super::{footprint, weight, Disc, Raster, SplatMode};
-use crate::cpu::shade::{intensity_grey, linear_to_srgb8, srgb_to_linear_table, Albedo};
 use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
+use crate::passes::shade::cpu::{intensity_grey, linear_to_srgb8, srgb_to_linear_table, Albedo};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU32, Ordering};

@@ -6,10 +6,10 @@
 //! its per-point shape buffers; the frame schedule (`gpu/renderer.rs`) only calls
 //! `SplatGpu::record` and `SplatGpu::record_resolve`.
 
-use crate::gpu::cloud::GpuCloud;
-use crate::gpu::context::{GpuContext, GpuError};
-use crate::gpu::shaders::SPLAT_MODULE;
-use crate::gpu::util::{self, Arena, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::device::cloud::GpuCloud;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::shaders::SPLAT_MODULE;
+use crate::device::util::{self, Arena, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
 use wgpu::{Buffer, ComputePipeline, ShaderStages};
 
 /// Splats per workgroup (splat.wgsl's workgroup size).
@@ -134,7 +134,7 @@ impl SplatGpu {
             ],
             ShaderStages::COMPUTE,
         );
-        let table = crate::cpu::shade::srgb_to_linear_table();
+        let table = crate::srgb::srgb_to_linear_table();
         SplatGpu {
             group_key: util::compute(d, &m, "splat_group_key", &group_bgl),
             group_id: util::compute(d, &m, "splat_group_id", &group_bgl),

@@ -1,0 +1,212 @@
+//! A cloud uploaded to the GPU: positions, normals and albedo in chunks that each fit one
+//! storage binding (128 MiB on lavapipe), so clouds of any size project chunk by chunk.
+
+use crate::device::context::{GpuContext, GpuError};
+use crate::srgb::intensity_grey;
+use crate::PreparedCloud;
+use glam::DVec3;
+use std::sync::atomic::{AtomicU64, Ordering};
+use wgpu::util::DeviceExt;
+use wgpu::BufferUsages;
+
+pub struct Chunk {
+    /// Index of the first point in the whole cloud.
+    pub base: u32,
+    pub count: u32,
+    pub positions: wgpu::Buffer,
+    pub normals: Option<wgpu::Buffer>,
+    /// sRGB 8-bit albedo per point packed r | g << 8 | b << 16 (colours, or intensity as grey).
+    pub albedo: Option<wgpu::Buffer>,
+    /// Object index | 8-bit opacity << 8, per point (absent: object 0, opaque).
+    pub style: Option<wgpu::Buffer>,
+    /// Shadow texture counts per point (absent: no shadow texture).
+    pub lit: Option<wgpu::Buffer>,
+}
+
+pub struct GpuCloud {
+    /// Distinguishes uploads (bind-group caches key on it).
+    pub key: u64,
+    pub len: usize,
+    pub origin: DVec3,
+    pub spacing: f32,
+    pub has_normals: bool,
+    pub has_albedo: bool,
+    /// Material terms by object, for a scene (None: the pipeline's material).
+    pub materials: Option<Vec<crate::material::Terms>>,
+    /// Samples per light of the uploaded shadow texture ([0; 4]: none).
+    pub samples: [u32; 4],
+    /// The mean opacity (see [`PreparedCloud::mean_alpha`]).
+    pub mean_alpha: f32,
+    /// The [`PreparedCloud::lit_key`] of the shadow texture uploaded.
+    pub lit_key: u64,
+    pub chunks: Vec<Chunk>,
+    /// Bound where a chunk has no normals or albedo (never read then).
+    pub dummy: wgpu::Buffer,
+}
+
+static NEXT_KEY: AtomicU64 = AtomicU64::new(1);
+
+/// Bytes per point of the largest per-point buffer (positions and normals, 3 × f32).
+const STRIDE: u64 = 12;
+
+impl GpuCloud {
+    pub fn upload(ctx: &GpuContext, cloud: &PreparedCloud) -> Result<GpuCloud, GpuError> {
+        let c = &cloud.cloud;
+        if c.len() > u32::MAX as usize - 1 {
+            return Err(GpuError::TooLarge(format!(
+                "{} points; the GPU backend indexes points with 32 bits",
+                c.len()
+            )));
+        }
+        let binding = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        let mut per = (binding / STRIDE) as usize;
+        if let Some(m) = ctx.options.max_chunk_points {
+            per = per.min(m);
+        }
+        let per = per.max(1);
+        let albedo: Option<Vec<u32>> = if let Some(col) = &c.colors {
+            Some(
+                col.iter()
+                    .map(|p| p[0] as u32 | (p[1] as u32) << 8 | (p[2] as u32) << 16)
+                    .collect(),
+            )
+        } else if let (Some(i), Some(s)) = (&c.intensity, cloud.intensity_scale) {
+            Some(
+                i.iter()
+                    .map(|&t| intensity_grey(t, s) as u32 * 0x01_01_01)
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        let style: Option<Vec<u32>> = if cloud.objects.is_some() || cloud.alpha.is_some() {
+            Some(
+                (0..c.len())
+                    .map(|i| {
+                        let o = cloud.objects.as_ref().map_or(0, |o| o.index[i] as u32);
+                        let a = cloud.alpha.as_ref().map_or(255, |a| a[i] as u32);
+                        o | a << 8
+                    })
+                    .collect(),
+            )
+        } else {
+            None
+        };
+        let d = &ctx.device;
+        let usage = BufferUsages::STORAGE | BufferUsages::VERTEX;
+        let init = |label: &str, bytes: &[u8]| {
+            d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage,
+            })
+        };
+        let mut chunks = Vec::new();
+        let mut base = 0usize;
+        while base < c.len() {
+            let end = (base + per).min(c.len());
+            chunks.push(Chunk {
+                base: base as u32,
+                count: (end - base) as u32,
+                positions: init("positions", bytemuck::cast_slice(&c.positions[base..end])),
+                normals: c
+                    .normals
+                    .as_ref()
+                    .map(|n| init("normals", bytemuck::cast_slice(&n[base..end]))),
+                albedo: albedo
+                    .as_ref()
+                    .map(|a| init("albedo", bytemuck::cast_slice(&a[base..end]))),
+                style: style
+                    .as_ref()
+                    .map(|a| init("style", bytemuck::cast_slice(&a[base..end]))),
+                lit: None,
+            });
+            base = end;
+        }
+        let dummy = init("dummy", &[0u8; 16]);
+        ctx.take_errors()?;
+        let mut up = GpuCloud {
+            key: NEXT_KEY.fetch_add(1, Ordering::Relaxed),
+            len: c.len(),
+            origin: c.origin,
+            spacing: cloud.spacing,
+            has_normals: c.normals.is_some(),
+            has_albedo: albedo.is_some(),
+            materials: cloud
+                .objects
+                .as_ref()
+                .map(|_| cloud.terms(&crate::Pipeline::default())),
+            samples: [0; 4],
+            mean_alpha: cloud.mean_alpha,
+            lit_key: 0,
+            chunks,
+            dummy,
+        };
+        up.set_lit(ctx, cloud.lit(), cloud.lit_key)?;
+        Ok(up)
+    }
+
+    /// Uploads a shadow texture's counts (or drops them), creating the per-chunk buffers the
+    /// first time (a new key then, so bind groups are made anew).
+    pub fn set_lit(
+        &mut self,
+        ctx: &GpuContext,
+        lit: Option<&crate::LitTexture>,
+        lit_key: u64,
+    ) -> Result<(), GpuError> {
+        match lit {
+            Some(l) => {
+                self.write_counts(ctx, &l.counts)?;
+                self.samples = l.samples;
+            }
+            None => {
+                if self.chunks.iter().any(|c| c.lit.is_some()) {
+                    for c in &mut self.chunks {
+                        c.lit = None;
+                    }
+                    self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
+                }
+                self.samples = [0; 4];
+            }
+        }
+        self.lit_key = lit_key;
+        Ok(())
+    }
+
+    /// Writes per-point lit counts into the chunks' buffers (made when missing).
+    pub fn write_counts(&mut self, ctx: &GpuContext, counts: &[u32]) -> Result<(), GpuError> {
+        if counts.len() != self.len {
+            return Err(GpuError::TooLarge(format!(
+                "lit counts for {} points, the cloud has {}",
+                counts.len(),
+                self.len
+            )));
+        }
+        let mut made = false;
+        for c in &mut self.chunks {
+            let data = &counts[c.base as usize..(c.base + c.count) as usize];
+            match &c.lit {
+                Some(b) => ctx.queue.write_buffer(b, 0, bytemuck::cast_slice(data)),
+                None => {
+                    c.lit = Some(ctx.device.create_buffer_init(
+                        &wgpu::util::BufferInitDescriptor {
+                            label: Some("lit"),
+                            contents: bytemuck::cast_slice(data),
+                            usage: BufferUsages::STORAGE
+                                | BufferUsages::COPY_SRC
+                                | BufferUsages::COPY_DST,
+                        },
+                    ));
+                    made = true;
+                }
+            }
+        }
+        if made {
+            self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
+        }
+        ctx.take_errors()
+    }
+}

@@ -1,0 +1,233 @@
+//! WGSL sources. Each pass has its shader of the same name in its folder (`src/passes/NAME/`),
+//! shared snippets are in `src/shaders/`; a module is the
+//! shared `common.wgsl` followed by the files the pass needs (WGSL has no includes).
+
+const COMMON: &str = include_str!("../shaders/common.wgsl");
+/// The bindings every pixel pass shares (see `crate::passes::pixel`).
+pub const PIXEL_PASS: &str = include_str!("../shaders/pixel_pass.wgsl");
+const POINT_PROJECTION: &str = include_str!("../shaders/point_projection.wgsl");
+const PROJECT: &str = include_str!("../passes/project/project.wgsl");
+const PROJECT_ATOMIC64: &str = include_str!("../passes/project/project_atomic64.wgsl");
+const PROJECT_ATOMIC32: &str = include_str!("../passes/project/project_atomic32.wgsl");
+const PROJECT_HW: &str = include_str!("../passes/project/project_hw.wgsl");
+const RESOLVE: &str = include_str!("../passes/project/resolve.wgsl");
+const FILL: &str = include_str!("../passes/fill/fill.wgsl");
+const FILL_BACKGROUND: &str = include_str!("../passes/fill_background/fill_background.wgsl");
+const FILL_OCCLUDED: &str = include_str!("../passes/fill_occluded/fill_occluded.wgsl");
+const ITERATE: &str = include_str!("iterate.wgsl");
+const GATHER: &str = include_str!("../passes/shade/gather.wgsl");
+const SHADE: &str = include_str!("../passes/shade/shade.wgsl");
+const WEIGHTED: &str = include_str!("../shaders/weighted.wgsl");
+const SMOOTH: &str = include_str!("../passes/smooth/smooth.wgsl");
+const ANTIALIAS: &str = include_str!("../passes/antialias/antialias.wgsl");
+const OUTPUT: &str = include_str!("../passes/output/output.wgsl");
+const SCREEN: &str = include_str!("../shaders/screen.wgsl");
+const VISIBILITY: &str = include_str!("../passes/visibility/visibility.wgsl");
+const FILL_ANISOTROPIC: &str = include_str!("../passes/fill_anisotropic/fill_anisotropic.wgsl");
+const DEPICTION: &str = include_str!("../passes/depiction/depiction.wgsl");
+const DEPICTION_APPLY: &str = include_str!("../passes/depiction/depiction_apply.wgsl");
+const EDL: &str = include_str!("../passes/edl/edl.wgsl");
+const BLEND_LAYERS: &str = include_str!("../passes/blend_layers/blend_layers.wgsl");
+const SHADOW_TEXTURE: &str = include_str!("../passes/shadow_texture/shadow_texture.wgsl");
+const SPLAT: &str = include_str!("../passes/splat/splat.wgsl");
+
+/// A shader module: its name and the files it is made of (after `common.wgsl`).
+#[derive(Clone, Copy, Debug)]
+pub struct ShaderModule {
+    pub name: &'static str,
+    parts: &'static [&'static str],
+    /// Needs 64-bit integer atomics (SHADER_INT64 + SHADER_INT64_ATOMIC_MIN_MAX).
+    pub int64: bool,
+}
+
+impl ShaderModule {
+    /// A module made of `common.wgsl` and `parts` (no 64-bit atomics).
+    pub const fn new(name: &'static str, parts: &'static [&'static str]) -> ShaderModule {
+        ShaderModule {
+            name,
+            parts,
+            int64: false,
+        }
+    }
+
+    pub fn source(&self) -> String {
+        let mut s = String::from(COMMON);
+        for p in self.parts {
+            s.push('\n');
+            s.push_str(p);
+        }
+        s
+    }
+}
+
+pub const PROJECT64: ShaderModule = ShaderModule {
+    name: "project (64-bit atomics)",
+    parts: &[PROJECT, POINT_PROJECTION, PROJECT_ATOMIC64],
+    int64: true,
+};
+pub const PROJECT32: ShaderModule = ShaderModule {
+    name: "project (32-bit fallback)",
+    parts: &[PROJECT, POINT_PROJECTION, PROJECT_ATOMIC32],
+    int64: false,
+};
+pub const PROJECT_HW_MODULE: ShaderModule = ShaderModule {
+    name: "project_hw",
+    parts: &[PROJECT_HW],
+    int64: false,
+};
+pub const RESOLVE_MODULE: ShaderModule = ShaderModule {
+    name: "resolve",
+    parts: &[RESOLVE],
+    int64: false,
+};
+pub const FILL_BACKGROUND_MODULE: ShaderModule = ShaderModule {
+    name: "fill_background",
+    parts: &[FILL, FILL_BACKGROUND],
+    int64: false,
+};
+pub const FILL_OCCLUDED_MODULE: ShaderModule = ShaderModule {
+    name: "fill_occluded",
+    parts: &[FILL, FILL_OCCLUDED],
+    int64: false,
+};
+pub const ITERATE_MODULE: ShaderModule = ShaderModule {
+    name: "iterate",
+    parts: &[ITERATE],
+    int64: false,
+};
+pub const GATHER_MODULE: ShaderModule = ShaderModule {
+    name: "gather",
+    parts: &[GATHER],
+    int64: false,
+};
+pub const SHADE_MODULE: ShaderModule = ShaderModule {
+    name: "shade",
+    parts: &[SHADE],
+    int64: false,
+};
+pub const SMOOTH_MODULE: ShaderModule = ShaderModule {
+    name: "smooth",
+    parts: &[SMOOTH, WEIGHTED],
+    int64: false,
+};
+pub const ANTIALIAS_MODULE: ShaderModule = ShaderModule {
+    name: "antialias",
+    parts: &[ANTIALIAS, WEIGHTED],
+    int64: false,
+};
+pub const OUTPUT_MODULE: ShaderModule = ShaderModule {
+    name: "output",
+    parts: &[OUTPUT],
+    int64: false,
+};
+
+pub const VISIBILITY_MODULE: ShaderModule = ShaderModule {
+    name: "visibility",
+    parts: &[VISIBILITY, SCREEN],
+    int64: false,
+};
+pub const FILL_ANISOTROPIC_MODULE: ShaderModule = ShaderModule {
+    name: "fill_anisotropic",
+    parts: &[FILL_ANISOTROPIC, SCREEN],
+    int64: false,
+};
+pub const DEPICTION_MODULE: ShaderModule = ShaderModule {
+    name: "depiction",
+    parts: &[DEPICTION, SCREEN],
+    int64: false,
+};
+pub const DEPICTION_APPLY_MODULE: ShaderModule = ShaderModule {
+    name: "depiction_apply",
+    parts: &[DEPICTION_APPLY],
+    int64: false,
+};
+pub const EDL_MODULE: ShaderModule = ShaderModule {
+    name: "edl",
+    parts: &[EDL],
+    int64: false,
+};
+
+pub const BLEND_LAYERS_MODULE: ShaderModule = ShaderModule {
+    name: "blend_layers",
+    parts: &[BLEND_LAYERS],
+    int64: false,
+};
+pub const SHADOW_TEXTURE_MODULE: ShaderModule = ShaderModule {
+    name: "shadow_texture",
+    parts: &[SHADOW_TEXTURE, POINT_PROJECTION],
+    int64: false,
+};
+
+pub const SPLAT_MODULE: ShaderModule = ShaderModule {
+    name: "splat",
+    parts: &[SPLAT],
+    int64: false,
+};
+
+/// Every module the GPU backend compiles (the naga validation test walks this list).
+pub const ALL: &[ShaderModule] = &[
+    PROJECT64,
+    PROJECT32,
+    PROJECT_HW_MODULE,
+    RESOLVE_MODULE,
+    FILL_BACKGROUND_MODULE,
+    FILL_OCCLUDED_MODULE,
+    ITERATE_MODULE,
+    GATHER_MODULE,
+    SHADE_MODULE,
+    SMOOTH_MODULE,
+    ANTIALIAS_MODULE,
+    OUTPUT_MODULE,
+    VISIBILITY_MODULE,
+    FILL_ANISOTROPIC_MODULE,
+    DEPICTION_MODULE,
+    DEPICTION_APPLY_MODULE,
+    EDL_MODULE,
+    BLEND_LAYERS_MODULE,
+    SHADOW_TEXTURE_MODULE,
+    SPLAT_MODULE,
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every WGSL module parses and validates with naga (no GPU needed): a broken shader fails
+    /// plain `cargo test`.
+    #[test]
+    fn every_shader_validates_with_naga() {
+        use naga::valid::{Capabilities, ValidationFlags, Validator};
+        let mut failures = Vec::new();
+        for m in ALL {
+            let src = m.source();
+            let module = match naga::front::wgsl::parse_str(&src) {
+                Ok(m) => m,
+                Err(e) => {
+                    failures.push(format!("{}: {}", m.name, e.emit_to_string(&src)));
+                    continue;
+                }
+            };
+            let caps = if m.int64 {
+                Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
+            } else {
+                Capabilities::empty()
+            };
+            if let Err(e) = Validator::new(ValidationFlags::all(), caps).validate(&module) {
+                failures.push(format!("{}: {}", m.name, e.emit_to_string(&src)));
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n\n"));
+    }
+
+    #[test]
+    fn the_64_bit_projection_needs_its_capability() {
+        use naga::valid::{Capabilities, ValidationFlags, Validator};
+        let src = PROJECT64.source();
+        let module = naga::front::wgsl::parse_str(&src).unwrap();
+        assert!(
+            Validator::new(ValidationFlags::all(), Capabilities::empty())
+                .validate(&module)
+                .is_err()
+        );
+    }
+}

@@ -1,0 +1,5 @@
+//! Anti-aliasing (Dobrev §3.5): the CPU reference kernel ([`cpu`]; its module documentation explains the pass
+//! against the paper), the GPU pipeline ([`gpu`]) and its WGSL, side by side.
+
+pub mod cpu;
+pub mod gpu;

@@ -1,0 +1,41 @@
+//! Pixel passes: colour passes that compute each pixel's new colour from the shaded image
+//! around it (its colour, surface depth and point id). Such a pass implements [`PixelPass`]
+//! in its own folder (CPU kernel, uniform block, WGSL entry point) and is registered by one
+//! match arm in [`crate::pipeline::ColourPass::pixel`]; both backends then run it without
+//! any code of their own: the CPU calls [`PixelPass::cpu`], the GPU makes the pipeline and
+//! the bind groups over its ping-pong images when the pass is first used and dispatches one
+//! thread per pixel (8×8 workgroups).
+//!
+//! The WGSL side: the pass's file is appended to `common.wgsl` and `shaders/pixel_pass.wgsl`
+//! (bindings 0 view, 2 point ids, 3 surface depth, 4 colour in, 5 colour out); it declares
+//! its uniform block at binding 1 and an entry point named as the pass.
+
+use crate::device::shaders::ShaderModule;
+use crate::params::ViewParams;
+
+/// The images a pixel pass reads (row-major, `width × height`).
+pub struct PixelImages<'a> {
+    pub id: &'a [u32],
+    /// Surface depth (+inf where nothing is).
+    pub depth: &'a [f32],
+    /// Linear RGB.
+    pub colour: &'a [[f32; 3]],
+}
+
+/// A colour pass computed per pixel (see the module documentation).
+pub trait PixelPass: Send + Sync {
+    /// Its name in statistics, its WGSL entry point and its label.
+    fn name(&self) -> &'static str;
+    /// The CPU reference: writes every pixel of `dst`; returns what the statistics count
+    /// (pixels changed, or 0).
+    fn cpu(&self, v: &ViewParams, input: &PixelImages<'_>, dst: &mut [[f32; 3]]) -> u64;
+    /// The WGSL module ([`pixel_module`] of the pass's file).
+    fn module(&self) -> &'static ShaderModule;
+    /// The pass's uniform block (binding 1; at most 128 bytes).
+    fn block(&self, v: &ViewParams) -> Vec<u8>;
+}
+
+/// The shader module of a pixel pass whose WGSL is `source` (see the module documentation).
+pub const fn pixel_module(name: &'static str, parts: &'static [&'static str]) -> ShaderModule {
+    ShaderModule::new(name, parts)
+}

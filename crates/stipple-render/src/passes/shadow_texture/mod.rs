@@ -1,0 +1,5 @@
+//! shadow_texture: mark the points a light sample reaches (Dobrev §6): the CPU reference kernel ([`cpu`]; its module documentation explains the pass
+//! against the paper), the GPU pipeline ([`gpu`]) and its WGSL, side by side.
+
+pub mod cpu;
+pub mod gpu;
