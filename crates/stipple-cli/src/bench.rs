@@ -6,6 +6,7 @@ use crate::figures::median;
 use crate::Result;
 use std::time::Instant;
 use stipple_render::gpu::ProjectionPath;
+use stipple_render::PassId;
 use stipple_render::{PreparedCloud, Renderer};
 
 #[derive(clap::Args)]
@@ -51,7 +52,7 @@ pub struct BenchArgs {
 const ZHANG_DRAGON: [(&str, f64); 3] =
     [("2+1-pass", 15.04), ("c = 0.8", 19.70), ("c = 0.4", 22.62)];
 
-type PassTimes = Vec<(&'static str, Vec<f64>, u32, u64)>;
+type PassTimes = Vec<(PassId, Vec<f64>, u32, u64)>;
 /// Host-side steps of a frame outside the passes (see `Frame::host_ms`), per frame.
 type HostTimes = Vec<(&'static str, Vec<f64>)>;
 
@@ -97,7 +98,7 @@ fn time_frames(
         totals.push(t.elapsed().as_secs_f64() * 1e3);
         for (k, s) in f.stats.iter().enumerate() {
             if per_pass.len() <= k {
-                per_pass.push((s.name, Vec::new(), s.iterations, s.count));
+                per_pass.push((s.pass, Vec::new(), s.iterations, s.count));
             }
             per_pass[k].1.push(s.ms);
         }
@@ -184,13 +185,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
     for (name, ms, it, count) in &mut per_pass {
         let m = median(ms);
         sum += m;
-        let extra = if *name == "project" {
+        let extra = if *name == PassId::Project {
             project_ms = m;
             format!("   {:.1} M points/s", n as f64 / m / 1e3)
         } else {
             String::new()
         };
-        println!("  {name:<16} {m:>9.3} {it:>6} {count:>12}{extra}");
+        println!("  {:<16} {m:>9.3} {it:>6} {count:>12}{extra}", name.name());
     }
     println!("  {:<16} {:>9.3} ms", "passes (sum)", sum);
     let t = median(&mut totals);
@@ -213,7 +214,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let this = g.projection;
         g.projection = other;
         let (mut pp, _, _) = time_frames(&mut r, &cloud, &camera, &pipe, 1, a.frames)?;
-        let Some(p) = pp.iter_mut().find(|p| p.0 == "project") else {
+        let Some(p) = pp.iter_mut().find(|p| p.0 == PassId::Project) else {
             return Ok(());
         };
         let m = median(&mut p.1);

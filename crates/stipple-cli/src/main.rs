@@ -635,12 +635,19 @@ fn render(a: RenderArgs) -> Result<()> {
         for s in &frame.stats {
             eprintln!(
                 "  {:<16} {:>9.2} ms  ({} it, {})",
-                s.name, s.ms, s.iterations, s.count
+                s.name(),
+                s.ms,
+                s.iterations,
+                s.count
             );
         }
     }
     hint_if_sparse(&frame);
-    if frame.stats.iter().any(|s| s.name == "visibility") {
+    if frame
+        .stats
+        .iter()
+        .any(|s| s.pass == stipple_render::PassId::Visibility)
+    {
         let px = cloud.screen_spacing(&camera);
         if px > 2.5 && stipple_render::pipeline::auto_kernel(px) == 15 {
             eprintln!(
@@ -727,7 +734,11 @@ fn hint_if_sparse(frame: &stipple_render::Frame) {
         .iter()
         .filter(|&&i| i != stipple_render::BACKGROUND)
         .count() as u64;
-    if let Some(s) = frame.stats.iter().find(|s| s.name == "fill_background") {
+    if let Some(s) = frame
+        .stats
+        .iter()
+        .find(|s| s.pass == stipple_render::PassId::FillBackground)
+    {
         if s.iterations == 1 && s.count * 5 > covered {
             eprintln!(
                 "stipple: hint: the points are sparse at this size ({}% of the image was hole-filled); \

@@ -82,12 +82,4 @@ impl GBuffer {
     }
 }
 
-/// Time and effect of one pass in one frame.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PassStat {
-    pub name: &'static str,
-    pub ms: f64,
-    pub iterations: u32,
-    /// Pixels changed (fill passes) or points projected (project).
-    pub count: u64,
-}
+pub use crate::stats::PassStat;

@@ -21,13 +21,15 @@ pub mod pipeline;
 pub mod schedule;
 pub mod shadow;
 pub mod srgb;
+pub mod stats;
 
-pub use gbuffer::{is_point, GBuffer, PassStat, BACKGROUND, HOLE};
+pub use gbuffer::{is_point, GBuffer, BACKGROUND, HOLE};
 pub use lights::{AreaLight, AreaShape, Light};
 pub use params::ViewParams;
 pub use passes::splat::{SplatMode, SplatSettings};
 pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Material, Pipeline};
 pub use shadow::LitTexture;
+pub use stats::{PassId, PassStat};
 
 use stipple_core::camera::CameraError;
 use stipple_core::{Camera, PointCloud};

@@ -6,6 +6,7 @@
 
 use crate::lights::{Light, LightError};
 pub use crate::material::{Material, Terms};
+use crate::stats::PassId;
 
 /// How many times an iterative pass runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -411,25 +412,35 @@ pub enum PipelineError {
 pub const MAX_LAYERS: u32 = 64;
 
 impl GeometryPass {
-    pub fn name(&self) -> &'static str {
+    /// The statistics' key of this pass.
+    pub fn id(&self) -> PassId {
         match self {
-            GeometryPass::FillBackground { .. } => "fill_background",
-            GeometryPass::FillOccluded { .. } => "fill_occluded",
-            GeometryPass::Visibility { .. } => "visibility",
+            GeometryPass::FillBackground { .. } => PassId::FillBackground,
+            GeometryPass::FillOccluded { .. } => PassId::FillOccluded,
+            GeometryPass::Visibility { .. } => PassId::Visibility,
         }
+    }
+
+    pub fn name(&self) -> &'static str {
+        self.id().name()
     }
 }
 
 impl ColourPass {
-    pub fn name(&self) -> &'static str {
+    /// The statistics' key of this pass.
+    pub fn id(&self) -> PassId {
         match self {
-            ColourPass::Smooth { .. } => "smooth",
-            ColourPass::Antialias { .. } => "antialias",
-            ColourPass::FillAnisotropic { .. } => "fill_anisotropic",
-            ColourPass::Depiction { .. } => "depiction",
-            ColourPass::Edl { .. } => "edl",
-            ColourPass::DepthCue { .. } => "depth_cue",
+            ColourPass::Smooth { .. } => PassId::Smooth,
+            ColourPass::Antialias { .. } => PassId::Antialias,
+            ColourPass::FillAnisotropic { .. } => PassId::FillAnisotropic,
+            ColourPass::Depiction { .. } => PassId::Depiction,
+            ColourPass::Edl { .. } => PassId::Edl,
+            ColourPass::DepthCue { .. } => PassId::DepthCue,
         }
+    }
+
+    pub fn name(&self) -> &'static str {
+        self.id().name()
     }
 
     /// The pixel pass that runs this colour pass on both backends, for colour passes that

@@ -634,7 +634,7 @@ fn pixel_passes_match_the_cpu() {
         };
         let count = pp.cpu(&v, &input, &mut want);
         assert_eq!(stat.count, count, "{pass:?}: count");
-        assert_eq!(stat.name, pp.name());
+        assert_eq!(stat.pass, pp.id());
         let changed = (0..v.pixels()).filter(|&k| want[k] != colour[k]).count();
         assert!(
             changed > v.pixels() / 4,
@@ -670,8 +670,14 @@ fn pixel_passes_match_the_cpu() {
         stipple_render::Renderer::new(stipple_render::Backend::Gpu, GpuOptions::default()).unwrap();
     let a = cpu.render(&cloud, &cam, &pipe).unwrap();
     let b = gpu.render(&cloud, &cam, &pipe).unwrap();
-    assert!(a.stats.iter().any(|s| s.name == "depth_cue"));
-    assert!(b.stats.iter().any(|s| s.name == "depth_cue"));
+    assert!(a
+        .stats
+        .iter()
+        .any(|s| s.pass == stipple_render::PassId::DepthCue));
+    assert!(b
+        .stats
+        .iter()
+        .any(|s| s.pass == stipple_render::PassId::DepthCue));
     let n = a.rgba.len() / 4;
     let close = (0..n)
         .filter(|&k| (0..3).all(|i| a.rgba[4 * k + i].abs_diff(b.rgba[4 * k + i]) <= 2))

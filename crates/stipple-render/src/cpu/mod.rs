@@ -1,7 +1,7 @@
 //! The CPU backend: rayon implementations of every pass, the executable reference the GPU
 //! backend is compared against. One module per pass, named as the pass.
 
-use crate::gbuffer::{GBuffer, PassStat, BACKGROUND};
+use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
 use crate::passes::{
     antialias::cpu as antialias, blend_layers::cpu as blend_layers, depiction::cpu as depiction,
@@ -11,6 +11,7 @@ use crate::passes::{
     smooth::cpu as smooth, visibility::cpu as visibility,
 };
 use crate::pipeline::{ColourPass, GeometryPass, Iterations, Pipeline};
+use crate::stats::{PassId, PassStat};
 use crate::{Frame, PreparedCloud};
 use shade::ShadeInput;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -38,11 +39,11 @@ pub struct CpuRenderer {
     blended_valid: bool,
 }
 
-fn timed<T>(stats: &mut Vec<PassStat>, name: &'static str, f: impl FnOnce() -> (T, u32, u64)) -> T {
+fn timed<T>(stats: &mut Vec<PassStat>, pass: PassId, f: impl FnOnce() -> (T, u32, u64)) -> T {
     let t0 = Instant::now();
     let (r, iterations, count) = f();
     stats.push(PassStat {
-        name,
+        pass,
         ms: t0.elapsed().as_secs_f64() * 1e3,
         iterations,
         count,
@@ -254,7 +255,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             let lut = shade::srgb_to_linear_table();
             let albedo = blend.then(|| (cloud.albedo(pipe), &lut));
             let blended = blend.then_some(&mut r.blended);
-            let kept = timed(stats, "splat", || {
+            let kept = timed(stats, PassId::Splat, || {
                 let k = crate::passes::splat::cpu::splat(v, &input, sp.mode, albedo, ga, blended);
                 (k, 1, k)
             });
@@ -263,7 +264,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         }
         let peel = peel.map(|gap| (&r.peel_ref[..], gap));
         let bufs = &mut r.private;
-        let kept = timed(stats, "project", || {
+        let kept = timed(stats, PassId::Project, || {
             use rayon::prelude::*;
             let normals = c.normals.as_deref();
             let kept = if private {
@@ -283,7 +284,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
     fn geometry(&mut self, pass: &GeometryPass, gap: f32) -> Result<(), Self::Error> {
         let v = self.v;
         let (ga, gb) = self.r.g.as_mut().expect("made by project");
-        timed(&mut self.stats, pass.name(), || {
+        timed(&mut self.stats, pass.id(), || {
             let (its, changed) = match *pass {
                 GeometryPass::FillBackground { iterations, radius } => {
                     iterate(ga, gb, iterations, |s, d| {
@@ -332,7 +333,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 .then(|| (&r.blended.normal[..], &r.blended.albedo[..])),
         };
         let (ca, sd) = (&mut r.colour.0, &mut r.surface_depth);
-        timed(&mut self.stats, "shade", || {
+        timed(&mut self.stats, PassId::Shade, || {
             shade::shade(v, ga, &input, &params, ca, sd);
             ((), 1, 0)
         });
@@ -347,7 +348,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let (sd, sd_b) = (&mut r.surface_depth, &mut r.depth_b);
         let (scratch, shading) = (&mut r.scratch, &mut r.shading);
         if let Some(pp) = pass.pixel() {
-            timed(&mut self.stats, pp.name(), || {
+            timed(&mut self.stats, pp.id(), || {
                 let input = crate::passes::pixel::PixelImages {
                     id: &ga.id,
                     depth: sd,
@@ -359,7 +360,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             });
             return Ok(());
         }
-        timed(&mut self.stats, pass.name(), || match *pass {
+        timed(&mut self.stats, pass.id(), || match *pass {
             ColourPass::Smooth { kernel, iterations } => {
                 for _ in 0..iterations {
                     smooth::smooth(w, h, &ga.id, kernel, ca, cb);
@@ -442,7 +443,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let ga = &r.g.as_ref().expect("made by project").0;
         let (sd, ca, acc) = (&r.surface_depth, &r.colour.0, &mut r.acc);
         let alpha = cloud.alpha.as_deref();
-        timed(&mut self.stats, "blend_layers", || {
+        timed(&mut self.stats, PassId::BlendLayers, || {
             let covered = blend_layers::blend(&ga.id, sd, ca, alpha, cloud.mean_alpha, acc);
             ((), 1, covered)
         });
@@ -472,7 +473,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
 
     fn output(&mut self) -> Result<(), Self::Error> {
         let (r, v) = (&*self.r, self.v);
-        self.rgba = timed(&mut self.stats, "output", || {
+        self.rgba = timed(&mut self.stats, PassId::Output, || {
             (r.encode(v.pixels(), v.width as usize), 1, 0)
         });
         Ok(())
@@ -485,7 +486,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             .counts
             .as_deref_mut()
             .expect("a light view is given the counts it marks");
-        timed(&mut self.stats, "shadow_texture", || {
+        timed(&mut self.stats, PassId::ShadowTexture, || {
             let k = shadow_texture::mark(
                 v,
                 &g.depth,

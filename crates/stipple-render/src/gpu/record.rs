@@ -4,14 +4,15 @@
 use super::resources::*;
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::util::Arena;
-use crate::gbuffer::{GBuffer, PassStat};
+use crate::gbuffer::GBuffer;
+use crate::stats::{PassId, PassStat};
 use std::sync::Arc;
 use std::time::Instant;
 use wgpu::{Buffer, BufferUsages, CommandEncoder};
 
 /// A section of the frame: one named pass as the statistics report it.
 pub(crate) struct Section {
-    pub(crate) name: &'static str,
+    pub(crate) pass: PassId,
     pub(crate) iterations: u32,
     pub(crate) until_stable: bool,
     pub(crate) slots: Vec<u32>,
@@ -82,17 +83,17 @@ impl<'a> Rec<'a> {
 
     pub(crate) fn end(
         &mut self,
-        name: &'static str,
+        pass: PassId,
         iterations: u32,
         slots: Vec<u32>,
         queries: Option<(u32, u32)>,
     ) -> Result<(), GpuError> {
-        self.end_iterated(name, iterations, false, slots, queries)
+        self.end_iterated(pass, iterations, false, slots, queries)
     }
 
     pub(crate) fn end_iterated(
         &mut self,
-        name: &'static str,
+        pass: PassId,
         iterations: u32,
         until_stable: bool,
         slots: Vec<u32>,
@@ -104,7 +105,7 @@ impl<'a> Rec<'a> {
             wall_ms = self.started.elapsed().as_secs_f64() * 1e3;
         }
         self.sections.push(Section {
-            name,
+            pass,
             iterations,
             until_stable,
             slots,
@@ -291,7 +292,7 @@ pub(crate) fn stats(
                 }
             }
             PassStat {
-                name: s.name,
+                pass: s.pass,
                 ms,
                 iterations,
                 count: s.slots.iter().map(|&k| counters[k as usize] as u64).sum(),

@@ -10,7 +10,7 @@ use crate::device::cloud::GpuCloud;
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::iterate::IterateBlock;
 use crate::device::util::{self, Arena, Res};
-use crate::gbuffer::{GBuffer, PassStat};
+use crate::gbuffer::GBuffer;
 use crate::params::ViewParams;
 use crate::passes::blend_layers::gpu::BlendLayers;
 use crate::passes::depiction::gpu::Depiction;
@@ -20,6 +20,7 @@ use crate::passes::project::gpu_hw::{ProjectHw, Targets};
 use crate::passes::shade::cpu::{srgb_to_linear_table, SrgbEncoder};
 use crate::passes::shade::gpu::{Shade, ShadeBlock};
 use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
+use crate::stats::{PassId, PassStat};
 use crate::Frame;
 use std::sync::Arc;
 use std::time::Instant;
@@ -347,7 +348,7 @@ impl GpuRenderer {
             let stats = stats(&self.ctx, kit, &sections)?;
             let peeled = stats
                 .iter()
-                .filter(|s| s.name == "project")
+                .filter(|s| s.pass == PassId::Project)
                 .take_while(|s| s.count > 0)
                 .count() as u32;
             let mut layer_images = Vec::new();

@@ -20,6 +20,7 @@ use crate::passes::shadow_texture::gpu::MarkBlock;
 use crate::passes::smooth::gpu::SmoothBlock;
 use crate::passes::visibility::gpu::VisibilityBlock;
 use crate::pipeline::{ColourPass, GeometryPass, Iterations};
+use crate::stats::PassId;
 use wgpu::{Buffer, CommandEncoder};
 
 pub(crate) fn record_project(
@@ -71,7 +72,7 @@ pub(crate) fn record_project(
     let (gx, gy) = flat_groups(ctx, f.width as u64 * f.height as u64);
     pass.dispatch_workgroups(gx, gy, 1);
     drop(pass);
-    rec.end("project", 1, vec![slot], q)
+    rec.end(PassId::Project, 1, vec![slot], q)
 }
 
 pub(crate) fn record_splat(
@@ -118,7 +119,7 @@ pub(crate) fn record_splat(
         }),
         &mut begin,
     )?;
-    rec.end("splat", 1, vec![], q)
+    rec.end(PassId::Splat, 1, vec![], q)
 }
 
 pub(crate) fn record_project_hw(
@@ -212,7 +213,7 @@ pub(crate) fn record_project_hw(
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     pass.dispatch_workgroups(gx, gy, 1);
     drop(pass);
-    rec.end("project", 1, vec![], q)
+    rec.end(PassId::Project, 1, vec![], q)
 }
 
 pub(crate) fn record_geometry(
@@ -267,7 +268,7 @@ pub(crate) fn record_geometry(
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.g = 1 - cur.g;
-            return rec.end(pass.name(), 1, vec![slot], q);
+            return rec.end(pass.id(), 1, vec![slot], q);
         }
     };
     let (first, count) = *kit
@@ -318,7 +319,7 @@ pub(crate) fn record_geometry(
         }
     }
     drop(p);
-    rec.end_iterated(pass.name(), its.max(), stable, slots, q)
+    rec.end_iterated(pass.id(), its.max(), stable, slots, q)
 }
 
 pub(crate) fn record_shade(
@@ -362,7 +363,7 @@ pub(crate) fn record_shade(
     p.set_bind_group(0, &f.groups().shade[cur.g], &[soff]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
-    rec.end("shade", 1, vec![], q)
+    rec.end(PassId::Shade, 1, vec![], q)
 }
 
 pub(crate) fn record_colour(
@@ -391,7 +392,7 @@ pub(crate) fn record_colour(
         p.dispatch_workgroups(gx, gy, 1);
         drop(p);
         cur.colour = 1 - cur.colour;
-        return rec.end(pp.name(), 1, vec![], q);
+        return rec.end(pp.id(), 1, vec![], q);
     }
     match *pass {
         ColourPass::Smooth { kernel, iterations } => {
@@ -405,7 +406,7 @@ pub(crate) fn record_colour(
                 cur.colour = 1 - cur.colour;
             }
             drop(p);
-            rec.end("smooth", iterations, vec![], q)
+            rec.end(PassId::Smooth, iterations, vec![], q)
         }
         ColourPass::Antialias {
             threshold,
@@ -424,7 +425,7 @@ pub(crate) fn record_colour(
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
-            rec.end("antialias", 1, vec![slot], q)
+            rec.end(PassId::Antialias, 1, vec![slot], q)
         }
         ColourPass::FillAnisotropic {
             iterations,
@@ -460,7 +461,7 @@ pub(crate) fn record_colour(
                 rec.enc
                     .copy_buffer_to_buffer(&f.surface_b, 0, &f.surface, 0, 4 * n);
             }
-            rec.end("fill_anisotropic", iterations, slots, q)
+            rec.end(PassId::FillAnisotropic, iterations, slots, q)
         }
         ColourPass::Depiction {
             levels,
@@ -493,7 +494,7 @@ pub(crate) fn record_colour(
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
-            rec.end("depiction", levels, vec![], q)
+            rec.end(PassId::Depiction, levels, vec![], q)
         }
         ColourPass::Edl { strength, radius } => {
             let off = rec.arena.push(&EdlBlock::new(strength, radius))?;
@@ -503,7 +504,7 @@ pub(crate) fn record_colour(
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
-            rec.end("edl", 1, vec![], q)
+            rec.end(PassId::Edl, 1, vec![], q)
         }
         ColourPass::DepthCue { .. } => unreachable!("a pixel pass, recorded above"),
     }
@@ -539,8 +540,8 @@ pub(crate) fn record_blend(
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     match hole_alpha {
-        Some(_) => rec.end("blend_layers", 1, vec![slot], q),
-        None => rec.end("blend_begin", 1, vec![], q),
+        Some(_) => rec.end(PassId::BlendLayers, 1, vec![slot], q),
+        None => rec.end(PassId::BlendBegin, 1, vec![], q),
     }
 }
 
@@ -567,7 +568,7 @@ pub(crate) fn record_compose(
     p.set_bind_group(0, &f.groups().blend[0][0], &[off]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
-    rec.end("compose", 1, vec![], q)
+    rec.end(PassId::Compose, 1, vec![], q)
 }
 
 /// `shadow_texture` over every chunk against the light image in `cur.g`.
@@ -607,7 +608,7 @@ pub(crate) fn record_mark(
         p.dispatch_workgroups(gx, gy, 1);
     }
     drop(p);
-    rec.end("shadow_texture", 1, vec![slot], q)
+    rec.end(PassId::ShadowTexture, 1, vec![slot], q)
 }
 
 pub(crate) fn record_output(
@@ -625,5 +626,5 @@ pub(crate) fn record_output(
     p.set_bind_group(0, &f.groups().output[cur.colour], &[]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
-    rec.end("output", 1, vec![], q)
+    rec.end(PassId::Output, 1, vec![], q)
 }

@@ -24,8 +24,12 @@ pub struct PixelImages<'a> {
 
 /// A colour pass computed per pixel (see the module documentation).
 pub trait PixelPass: Send + Sync {
-    /// Its name in statistics, its WGSL entry point and its label.
-    fn name(&self) -> &'static str;
+    /// Its key in statistics.
+    fn id(&self) -> crate::stats::PassId;
+    /// Its WGSL entry point and label (its statistics name).
+    fn name(&self) -> &'static str {
+        self.id().name()
+    }
     /// The CPU reference: writes every pixel of `dst`; returns what the statistics count
     /// (pixels changed, or 0).
     fn cpu(&self, v: &ViewParams, input: &PixelImages<'_>, dst: &mut [[f32; 3]]) -> u64;

@@ -35,8 +35,8 @@ struct Block {
 }
 
 impl PixelPass for DepthCue {
-    fn name(&self) -> &'static str {
-        "depth_cue"
+    fn id(&self) -> crate::stats::PassId {
+        crate::stats::PassId::DepthCue
     }
 
     fn cpu(&self, v: &ViewParams, input: &PixelImages<'_>, dst: &mut [[f32; 3]]) -> u64 {
