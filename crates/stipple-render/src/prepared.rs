@@ -1,0 +1,402 @@
+//! The cloud as frames use it: what every frame needs computed once (point spacing,
+//! intensity scale, opacities, objects, shadow textures, normals and splat radii).
+
+use crate::*;
+use stipple_core::{Camera, PointCloud};
+
+/// A scene's objects: the object of each point and each object's material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ObjectTable {
+    /// Object per point (at most [`MAX_OBJECTS`] objects).
+    pub index: Vec<u8>,
+    pub materials: Vec<Material>,
+}
+
+/// Objects a scene may hold (the object index is 8 bits per point).
+pub const MAX_OBJECTS: usize = 256;
+
+/// A point's opacity as blending uses it: 8 bits, as in an sRGBA file (α = a / 255).
+#[inline]
+pub fn alpha8(opacity: f32) -> u8 {
+    (opacity.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// The scale that maps LiDAR intensities to [0, 1]: 1 / their 99th percentile (None when
+/// that is 0).
+pub fn intensity_scale(v: &[u16]) -> Option<f32> {
+    let mut hist = vec![0u64; 65536];
+    for &i in v {
+        hist[i as usize] += 1;
+    }
+    let target = (v.len() as f64 * 0.99) as u64;
+    let mut acc = 0;
+    let p99 = hist.iter().position(|&c| {
+        acc += c;
+        acc >= target
+    })?;
+    (p99 > 0).then(|| 1.0 / p99 as f32)
+}
+
+/// A cloud with what every frame needs computed once: the point spacing (for d̃), the
+/// intensity scale, opacities, and (for scenes) objects and shadow textures.
+pub struct PreparedCloud {
+    pub cloud: PointCloud,
+    /// Median nearest-neighbour distance, world units.
+    pub spacing: f32,
+    /// Maps intensity to [0, 1] (1 / the 99th percentile), when the cloud has intensity.
+    pub intensity_scale: Option<f32>,
+    /// Per-point opacity in 8 bits (None: every point is opaque).
+    pub alpha: Option<Vec<u8>>,
+    /// The mean opacity: what a pixel filled by the anisotropic fill (no point of its own)
+    /// blends with.
+    pub mean_alpha: f32,
+    /// Objects and their materials (None: one object with the pipeline's material).
+    pub objects: Option<ObjectTable>,
+    /// Surface shape per point relative to the cloud's normals (quadric splats; see
+    /// `stipple_core::normals::shapes`), from [`PreparedCloud::prepare_surface`]. None: flat
+    /// splats. Valid only for the normals it was fitted to.
+    pub shapes: Option<Vec<passes::splat::SplatShape>>,
+    /// Deferred blending's splat groups, computed on first use (see
+    /// [`PreparedCloud::groups`]), with the key and c they were made for.
+    groups: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<stipple_core::grouping::Grouping>)>>,
+    /// The cloud's bounds, computed on first use for the key they were made for (a frame
+    /// needs them; recomputing them read every point, 30 ms a frame at 100 M points).
+    bounds: std::sync::Mutex<Option<(u64, stipple_core::Bounds)>>,
+    /// The shadow texture in use (see [`PreparedCloud::set_lit`]).
+    lit: Option<LitTexture>,
+    /// Unique per preparation: the GPU backend re-uploads when it changes.
+    pub key: u64,
+    /// Changes whenever the shadow texture does (the GPU backend re-uploads it alone).
+    pub lit_key: u64,
+}
+
+static NEXT_CLOUD_KEY: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+fn next_key() -> u64 {
+    NEXT_CLOUD_KEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
+}
+
+impl PreparedCloud {
+    pub fn new(cloud: PointCloud) -> PreparedCloud {
+        let spacing = cloud.estimate_spacing();
+        PreparedCloud::with_spacing(cloud, spacing)
+    }
+
+    /// Prepares a cloud whose point spacing is already known (a LOD cut knows it from its
+    /// nodes; estimating it would cost a neighbour search per frame).
+    pub fn with_spacing(cloud: PointCloud, spacing: f32) -> PreparedCloud {
+        let intensity_scale = cloud.intensity.as_deref().and_then(intensity_scale);
+        let alpha: Option<Vec<u8>> = cloud
+            .opacity
+            .as_ref()
+            .map(|o| o.iter().map(|&a| alpha8(a)).collect());
+        let mean_alpha = match &alpha {
+            Some(a) if !a.is_empty() => {
+                a.iter().map(|&x| x as f64).sum::<f64>() / (255.0 * a.len() as f64)
+            }
+            _ => 1.0,
+        } as f32;
+        PreparedCloud {
+            cloud,
+            spacing,
+            intensity_scale,
+            alpha,
+            mean_alpha,
+            objects: None,
+            shapes: None,
+            groups: Default::default(),
+            bounds: Default::default(),
+            lit: None,
+            key: next_key(),
+            lit_key: next_key(),
+        }
+    }
+
+    /// Gives every point the same opacity.
+    pub fn set_opacity(&mut self, opacity: f32) {
+        let a = alpha8(opacity);
+        self.alpha = Some(vec![a; self.cloud.len()]);
+        self.mean_alpha = a as f32 / 255.0;
+        self.key = next_key();
+    }
+
+    /// Gives the points objects with their own materials. Errors when the table does not
+    /// match the cloud.
+    pub fn with_objects(mut self, objects: ObjectTable) -> Result<PreparedCloud, RenderError> {
+        if objects.index.len() != self.cloud.len() {
+            return Err(ObjectError::Points {
+                table: objects.index.len(),
+                cloud: self.cloud.len(),
+            }
+            .into());
+        }
+        if objects.materials.is_empty() || objects.materials.len() > MAX_OBJECTS {
+            return Err(ObjectError::Count(objects.materials.len()).into());
+        }
+        if let Some(&o) = objects
+            .index
+            .iter()
+            .find(|&&o| o as usize >= objects.materials.len())
+        {
+            return Err(ObjectError::Material {
+                object: o as u32,
+                materials: objects.materials.len(),
+            }
+            .into());
+        }
+        self.objects = Some(objects);
+        self.key = next_key();
+        Ok(self)
+    }
+
+    /// Sets (or clears) the shadow texture shading uses. Errors when it does not match.
+    pub fn set_lit(&mut self, lit: Option<LitTexture>) -> Result<(), RenderError> {
+        if let Some(l) = &lit {
+            if l.counts.len() != self.cloud.len() {
+                return Err(shadow::ShadowError::Points {
+                    texture: l.counts.len(),
+                    cloud: self.cloud.len(),
+                }
+                .into());
+            }
+        }
+        self.lit = lit;
+        self.lit_key = next_key();
+        Ok(())
+    }
+
+    pub fn lit(&self) -> Option<&LitTexture> {
+        self.lit.as_ref()
+    }
+
+    /// The Phong terms by object.
+    pub fn terms(&self, pipe: &Pipeline) -> Vec<passes::shade::cpu::Terms> {
+        let t = |m: &Material| passes::shade::cpu::Terms {
+            ambient: m.ambient,
+            diffuse: m.diffuse,
+            specular: m.specular,
+            shininess: m.shininess,
+        };
+        match &self.objects {
+            Some(o) => o.materials.iter().map(t).collect(),
+            None => vec![t(&pipe.material)],
+        }
+    }
+
+    /// The pipeline with its automatic settings resolved for this cloud and view.
+    pub fn resolve(&self, pipe: &Pipeline, v: &ViewParams) -> Pipeline {
+        let mut p = pipe.resolved(v, self.spacing, self.centre_depth(v));
+        if let Some(s) = &mut p.splat {
+            s.epsilon = Some(self.splat_epsilon(s));
+            if s.mode == SplatMode::Deferred {
+                s.depth_range = Some(self.depth_range(v));
+            }
+        }
+        p
+    }
+
+    /// View depth of the centre of the cloud's bounds.
+    fn centre_depth(&self, v: &ViewParams) -> f32 {
+        let c = self.bounds().center();
+        (c - glam::Vec3::from(v.eye)).dot(glam::Vec3::from(v.forward))
+    }
+
+    /// The median point spacing in pixels at the centre of the cloud (NaN when the camera is
+    /// inside the cloud's bounds centre plane).
+    pub fn screen_spacing(&self, camera: &Camera) -> f32 {
+        let v = ViewParams::new(camera, self.cloud.origin);
+        let d = self.centre_depth(&v);
+        if d > v.near {
+            self.spacing / v.footprint(d)
+        } else {
+            f32::NAN
+        }
+    }
+
+    /// The layer gap d̃ a pipeline uses for this cloud: its own, else derived from spacing.
+    pub fn layer_gap(&self, pipe: &Pipeline) -> f32 {
+        pipeline::layer_gap(pipe, self.spacing)
+    }
+
+    /// Splat radii, unscaled: the cloud's own (PLY `radius`, or from
+    /// [`PreparedCloud::prepare_surface`]), else [`FALLBACK_RADIUS`] × the point spacing for
+    /// every point.
+    pub fn splat_radii(&self) -> std::borrow::Cow<'_, [f32]> {
+        match &self.cloud.radius {
+            Some(r) => std::borrow::Cow::Borrowed(r),
+            None => std::borrow::Cow::Owned(vec![
+                FALLBACK_RADIUS
+                    * self.spacing.max(f32::MIN_POSITIVE);
+                self.cloud.len()
+            ]),
+        }
+    }
+
+    /// The ε of the splat pass's ε-z test: the pipeline's own, else the median scaled radius.
+    pub fn splat_epsilon(&self, s: &SplatSettings) -> f32 {
+        s.epsilon.unwrap_or_else(|| {
+            let r = self.splat_radii();
+            let mut v: Vec<f32> = r.iter().step_by((r.len() / 4096).max(1)).copied().collect();
+            let m = v.len() / 2;
+            let median = if v.is_empty() {
+                0.0
+            } else {
+                *v.select_nth_unstable_by(m, f32::total_cmp).1
+            };
+            passes::splat::epsilon(median * s.scale)
+        })
+    }
+
+    /// Makes the cloud ready for lit and splat rendering: estimates normals where it has
+    /// none (`estimate`), re-orients given normals whose signs are inconsistent, and
+    /// computes splat radii where it has none (see `stipple_core::normals`). Does nothing
+    /// that is already there; the GPU copy is refreshed on the next frame.
+    pub fn prepare_surface(
+        &mut self,
+        k: usize,
+        estimate: bool,
+    ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        self.prepare_surface_from(k, estimate, None)
+    }
+
+    /// [`PreparedCloud::prepare_surface`] with the sensor's position (world coordinates)
+    /// when it is known: normals then face it (`stipple_core::normals::estimate_from`).
+    pub fn prepare_surface_from(
+        &mut self,
+        k: usize,
+        estimate: bool,
+        viewpoint: Option<glam::DVec3>,
+    ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        let vp = viewpoint.map(|v| (v - self.cloud.origin).as_vec3());
+        let c = &mut self.cloud;
+        let need_normals = c.normals.is_none() && estimate;
+        let mut report = SurfaceReport::default();
+        if c.normals.is_none() && !need_normals && c.radius.is_some() {
+            return Ok(report);
+        }
+        let t0 = std::time::Instant::now();
+        let need_radii = c.radius.is_none();
+        let e =
+            stipple_core::normals::estimate_from(&c.positions, c.normals.as_deref(), k, 1.0, vp)?;
+        if need_normals {
+            c.normals = Some(e.normals);
+            report.estimated = true;
+        } else if c.normals.is_some() && e.flipped > 0 {
+            c.normals = Some(e.normals);
+            report.reoriented = e.flipped;
+        }
+        report.inconsistency = e.inconsistency;
+        if need_radii {
+            c.radius = Some(e.radii);
+            report.radii = true;
+        }
+        if c.normals.is_some() {
+            self.shapes = Some(e.shapes);
+        }
+        report.seconds = t0.elapsed().as_secs_f64();
+        self.key = next_key();
+        Ok(report)
+    }
+}
+
+impl PreparedCloud {
+    /// The splat groups of deferred blending for overlap relaxation `c` (Zhang & Pajarola
+    /// §4.1; `stipple_core::grouping`), computed on first use and kept until the cloud or
+    /// c changes. A cloud too small to group gets one group.
+    pub fn groups(&self, c: f32) -> std::sync::Arc<stipple_core::grouping::Grouping> {
+        let mut g = self.groups.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, cb, gr)) = g.as_ref() {
+            if *k == self.key && *cb == c.to_bits() {
+                return gr.clone();
+            }
+        }
+        let radii = self.splat_radii();
+        let normals = self.cloud.normals.as_deref();
+        let gr = std::sync::Arc::new(
+            stipple_core::grouping::grouping(&self.cloud.positions, normals, &radii, c)
+                .unwrap_or_else(|_| stipple_core::grouping::Grouping {
+                    group: vec![0; self.cloud.len()],
+                    groups: 1,
+                    max_degree: 0,
+                    mean_degree: 0.0,
+                    conflicts: 0,
+                    c,
+                }),
+        );
+        *g = Some((self.key, c.to_bits(), gr.clone()));
+        gr
+    }
+
+    /// The cloud's bounds (local coordinates), cached per [`PreparedCloud::key`]: code that
+    /// moves points must give the cloud a new key, as the GPU copy needs anyway.
+    pub fn bounds(&self) -> stipple_core::Bounds {
+        let mut b = self.bounds.lock().unwrap_or_else(|e| e.into_inner());
+        match *b {
+            Some((key, bounds)) if key == self.key => bounds,
+            _ => {
+                let bounds = self.cloud.bounds();
+                *b = Some((self.key, bounds));
+                bounds
+            }
+        }
+    }
+
+    /// The view-depth range [min, max] of the cloud's bounds (min at least the near plane).
+    pub fn depth_range(&self, v: &ViewParams) -> (f32, f32) {
+        let b = self.bounds();
+        let (eye, fwd) = (glam::Vec3::from(v.eye), glam::Vec3::from(v.forward));
+        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+        for i in 0..8 {
+            let c = glam::Vec3::new(
+                if i & 1 == 0 { b.min.x } else { b.max.x },
+                if i & 2 == 0 { b.min.y } else { b.max.y },
+                if i & 4 == 0 { b.min.z } else { b.max.z },
+            );
+            let d = (c - eye).dot(fwd);
+            lo = lo.min(d);
+            hi = hi.max(d);
+        }
+        (lo.max(v.near), hi.max(lo.max(v.near)))
+    }
+}
+
+/// Splat radius in point spacings for clouds without radii (about what
+/// `stipple_core::normals` gives a regular sampling).
+pub const FALLBACK_RADIUS: f32 = 2.0;
+
+/// What [`PreparedCloud::prepare_surface`] did.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SurfaceReport {
+    /// Normals were estimated (the cloud had none).
+    pub estimated: bool,
+    /// Given normals turned round (their signs were inconsistent).
+    pub reoriented: usize,
+    /// The given normals' share of inconsistent neighbour pairs.
+    pub inconsistency: f32,
+    /// Splat radii were computed.
+    pub radii: bool,
+    pub seconds: f64,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The cached bounds are the cloud's, and a new key (what moving points requires, for
+    /// the GPU copy too) recomputes them.
+    #[test]
+    fn cached_bounds_follow_the_key() {
+        let positions: Vec<glam::Vec3> = (0..1000)
+            .map(|i| glam::Vec3::new(i as f32 * 0.01, (i % 7) as f32, -((i % 13) as f32)))
+            .collect();
+        let mut p = PreparedCloud::with_spacing(PointCloud::from_positions(positions), 0.01);
+        let b = p.bounds();
+        assert_eq!(b, p.cloud.bounds());
+        p.cloud.positions[3] = glam::Vec3::splat(100.0);
+        assert_eq!(p.bounds(), b, "same key: the cached bounds");
+        p.key = next_key();
+        let moved = p.bounds();
+        assert_eq!(moved, p.cloud.bounds());
+        assert_eq!(moved.max, glam::Vec3::splat(100.0));
+    }
+}
