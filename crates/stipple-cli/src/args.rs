@@ -20,7 +20,7 @@ pub struct SourceArgs {
     /// one, a demo scene is rendered.
     pub input: Option<PathBuf>,
     /// Demo scene when no input is given: plane-objects, sphere, torus, nested-tori.
-    #[arg(long, value_parser = crate::parse_scene, default_value = "plane-objects")]
+    #[arg(long, value_parser = parse_scene, default_value = "plane-objects")]
     pub demo: DemoScene,
     /// Number of demo points (default: 1 000 000; 1 500 000 for nested-tori).
     #[arg(long)]
@@ -907,4 +907,15 @@ impl BackendArgs {
         }
         Ok(r)
     }
+}
+
+/// A demo scene by name.
+pub fn parse_scene(s: &str) -> Result<stipple_core::demo::DemoScene> {
+    stipple_core::demo::DemoScene::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = stipple_core::demo::DemoScene::ALL
+            .iter()
+            .map(|d| d.name())
+            .collect();
+        format!("unknown scene `{s}` (one of: {})", names.join(", "))
+    })
 }

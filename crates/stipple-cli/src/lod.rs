@@ -1,150 +1,15 @@
-//! `stipple build-lod`, and `.stlod` trees in `render`, `bench` and `info`.
+//! `.stlod` trees in `render`, `bench` and `info` (built by `cmd::build_lod`).
 
 use crate::args::{CameraArgs, PipelineArgs};
 use crate::Result;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use stipple_core::{Camera, PointCloud};
 use stipple_lod::mem::{parse_count, parse_size};
 use stipple_lod::stream::Payload;
-use stipple_lod::{LodTree, Phase, SelectOptions, Selection, Streamer};
+use stipple_lod::{LodTree, SelectOptions, Selection, Streamer};
 use stipple_render::{PreparedCloud, Renderer};
-
-/// Testing aid: abort `build-lod` (no clean-up, as a kill would) after this many chunks.
-const ABORT_ENV: &str = "STIPPLE_TEST_ABORT_BUILD_AFTER_CHUNKS";
-
-fn parse_m(s: &str) -> std::result::Result<u32, String> {
-    let v = parse_count(s)?;
-    if !(2..=1 << 24).contains(&v) {
-        return Err(format!("`{s}`: the node size must lie in 2..16M"));
-    }
-    Ok(v as u32)
-}
-
-#[derive(clap::Args)]
-pub struct BuildLodArgs {
-    /// Input clouds, merged into one tree. LAS/LAZ are streamed, so they may be larger than
-    /// memory; PLY and XYZ are read whole.
-    #[arg(required = true)]
-    inputs: Vec<PathBuf>,
-    /// The tree to write (.stlod). Written under a temporary name and renamed when complete.
-    #[arg(short, long)]
-    output: PathBuf,
-    /// M: a node with fewer points is a leaf; an inner node holds at most M samples filtered
-    /// from its children.
-    #[arg(long, default_value = "32768", value_parser = parse_m, value_name = "M")]
-    max_node_points: u32,
-    /// Memory budget for the build, e.g. 512M or 4G. Inputs larger than half of it are built
-    /// out of core through a spill file. Default: a quarter of RAM, at most 8 GiB.
-    #[arg(long, value_parser = parse_size, value_name = "SIZE")]
-    memory: Option<u64>,
-    /// Directory for the spill file of an out-of-core build (default: beside the output).
-    #[arg(long, value_name = "DIR")]
-    temp_dir: Option<PathBuf>,
-    /// Worker threads, 1 to 1024 (default: all cores).
-    #[arg(long, value_parser = threads_1024)]
-    threads: Option<usize>,
-    /// Replace the output if it exists.
-    #[arg(long)]
-    force: bool,
-}
-
-pub fn build_lod(a: BuildLodArgs) -> Result<()> {
-    let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
-    crate::check_output(&a.output, &inputs)?;
-    if stipple_io::extension(&a.output) != "stlod" {
-        return Err(format!(
-            "{}: the tree's name must end in .stlod",
-            a.output.display()
-        ));
-    }
-    if a.output.exists() && !a.force {
-        return Err(format!(
-            "{}: already exists; pass --force to replace it",
-            a.output.display()
-        ));
-    }
-    if a.threads == Some(0) {
-        return Err("--threads must be at least 1".into());
-    }
-    let bar = indicatif::ProgressBar::new(0);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{msg:9} [{bar:30}] {human_pos}/{human_len} points  {per_sec}  {elapsed} elapsed, ETA {eta}",
-        )
-        .unwrap()
-        .progress_chars("=> "),
-    );
-    let b = bar.clone();
-    let progress = move |phase: Phase, done: u64, total: u64| {
-        let msg = match phase {
-            Phase::Reading => "reading",
-            Phase::Building => "building",
-        };
-        if b.message() != msg {
-            b.set_message(msg);
-            b.reset();
-        }
-        b.set_length(total);
-        b.set_position(done);
-    };
-    let opts = stipple_lod::BuildOptions {
-        max_node_points: a.max_node_points,
-        memory: a.memory.unwrap_or_else(stipple_lod::build::default_memory),
-        temp_dir: a.temp_dir.clone(),
-        progress: Some(Arc::new(progress)),
-        abort_after_chunks: std::env::var(ABORT_ENV).ok().and_then(|v| v.parse().ok()),
-        replace: a.force,
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(a.threads.unwrap_or(0))
-        .build()
-        .map_err(|e| e.to_string())?;
-    let t0 = Instant::now();
-    let r = pool
-        .install(|| stipple_lod::build(&a.inputs, &a.output, &opts))
-        .map_err(|e| e.to_string());
-    bar.finish_and_clear();
-    let r = r?;
-    let s = t0.elapsed().as_secs_f64();
-    println!(
-        "wrote {}: {} points from {} file{} in {s:.1} s ({:.2} M points/s)",
-        a.output.display(),
-        r.points,
-        a.inputs.len(),
-        if a.inputs.len() == 1 { "" } else { "s" },
-        r.points as f64 / s / 1e6
-    );
-    println!(
-        "  {} nodes ({} leaves, depth {}), M = {}, {} MiB",
-        r.nodes,
-        r.leaves,
-        r.depth,
-        a.max_node_points,
-        r.bytes >> 20
-    );
-    let how = if r.out_of_core {
-        format!(
-            "out of core: {} chunks (largest {} points), {} MiB spilled, {} dense spots redistributed",
-            r.chunks,
-            r.largest_chunk,
-            r.spilled >> 20,
-            r.redistributions
-        )
-    } else {
-        "in memory".to_string()
-    };
-    let peak = stipple_lod::mem::peak_rss()
-        .map(|p| format!("peak memory {} MiB", p >> 20))
-        .unwrap_or_default();
-    println!("  {how}; memory budget {} MiB; {peak}", opts.memory >> 20);
-    println!(
-        "  reading {:.1} s, building and writing {:.1} s",
-        r.read_seconds, r.build_seconds
-    );
-    Ok(())
-}
 
 /// Options for drawing a tree, shared by `render` and `bench`.
 #[derive(clap::Args, Clone)]
@@ -177,7 +42,7 @@ fn thread_count(s: &str, max: usize) -> std::result::Result<usize, String> {
     }
 }
 
-fn threads_1024(s: &str) -> std::result::Result<usize, String> {
+pub fn threads_1024(s: &str) -> std::result::Result<usize, String> {
     thread_count(s, 1024)
 }
 

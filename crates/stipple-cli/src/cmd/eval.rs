@@ -47,7 +47,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
             a.mesh.display()
         ));
     }
-    let stem = crate::stem(&a.mesh);
+    let stem = crate::cmd::render::stem(&a.mesh);
     let output = a
         .output
         .clone()
@@ -56,7 +56,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         if stipple_io::extension(o) != "png" {
             return Err(format!("{}: must be a .png file", o.display()));
         }
-        crate::check_output(o, &[a.mesh.as_path()])?;
+        crate::output::check_output(o, &[a.mesh.as_path()])?;
     }
     let camera = a.camera.build(&mesh)?;
     let v = ViewParams::new(&camera, mesh.origin);

@@ -1,0 +1,56 @@
+//! `stipple info`: point count, bounds, attributes and spacing of clouds and trees.
+
+use crate::Result;
+use crate::{args, lod};
+use std::path::PathBuf;
+use stipple_render::PreparedCloud;
+
+pub fn info(files: &[PathBuf], verify: bool) -> Result<()> {
+    let mut failed = 0;
+    for f in files {
+        if lod::is_tree(f) {
+            if let Err(e) = lod::info(f, verify) {
+                eprintln!("stipple: error: {e}");
+                failed += 1;
+            }
+            continue;
+        }
+        match args::read_with_progress(f) {
+            Ok(c) => {
+                let p = PreparedCloud::new(c);
+                let c = &p.cloud;
+                let (lo, hi) = c.world_bounds();
+                println!("{}", f.display());
+                println!("  points      {}", c.len());
+                println!("  bounds min  {:.4} {:.4} {:.4}", lo.x, lo.y, lo.z);
+                println!("  bounds max  {:.4} {:.4} {:.4}", hi.x, hi.y, hi.z);
+                let e = hi - lo;
+                println!("  extent      {:.4} {:.4} {:.4}", e.x, e.y, e.z);
+                println!("  attributes  {}", c.attributes().join(", "));
+                if !c.faces.is_empty() {
+                    println!("  faces       {} triangles", c.faces.len());
+                }
+                println!(
+                    "  spacing     {:.6} (median nearest-neighbour distance)",
+                    p.spacing
+                );
+                println!(
+                    "  layer gap   {:.6} (default d̃ = 2.5 × spacing)",
+                    stipple_render::pipeline::default_layer_gap(p.spacing)
+                );
+            }
+            Err(e) => {
+                eprintln!("stipple: error: {e}");
+                failed += 1;
+            }
+        }
+    }
+    if failed > 0 {
+        Err(format!(
+            "{failed} of {} files could not be read",
+            files.len()
+        ))
+    } else {
+        Ok(())
+    }
+}
