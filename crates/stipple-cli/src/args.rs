@@ -1,6 +1,7 @@
 //! Arguments shared by `render` and `bench`: the source cloud, the camera and the pipeline.
 
 use crate::Result;
+use anyhow::anyhow;
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -43,7 +44,7 @@ impl SourceArgs {
             None => {
                 let n = self.points.unwrap_or(self.demo.default_points());
                 if n == 0 {
-                    return Err("--points must be at least 1".into());
+                    return Err(anyhow!("--points must be at least 1"));
                 }
                 crate::memory::check_points(
                     &format!("--points {n}"),
@@ -66,7 +67,7 @@ pub fn read_with_progress(path: &Path) -> Result<PointCloud> {
     bar.set_message(format!("reading {}", path.display()));
     bar.enable_steady_tick(Duration::from_millis(120));
     let t0 = Instant::now();
-    let r = stipple_io::read_cloud(path).map_err(|e| e.to_string());
+    let r = stipple_io::read_cloud(path);
     bar.finish_and_clear();
     if let Ok(c) = &r {
         let s = t0.elapsed().as_secs_f64();
@@ -79,7 +80,7 @@ pub fn read_with_progress(path: &Path) -> Result<PointCloud> {
             );
         }
     }
-    r
+    Ok(r?)
 }
 
 pub fn parse_vec3(s: &str) -> std::result::Result<DVec3, String> {
@@ -172,7 +173,7 @@ impl CameraArgs {
         if let Some(hh) = self.ortho {
             cam.projection = Projection::Orthographic { height: hh };
         }
-        cam.validate().map_err(|e| format!("camera: {e}"))?;
+        cam.validate().map_err(|e| anyhow!("camera: {e}"))?;
         cam.fit_clip(lo, hi);
         Ok(cam)
     }
@@ -364,18 +365,18 @@ pub struct SplatArgs {
 impl SplatArgs {
     pub fn settings(&self) -> Result<SplatSettings> {
         if !(self.splat_scale > 0.0 && self.splat_scale.is_finite()) {
-            return Err(format!(
+            return Err(anyhow!(
                 "--splat-scale {}: must be a positive number",
                 self.splat_scale
             ));
         }
         if let Some(e) = self.splat_epsilon {
             if !(e >= 0.0 && e.is_finite()) {
-                return Err(format!("--splat-epsilon {e}: must be 0 or more"));
+                return Err(anyhow!("--splat-epsilon {e}: must be 0 or more"));
             }
         }
         if !(self.splat_c > 0.0 && self.splat_c <= 1.0) {
-            return Err(format!(
+            return Err(anyhow!(
                 "--splat-c {}: the overlap relaxation must lie in (0, 1]",
                 self.splat_c
             ));
@@ -474,7 +475,7 @@ impl RawArgs {
             if v > 0.0 && v.is_finite() {
                 Ok(())
             } else {
-                Err(format!("--{name} {v}: must be a positive number"))
+                Err(anyhow!("--{name} {v}: must be a positive number"))
             }
         };
         finite_pos(self.fill_delta, "fill-delta")?;
@@ -482,13 +483,13 @@ impl RawArgs {
         finite_pos(self.edl_strength, "edl-strength")?;
         finite_pos(self.edl_radius, "edl-radius")?;
         if !(0.0..=1.0).contains(&self.visibility_threshold) {
-            return Err(format!(
+            return Err(anyhow!(
                 "--visibility-threshold {}: must lie in 0..1",
                 self.visibility_threshold
             ));
         }
         if !(self.depiction_xi >= 0.0 && self.depiction_xi.is_finite()) {
-            return Err(format!(
+            return Err(anyhow!(
                 "--depiction-xi {}: must be 0 or more",
                 self.depiction_xi
             ));
@@ -680,7 +681,7 @@ impl PipelineArgs {
                 ));
                 return Ok((raw, notes));
             }
-            r => r.map_err(|e| format!("normal estimation: {e}"))?,
+            r => r.map_err(|e| anyhow!("normal estimation: {e}"))?,
         };
         if report.estimated {
             notes.push(format!(
@@ -756,7 +757,7 @@ impl PipelineArgs {
     fn add_depth_cue(&self, p: &mut Pipeline) -> Result<()> {
         let s = self.depth_cue;
         if !(0.0..=1.0).contains(&s) {
-            return Err(format!("--depth-cue {s}: must lie in 0..1"));
+            return Err(anyhow!("--depth-cue {s}: must lie in 0..1"));
         }
         if s > 0.0 {
             let lut = stipple_render::srgb::srgb_to_linear_table();
@@ -772,11 +773,11 @@ impl PipelineArgs {
     pub fn build(&self) -> Result<Pipeline> {
         if let Some(g) = self.layer_gap {
             if !(g > 0.0 && g.is_finite()) {
-                return Err(format!("--layer-gap {g}: must be a positive distance"));
+                return Err(anyhow!("--layer-gap {g}: must be a positive distance"));
             }
         }
         if !(0.0..=1.0).contains(&self.aa_strength) {
-            return Err(format!(
+            return Err(anyhow!(
                 "--aa-strength {}: must lie in 0..1",
                 self.aa_strength
             ));
@@ -897,11 +898,11 @@ impl BackendArgs {
                 }
             }
         }
-        let mut r = Renderer::new(backend, options).map_err(|e| format!("--backend gpu: {e}"))?;
+        let mut r = Renderer::new(backend, options).map_err(|e| anyhow!("--backend gpu: {e}"))?;
         match r.gpu_mut() {
             Some(g) => g.projection = self.projection,
             None if self.projection == ProjectionPath::Hardware => {
-                return Err("--projection hardware needs the GPU backend".into())
+                return Err(anyhow!("--projection hardware needs the GPU backend"))
             }
             None => {}
         }
@@ -910,7 +911,7 @@ impl BackendArgs {
 }
 
 /// A demo scene by name.
-pub fn parse_scene(s: &str) -> Result<stipple_core::demo::DemoScene> {
+pub fn parse_scene(s: &str) -> std::result::Result<stipple_core::demo::DemoScene, String> {
     stipple_core::demo::DemoScene::from_name(s).ok_or_else(|| {
         let names: Vec<_> = stipple_core::demo::DemoScene::ALL
             .iter()

@@ -2,6 +2,7 @@
 
 use crate::args::{CameraArgs, PipelineArgs};
 use crate::Result;
+use anyhow::{anyhow, Context};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -54,13 +55,13 @@ impl LodArgs {
     fn select_options(&self, tree: &LodTree) -> Result<SelectOptions> {
         let m = tree.header.max_node_points as u64;
         if self.point_budget < m {
-            return Err(format!(
+            return Err(anyhow!(
                 "--point-budget {} is smaller than one node of this tree ({m} points)",
                 self.point_budget
             ));
         }
         if !(self.lod_error > 0.0 && self.lod_error.is_finite()) {
-            return Err(format!(
+            return Err(anyhow!(
                 "--lod-error {}: must be a positive number of pixels",
                 self.lod_error
             ));
@@ -84,7 +85,7 @@ pub fn is_tree(p: &Path) -> bool {
 }
 
 pub fn open(p: &Path) -> Result<Arc<LodTree>> {
-    LodTree::open(p).map(Arc::new).map_err(|e| e.to_string())
+    Ok(LodTree::open(p).map(Arc::new)?)
 }
 
 /// The cloud to draw from resident payloads: positions relative to the tree's origin,
@@ -146,7 +147,7 @@ pub fn open_with_camera(p: &Path, camera: &CameraArgs) -> Result<(Arc<LodTree>, 
     let (lo, hi) = tree.world_bounds();
     let cam = camera
         .build_framed(lo, hi, tree.header.z_up())
-        .map_err(|e| format!("{}: {e}", p.display()))?;
+        .with_context(|| p.display().to_string())?;
     Ok((tree, cam))
 }
 
@@ -159,8 +160,7 @@ pub fn load_cut(
     let (tree, cam) = open_with_camera(p, camera)?;
     let opts = lod.select_options(&tree)?;
     let sel = stipple_lod::select(&tree, &cam, &opts);
-    let streamer =
-        Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders).map_err(|e| e.to_string())?;
+    let streamer = Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders)?;
     streamer.request(&sel.nodes);
     let bar = indicatif::ProgressBar::new_spinner();
     bar.enable_steady_tick(Duration::from_millis(120));
@@ -178,7 +178,7 @@ pub fn load_cut(
     }
     bar.finish_and_clear();
     if let Some(e) = streamer.error() {
-        return Err(e);
+        return Err(anyhow::Error::msg(e));
     }
     let (parts, _) = streamer.resident_cut(&sel.nodes);
     let cloud = cut_cloud(&tree, &parts, &cam);
@@ -233,7 +233,7 @@ pub fn info(p: &Path, verify: bool) -> Result<()> {
     );
     if verify {
         let t0 = Instant::now();
-        tree.verify().map_err(|e| e.to_string())?;
+        tree.verify()?;
         println!(
             "  checksums   all {} payloads verified in {:.1} s",
             h.node_count,
@@ -258,8 +258,7 @@ pub fn bench(
     let t0 = Instant::now();
     let (tree, cam) = open_with_camera(p, camera)?;
     let opts = lod.select_options(&tree)?;
-    let streamer =
-        Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders).map_err(|e| e.to_string())?;
+    let streamer = Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders)?;
     let open_ms = t0.elapsed().as_secs_f64() * 1e3;
     let pipe = pipeline.build_for(false)?;
     let mut first_ms = None;
@@ -283,14 +282,13 @@ pub fn bench(
             cloud = Some((ids, cut_cloud(&tree, &parts, &cam)));
             compose_ms.push(t.elapsed().as_secs_f64() * 1e3);
         }
-        r.render(&cloud.as_ref().unwrap().1, &cam, &pipe)
-            .map_err(|e| e.to_string())?;
+        r.render(&cloud.as_ref().unwrap().1, &cam, &pipe)?;
         k += 1;
         if first_ms.is_none() {
             first_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
         }
         if let Some(e) = streamer.error() {
-            return Err(e);
+            return Err(anyhow::Error::msg(e));
         }
         if missing == 0 {
             converged = Some((k, t0.elapsed().as_secs_f64() * 1e3));
@@ -301,7 +299,7 @@ pub fn bench(
         let t = Instant::now();
         let s = stipple_lod::select(&tree, &cam, &opts);
         streamer.request(&s.nodes);
-        r.render(&c, &cam, &pipe).map_err(|e| e.to_string())?;
+        r.render(&c, &cam, &pipe)?;
         frame_ms.push(t.elapsed().as_secs_f64() * 1e3);
     }
     let med = |v: &mut Vec<f64>| crate::figures::median(v);

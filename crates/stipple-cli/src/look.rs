@@ -5,6 +5,7 @@ use crate::args::{CameraArgs, LookArgs};
 use crate::scene::{self, LoadedScene};
 use crate::shadow_cache;
 use crate::Result;
+use anyhow::anyhow;
 use glam::{DAffine3, DVec3};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -65,10 +66,10 @@ pub fn apply(
         }
     }
     aim_area_lights(&mut pipe.lights, cloud);
-    stipple_render::lights::validate(&pipe.lights).map_err(|e| format!("--light: {e}"))?;
+    stipple_render::lights::validate(&pipe.lights).map_err(|e| anyhow!("--light: {e}"))?;
     pipe.layers = layers(look, scene);
     if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&pipe.layers) {
-        return Err(format!(
+        return Err(anyhow!(
             "--layers {}: 1 to {}",
             pipe.layers,
             stipple_render::pipeline::MAX_LAYERS
@@ -76,7 +77,7 @@ pub fn apply(
     }
     if let Some(o) = look.opacity {
         if !(0.0..=1.0).contains(&o) {
-            return Err(format!("--opacity {o}: must lie in 0..1"));
+            return Err(anyhow!("--opacity {o}: must lie in 0..1"));
         }
         cloud.set_opacity(o);
         if pipe.layers == 1 {
@@ -102,18 +103,16 @@ pub fn apply(
             .iter()
             .any(|g| matches!(g, stipple_render::pipeline::GeometryPass::Visibility { .. }));
         if raw {
-            return Err(
+            return Err(anyhow!(
                 "--shadows: the raw pipeline (--raw, or --pipeline raw) draws without lights, \
                  so nothing casts shadows; leave it out (normals are estimated for clouds \
                  without them) or add --pipeline dobrev"
-                    .into(),
-            );
+            ));
         }
-        return Err(
+        return Err(anyhow!(
             "--shadows: no light casts shadows; give --light point:x,y,z or disc:x,y,z,r (a \
              headlight or a directional light has no position)"
-                .into(),
-        );
+        ));
     }
     if cloud.cloud.normals.is_none() || !pipe.lighting {
         eprintln!(
@@ -130,10 +129,10 @@ pub fn apply(
     };
     settings
         .validate()
-        .map_err(|e| format!("--shadow-size: {e}"))?;
+        .map_err(|e| anyhow!("--shadow-size: {e}"))?;
     let max_samples = look.shadow_samples.unwrap_or(shadow::MAX_SAMPLES);
     if !(1..=shadow::MAX_SAMPLES).contains(&max_samples) {
-        return Err(format!(
+        return Err(anyhow!(
             "--shadow-samples {max_samples}: 1 to {}",
             shadow::MAX_SAMPLES
         ));
@@ -152,7 +151,7 @@ pub fn apply(
         .or_else(|| scene.and_then(|s| s.render.shadow_cache.as_ref().map(|p| s.dir.join(p))));
     if let Some(c) = &cache {
         if stipple_io::extension(c) != "stshadow" {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: a shadow cache must be a .stshadow file",
                 c.display()
             ));
@@ -187,7 +186,7 @@ pub fn apply(
                     .all(|(l, &w)| hit.lit.samples[l] >= w);
                 if done {
                     let line = format!("shadows loaded from {}", c.display());
-                    cloud.set_lit(Some(hit.lit)).map_err(|e| e.to_string())?;
+                    cloud.set_lit(Some(hit.lit))?;
                     return Ok(Some(line));
                 }
                 note = format!(", refining the {} cached", c.display());
@@ -221,16 +220,14 @@ pub fn apply(
         .expect("template"),
     );
     let t0 = Instant::now();
-    let lit = renderer
-        .shadow_texture(
-            cloud,
-            &pipe.lights,
-            &settings,
-            start,
-            max_samples,
-            &mut |done, _| bar.set_position(done as u64),
-        )
-        .map_err(|e| e.to_string())?;
+    let lit = renderer.shadow_texture(
+        cloud,
+        &pipe.lights,
+        &settings,
+        start,
+        max_samples,
+        &mut |done, _| bar.set_position(done as u64),
+    )?;
     bar.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let mut line = format!(
@@ -238,10 +235,10 @@ pub fn apply(
         secs * 1e3
     );
     if let Some(c) = &cache {
-        shadow_cache::write(c, key, &lit)?;
+        shadow_cache::write(c, key, &lit).map_err(anyhow::Error::msg)?;
         line.push_str(&format!(", saved to {}", c.display()));
     }
-    cloud.set_lit(Some(lit)).map_err(|e| e.to_string())?;
+    cloud.set_lit(Some(lit))?;
     Ok(Some(line))
 }
 
@@ -250,9 +247,9 @@ pub fn load_scene(
     path: &std::path::Path,
     camera: &CameraArgs,
 ) -> Result<(PreparedCloud, LoadedScene, Camera)> {
-    let (cloud, s) = scene::load(path)?;
+    let (cloud, s) = scene::load(path).map_err(anyhow::Error::msg)?;
     let cam = scene_camera(camera, &s).build(&cloud.cloud).map_err(|e| {
-        format!(
+        anyhow!(
             "{}: {e} (from its [camera] table and the camera flags given)",
             path.display()
         )

@@ -139,10 +139,24 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("stipple: error: {e}");
+            eprintln!("stipple: error: {}", message(&e));
             ExitCode::FAILURE
         }
     }
 }
 
-pub type Result<T> = std::result::Result<T, String>;
+/// The error and its causes, each cause once: library errors that already name their
+/// source in their message (`path: cause`) are not repeated by the chain.
+fn message(e: &anyhow::Error) -> String {
+    let mut msg = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !msg.contains(&c) {
+            msg = format!("{msg}: {c}");
+        }
+    }
+    msg
+}
+
+/// Errors carry what the user gave (the file, the flag) and the cause; printed by `message`.
+pub type Result<T> = anyhow::Result<T>;

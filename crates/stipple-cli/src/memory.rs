@@ -4,6 +4,7 @@
 //! can still take (free memory, and what `ulimit -v` leaves), or `--memory`.
 
 use crate::Result;
+use anyhow::anyhow;
 use std::sync::OnceLock;
 
 /// Bytes a generated point costs through rendering at most: position, normal, colour, the
@@ -55,7 +56,7 @@ fn human(bytes: u64) -> String {
 /// Errors when `what` (e.g. "--points 1000000000000") needs more than the budget.
 pub fn check(what: &str, bytes: u64) -> Result<()> {
     match budget() {
-        Some((b, source)) if bytes > b => Err(format!(
+        Some((b, source)) if bytes > b => Err(anyhow!(
             "{what} needs about {} of memory, more than {source} ({}); ask for less, or \
              raise the budget with --memory SIZE (e.g. --memory {}G) if you know it fits",
             human(bytes),
@@ -88,7 +89,9 @@ mod tests {
     fn needs_beyond_the_budget_are_refused_with_both_figures() {
         set_budget(1 << 30);
         assert!(check("small", 1 << 20).is_ok());
-        let e = check_points("--points 1000000000000", 1_000_000_000_000, 64).unwrap_err();
+        let e = check_points("--points 1000000000000", 1_000_000_000_000, 64)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("--points 1000000000000") && e.contains("--memory budget (1.0 GiB)"),
             "{e}"

@@ -2,6 +2,7 @@
 //! all or nothing (staged under temporary names and renamed together).
 
 use crate::Result;
+use anyhow::{anyhow, Context};
 use std::path::{Path, PathBuf};
 
 /// Refuses to write over any input.
@@ -25,7 +26,7 @@ pub fn check_output(out: &Path, inputs: &[&Path]) -> Result<()> {
     };
     for i in inputs {
         if same_file(out, i) {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: refusing to overwrite an input file ({})",
                 out.display(),
                 i.display()
@@ -44,7 +45,7 @@ pub fn not_special(out: &Path) -> Result<()> {
     if let Some(d) = dir {
         for sys in ["/dev", "/proc", "/sys"] {
             if d.starts_with(sys) {
-                return Err(format!(
+                return Err(anyhow!(
                     "{}: {sys} holds devices and kernel files, not user files; write the \
                      output somewhere else",
                     out.display()
@@ -53,7 +54,7 @@ pub fn not_special(out: &Path) -> Result<()> {
         }
     }
     match std::fs::metadata(out) {
-        Ok(m) if !m.is_file() => Err(format!(
+        Ok(m) if !m.is_file() => Err(anyhow!(
             "{}: exists and is not a regular file (a device, directory or pipe); outputs are \
              written as regular files only",
             out.display()
@@ -75,7 +76,7 @@ pub fn distinct_outputs(outs: &[&Path]) -> Result<()> {
     for (k, a) in outs.iter().enumerate() {
         for b in &outs[k + 1..] {
             if key(a) == key(b) {
-                return Err(format!(
+                return Err(anyhow!(
                     "{}: given for two outputs of this command; each output needs its own file",
                     a.display()
                 ));
@@ -118,7 +119,7 @@ impl Staged {
     ) -> Result<()> {
         let name = path
             .file_name()
-            .ok_or_else(|| format!("{}: the output path has no file name", path.display()))?;
+            .ok_or_else(|| anyhow!("{}: the output path has no file name", path.display()))?;
         let mut tmp = std::ffi::OsString::from(".");
         tmp.push(name);
         tmp.push(format!(".{}.stipple-tmp", std::process::id()));
@@ -126,20 +127,23 @@ impl Staged {
         not_special(path)?;
         // Our temporary file first, then a look for another live process's: of two
         // processes writing one output at once, at least the later one stops here.
-        std::fs::File::create(&tmp).map_err(|e| format!("{}: {e}", path.display()))?;
+        std::fs::File::create(&tmp).with_context(|| path.display().to_string())?;
         self.files.push((tmp.clone(), path.to_path_buf()));
         if let Some(pid) = other_writer(path) {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: another stipple process (pid {pid}) is writing it right now; wait for it \
                  to finish or choose another output",
                 path.display()
             ));
         }
         f(&tmp).map_err(|e| match e {
-            stipple_io::IoError::Io { source, .. } => format!("{}: {source}", path.display()),
-            other => other
-                .to_string()
-                .replace(&*tmp.to_string_lossy(), &path.to_string_lossy()),
+            stipple_io::IoError::Io { source, .. } => anyhow!("{}: {source}", path.display()),
+            other => anyhow!(
+                "{}",
+                other
+                    .to_string()
+                    .replace(&*tmp.to_string_lossy(), &path.to_string_lossy())
+            ),
         })
     }
 
@@ -150,7 +154,7 @@ impl Staged {
                 for (t, _) in &files[k..] {
                     let _ = std::fs::remove_file(t);
                 }
-                return Err(format!("{}: {e}", path.display()));
+                return Err(anyhow!("{}: {e}", path.display()));
             }
         }
         Ok(())

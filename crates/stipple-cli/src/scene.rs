@@ -2,7 +2,9 @@
 //! opacity and a material; lights; the camera; render settings. The format is documented in
 //! `docs/scenes.md`, with examples in `examples/`.
 
-use crate::Result;
+/// Scene errors are messages naming the scene file and the entry (typed once scenes move
+/// into the library).
+type Result<T> = std::result::Result<T, String>;
 use glam::{DAffine3, DMat3, DVec3};
 use serde::Deserialize;
 use std::hash::{Hash, Hasher};
@@ -276,20 +278,21 @@ fn source(c: &CloudSpec, dir: &Path) -> std::result::Result<(PointCloud, String)
                 dir.join(f)
             };
             Ok((
-                crate::args::read_with_progress(&p)?,
+                crate::args::read_with_progress(&p).map_err(|e| format!("{e:#}"))?,
                 p.display().to_string(),
             ))
         }
         (None, Some(d)) => {
             let n = c.points.unwrap_or(200_000);
             if n == 0 {
-                return Err("points must be at least 1".into());
+                return Err("points must be at least 1".to_string());
             }
             crate::memory::check_points(
                 &format!("points = {n}"),
                 n as u64,
                 crate::memory::BYTES_PER_POINT,
-            )?;
+            )
+            .map_err(|e| format!("{e:#}"))?;
             let seed = c.seed.unwrap_or(1);
             let grey = [200, 200, 200];
             let cloud = match d.as_str() {
@@ -313,7 +316,7 @@ fn source(c: &CloudSpec, dir: &Path) -> std::result::Result<(PointCloud, String)
             };
             Ok((cloud, format!("demo `{d}`")))
         }
-        _ => Err("give exactly one of `file` and `demo`".into()),
+        _ => Err("give exactly one of `file` and `demo`".to_string()),
     }
 }
 

@@ -4,6 +4,7 @@
 use crate::args::{BackendArgs, CameraArgs, LookArgs, PipelineArgs, SourceArgs};
 use crate::figures::median;
 use crate::Result;
+use anyhow::anyhow;
 use std::time::Instant;
 use stipple_render::gpu::ProjectionPath;
 use stipple_render::PassId;
@@ -87,14 +88,14 @@ fn time_frames(
     frames: usize,
 ) -> Result<(PassTimes, Vec<f64>, HostTimes)> {
     for _ in 0..warmup {
-        r.render(cloud, camera, pipe).map_err(|e| e.to_string())?;
+        r.render(cloud, camera, pipe)?;
     }
     let mut per_pass: PassTimes = Vec::new();
     let mut totals = Vec::new();
     let mut host: HostTimes = Vec::new();
     for _ in 0..frames {
         let t = Instant::now();
-        let f = r.render(cloud, camera, pipe).map_err(|e| e.to_string())?;
+        let f = r.render(cloud, camera, pipe)?;
         totals.push(t.elapsed().as_secs_f64() * 1e3);
         for (k, s) in f.stats.iter().enumerate() {
             if per_pass.len() <= k {
@@ -114,7 +115,7 @@ fn time_frames(
 
 pub fn run(a: BenchArgs) -> Result<()> {
     if a.frames == 0 {
-        return Err("--frames must be at least 1".into());
+        return Err(anyhow!("--frames must be at least 1"));
     }
     let mut r = a.backend.open()?;
     if let Some(g) = r.gpu_mut() {
@@ -276,19 +277,17 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
             let mut frame = |cloud: &mut PreparedCloud| -> Result<f64> {
                 let t = Instant::now();
                 if samples > 0 {
-                    let lit = r
-                        .shadow_texture(
-                            cloud,
-                            &pipe.lights,
-                            &settings,
-                            None,
-                            samples,
-                            &mut |_, _| {},
-                        )
-                        .map_err(|e| e.to_string())?;
-                    cloud.set_lit(Some(lit)).map_err(|e| e.to_string())?;
+                    let lit = r.shadow_texture(
+                        cloud,
+                        &pipe.lights,
+                        &settings,
+                        None,
+                        samples,
+                        &mut |_, _| {},
+                    )?;
+                    cloud.set_lit(Some(lit))?;
                 }
-                let f = r.render(cloud, &camera, &pipe).map_err(|e| e.to_string())?;
+                let f = r.render(cloud, &camera, &pipe)?;
                 last_host = f.host_ms;
                 Ok(t.elapsed().as_secs_f64() * 1e3)
             };
@@ -299,7 +298,7 @@ fn table3(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer
             for _ in 0..a.frames {
                 ms.push(frame(&mut cloud)?);
             }
-            cloud.set_lit(None).map_err(|e| e.to_string())?;
+            cloud.set_lit(None)?;
             let m = median(&mut ms);
             report_cell(size, name, m, &last_host);
             col.push(1e3 / m);
@@ -336,7 +335,7 @@ fn zhang(a: &BenchArgs, mut cloud: PreparedCloud, label: &str, r: &mut Renderer)
     let t0 = Instant::now();
     let report = cloud
         .prepare_surface(stipple_core::normals::DEFAULT_K, true)
-        .map_err(|e| format!("normal estimation: {e}"))?;
+        .map_err(|e| anyhow!("normal estimation: {e}"))?;
     let prep_s = t0.elapsed().as_secs_f64();
     let rows: [(&str, SplatMode, f32); 4] = [
         ("blend, 2 passes (ε-z)", SplatMode::Blend, 0.4),

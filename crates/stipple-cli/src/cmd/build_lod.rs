@@ -2,6 +2,7 @@
 //! et al. 2011, §7).
 
 use crate::Result;
+use anyhow::anyhow;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -51,19 +52,19 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
     let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
     crate::output::check_output(&a.output, &inputs)?;
     if stipple_io::extension(&a.output) != "stlod" {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: the tree's name must end in .stlod",
             a.output.display()
         ));
     }
     if a.output.exists() && !a.force {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: already exists; pass --force to replace it",
             a.output.display()
         ));
     }
     if a.threads == Some(0) {
-        return Err("--threads must be at least 1".into());
+        return Err(anyhow!("--threads must be at least 1"));
     }
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
@@ -96,12 +97,11 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
-        .build()
-        .map_err(|e| e.to_string())?;
+        .build()?;
     let t0 = Instant::now();
     let r = pool
         .install(|| stipple_lod::build(&a.inputs, &a.output, &opts))
-        .map_err(|e| e.to_string());
+        .map_err(anyhow::Error::from);
     bar.finish_and_clear();
     let r = r?;
     let s = t0.elapsed().as_secs_f64();

@@ -6,6 +6,7 @@
 
 use crate::args::{BackendArgs, CameraArgs, RawArgs};
 use crate::Result;
+use anyhow::anyhow;
 use std::path::PathBuf;
 use stipple_render::eval::{compare, error_image, mesh_depth, DepthError};
 use stipple_render::{PreparedCloud, ViewParams};
@@ -42,7 +43,7 @@ fn line(name: &str, e: &DepthError) {
 pub fn run(a: EvalArgs) -> Result<()> {
     let mesh = crate::args::read_with_progress(&a.mesh)?;
     if mesh.faces.is_empty() {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: has no faces; `stipple eval` needs a mesh to compare with",
             a.mesh.display()
         ));
@@ -54,7 +55,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         .unwrap_or_else(|| PathBuf::from(format!("{stem}-error.png")));
     for o in [Some(&output), a.render_out.as_ref()].into_iter().flatten() {
         if stipple_io::extension(o) != "png" {
-            return Err(format!("{}: must be a .png file", o.display()));
+            return Err(anyhow!("{}: must be a .png file", o.display()));
         }
         crate::output::check_output(o, &[a.mesh.as_path()])?;
     }
@@ -67,17 +68,13 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let cloud = PreparedCloud::new(points);
     let mut r = a.backend.open()?;
     let pipe = a.raw.build([0, 0, 0])?;
-    let frame = r
-        .render(&cloud, &camera, &pipe)
-        .map_err(|e| e.to_string())?;
+    let frame = r.render(&cloud, &camera, &pipe)?;
     let all = compare(&frame.depth, &truth, camera.width as usize, 0);
     let interior = compare(&frame.depth, &truth, camera.width as usize, 2);
     let img = error_image(&frame.depth, &truth, all.tolerance);
-    stipple_io::image::write_png(&output, camera.width, camera.height, &img)
-        .map_err(|e| e.to_string())?;
+    stipple_io::image::write_png(&output, camera.width, camera.height, &img)?;
     if let Some(p) = &a.render_out {
-        stipple_io::image::write_png(p, frame.width, frame.height, &frame.rgba)
-            .map_err(|e| e.to_string())?;
+        stipple_io::image::write_png(p, frame.width, frame.height, &frame.rgba)?;
     }
     println!(
         "stipple eval: {} ({} vertices, {} faces), {}x{}, {:.1} px point spacing, {}",

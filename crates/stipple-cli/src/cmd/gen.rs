@@ -3,6 +3,7 @@
 use crate::output::*;
 use crate::Result;
 use crate::{args::parse_scene, memory};
+use anyhow::anyhow;
 use std::path::PathBuf;
 use stipple_core::demo::{self, DemoScene};
 
@@ -31,7 +32,7 @@ pub struct GenArgs {
 
 pub fn gen(a: GenArgs) -> Result<()> {
     if a.output.exists() && !a.force {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: already exists; pass --force to overwrite it",
             a.output.display()
         ));
@@ -39,7 +40,7 @@ pub fn gen(a: GenArgs) -> Result<()> {
     check_output(&a.output, &[])?;
     let n = a.points.unwrap_or(a.scene.default_points());
     if n == 0 {
-        return Err("--points must be at least 1".into());
+        return Err(anyhow!("--points must be at least 1"));
     }
     memory::check_points(
         &format!("--points {n}"),
@@ -47,7 +48,7 @@ pub fn gen(a: GenArgs) -> Result<()> {
         memory::GEN_BYTES_PER_POINT,
     )?;
     let c = demo::generate(a.scene, n, a.seed);
-    stipple_io::write_cloud(&a.output, &c).map_err(|e| e.to_string())?;
+    stipple_io::write_cloud(&a.output, &c)?;
     println!(
         "wrote {} ({} points of {})",
         a.output.display(),

@@ -2,6 +2,7 @@
 
 use crate::Result;
 use crate::{args, lod};
+use anyhow::anyhow;
 use std::path::PathBuf;
 use stipple_render::PreparedCloud;
 
@@ -46,7 +47,7 @@ pub fn info(files: &[PathBuf], verify: bool) -> Result<()> {
         }
     }
     if failed > 0 {
-        Err(format!(
+        Err(anyhow!(
             "{failed} of {} files could not be read",
             files.len()
         ))

@@ -3,6 +3,7 @@
 use crate::args;
 use crate::output::*;
 use crate::Result;
+use anyhow::{anyhow, Context};
 use std::path::PathBuf;
 use std::time::Instant;
 use stipple_render::PreparedCloud;
@@ -33,14 +34,14 @@ pub struct NormalsArgs {
 
 pub fn normals(a: NormalsArgs) -> Result<()> {
     if !matches!(stipple_io::extension(&a.output).as_str(), "ply") {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: the output must be a .ply file (it carries nx ny nz radius)",
             a.output.display()
         ));
     }
     check_output(&a.output, &[&a.input])?;
     if a.output.exists() && !a.force {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: already exists; pass --force to overwrite it",
             a.output.display()
         ));
@@ -56,7 +57,7 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
     let t0 = Instant::now();
     let r = p
         .prepare_surface_from(a.k as usize, true, a.viewpoint)
-        .map_err(|e| format!("{}: {e}", a.input.display()))?;
+        .with_context(|| a.input.display().to_string())?;
     let s = t0.elapsed().as_secs_f64();
     if had {
         println!(
@@ -74,8 +75,7 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
     }
     stipple_io::write_atomically(&a.output, |tmp| {
         stipple_io::ply::write_ply(tmp, &p.cloud, stipple_io::ply::Encoding::BinaryLittleEndian)
-    })
-    .map_err(|e| e.to_string())?;
+    })?;
     println!("wrote {} (nx ny nz radius)", a.output.display());
     Ok(())
 }

@@ -4,6 +4,7 @@ use crate::args::{BackendArgs, CameraArgs, LookArgs, PipelineArgs, SourceArgs};
 use crate::output::*;
 use crate::Result;
 use crate::{lod, look, memory, scene, Cmd};
+use anyhow::anyhow;
 use clap::Parser;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -106,14 +107,14 @@ pub fn render(a: RenderArgs) -> Result<()> {
         },
     };
     if stipple_io::extension(&output) != "png" {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: the image output must be a .png file",
             output.display()
         ));
     }
     if let Some(d) = &a.depth_out {
         if stipple_io::extension(d) != "npy" {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: --depth-out must name a .npy file",
                 d.display()
             ));
@@ -161,7 +162,7 @@ pub fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(d) = &a.normal_out {
         if stipple_io::extension(d) != "npy" {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: --normal-out must name a .npy file",
                 d.display()
             ));
@@ -170,20 +171,19 @@ pub fn render(a: RenderArgs) -> Result<()> {
     }
     if let Some(d) = &a.save_normals {
         if stipple_io::extension(d) != "ply" {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: --save-normals must name a .ply file",
                 d.display()
             ));
         }
         if tree.is_some() || scene.is_some() || a.source.input.is_none() {
-            return Err(
+            return Err(anyhow!(
                 "--save-normals saves a single cloud file's normals (not a scene, tree or demo)"
-                    .into(),
-            );
+            ));
         }
         check_output(d, &inputs)?;
         if d.exists() {
-            return Err(format!(
+            return Err(anyhow!(
                 "{}: already exists; remove it or choose another name",
                 d.display()
             ));
@@ -207,17 +207,15 @@ pub fn render(a: RenderArgs) -> Result<()> {
     )?;
     if a.layer_images.is_some() {
         if pipe.layers == 1 {
-            return Err("--layer-images needs --layers N (N > 1)".into());
+            return Err(anyhow!("--layer-images needs --layers N (N > 1)"));
         }
         pipe.keep_layers = true;
     }
     let t0 = Instant::now();
-    let frame = renderer
-        .render(&cloud, &camera, &pipe)
-        .map_err(|e| e.to_string())?;
+    let frame = renderer.render(&cloud, &camera, &pipe)?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
     if let (Some(d), None) = (&a.save_normals, &cloud.cloud.normals) {
-        return Err(format!(
+        return Err(anyhow!(
             "{}: not written: this render estimated no normals (--no-estimate-normals, \
              --no-lighting or --raw)",
             d.display()
