@@ -230,4 +230,177 @@ mod tests {
                 .is_err()
         );
     }
+
+    /// A struct's size in bytes as WGSL lays it out in `m`.
+    fn wgsl_size(m: &ShaderModule, name: &str) -> usize {
+        let module = naga::front::wgsl::parse_str(&m.source()).expect("parses");
+        let ty = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some(name))
+            .unwrap_or_else(|| panic!("{}: no struct {name}", m.name));
+        ty.1.inner.size(module.to_ctx()) as usize
+    }
+
+    /// Every uniform block has the size of the WGSL struct it fills: a field added on one
+    /// side only fails here, not as garbage on a GPU.
+    #[test]
+    fn uniform_blocks_match_their_wgsl_structs() {
+        use crate::passes as p;
+        use std::mem::size_of;
+        let blocks: &[(&ShaderModule, &str, usize)] = &[
+            (&OUTPUT_MODULE, "View", size_of::<crate::ViewParams>()),
+            (
+                &FILL_BACKGROUND_MODULE,
+                "Fill",
+                size_of::<p::fill::gpu::FillBlock>(),
+            ),
+            (
+                &ITERATE_MODULE,
+                "Iterate",
+                size_of::<crate::device::iterate::IterateBlock>(),
+            ),
+            (
+                &PROJECT64,
+                "Chunk",
+                size_of::<p::project::gpu::ChunkBlock>(),
+            ),
+            (
+                &PROJECT_HW_MODULE,
+                "Chunk",
+                size_of::<p::project::gpu::ChunkBlock>(),
+            ),
+            (
+                &RESOLVE_MODULE,
+                "Resolve",
+                size_of::<p::project::gpu::ResolveBlock>(),
+            ),
+            (
+                &GATHER_MODULE,
+                "Gather",
+                size_of::<p::shade::gpu::GatherBlock>(),
+            ),
+            (
+                &SHADE_MODULE,
+                "Shade",
+                size_of::<p::shade::gpu::ShadeBlock>(),
+            ),
+            (
+                &SMOOTH_MODULE,
+                "Smooth",
+                size_of::<p::smooth::gpu::SmoothBlock>(),
+            ),
+            (
+                &ANTIALIAS_MODULE,
+                "Antialias",
+                size_of::<p::antialias::gpu::AntialiasBlock>(),
+            ),
+            (
+                &VISIBILITY_MODULE,
+                "Visibility",
+                size_of::<p::visibility::gpu::VisibilityBlock>(),
+            ),
+            (
+                &FILL_ANISOTROPIC_MODULE,
+                "FillAnisotropic",
+                size_of::<p::fill_anisotropic::gpu::FillAnisotropicBlock>(),
+            ),
+            (
+                &DEPICTION_MODULE,
+                "Depiction",
+                size_of::<p::depiction::gpu::DepictionBlock>(),
+            ),
+            (&EDL_MODULE, "Edl", size_of::<p::edl::gpu::EdlBlock>()),
+            (
+                &BLEND_LAYERS_MODULE,
+                "Blend",
+                size_of::<p::blend_layers::gpu::BlendBlock>(),
+            ),
+            (
+                &SHADOW_TEXTURE_MODULE,
+                "Mark",
+                size_of::<p::shadow_texture::gpu::MarkBlock>(),
+            ),
+            (
+                &SPLAT_MODULE,
+                "SplatBlock",
+                size_of::<p::splat::gpu::SplatBlock>(),
+            ),
+        ];
+        let wrong: Vec<String> = blocks
+            .iter()
+            .filter_map(|&(m, name, rust)| {
+                let wgsl = wgsl_size(m, name);
+                (wgsl != rust).then(|| format!("{}: {name} is {wgsl} bytes, Rust {rust}", m.name))
+            })
+            .collect();
+        assert!(wrong.is_empty(), "{}", wrong.join("\n"));
+    }
+
+    /// A `const NAME: T = value;` of a module's WGSL, as a number.
+    fn wgsl_const(m: &ShaderModule, name: &str) -> f64 {
+        let src = m.source();
+        let line = src
+            .lines()
+            .find(|l| l.trim_start().starts_with(&format!("const {name}:")))
+            .unwrap_or_else(|| panic!("{}: no const {name}", m.name));
+        let v = line
+            .split('=')
+            .nth(1)
+            .expect("a value")
+            .trim()
+            .trim_end_matches(';');
+        let v = v.trim_end_matches('u');
+        match v.strip_prefix("0x") {
+            Some(h) => u64::from_str_radix(h, 16).expect("hex") as f64,
+            None => v
+                .parse()
+                .unwrap_or_else(|_| panic!("{}: {name} = {v}", m.name)),
+        }
+    }
+
+    /// Constants the WGSL repeats from Rust (WGSL cannot import them) hold the Rust values.
+    #[test]
+    fn wgsl_constants_mirror_the_rust_ones() {
+        use crate::passes as p;
+        let pairs: &[(&ShaderModule, &str, f64)] = &[
+            (&OUTPUT_MODULE, "BACKGROUND", crate::BACKGROUND as f64),
+            (&OUTPUT_MODULE, "HOLE", crate::HOLE as f64),
+            (
+                &EDL_MODULE,
+                "BACKGROUND_RESPONSE",
+                p::edl::cpu::BACKGROUND_RESPONSE as f64,
+            ),
+            (&EDL_MODULE, "SCALE", p::edl::cpu::SCALE as f64),
+            (
+                &FILL_ANISOTROPIC_MODULE,
+                "EDGE_WEIGHT",
+                p::fill_anisotropic::cpu::EDGE_WEIGHT as f64,
+            ),
+            (
+                &FILL_ANISOTROPIC_MODULE,
+                "CORNER_WEIGHT",
+                p::fill_anisotropic::cpu::CORNER_WEIGHT as f64,
+            ),
+            (
+                &SPLAT_MODULE,
+                "MAX_FOOTPRINT",
+                p::splat::MAX_FOOTPRINT as f64,
+            ),
+            (
+                &PROJECT64,
+                "WG",
+                (p::project::gpu::POINTS_PER_GROUP / 8) as f64,
+            ),
+        ];
+        for &(m, name, rust) in pairs {
+            let w = wgsl_const(m, name);
+            // f32 constants written with 8 significant digits.
+            assert!(
+                (w - rust).abs() <= 1e-7 * rust.abs().max(1.0),
+                "{}: WGSL {name} = {w}, Rust {rust}",
+                m.name
+            );
+        }
+    }
 }

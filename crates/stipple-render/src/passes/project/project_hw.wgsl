@@ -2,11 +2,16 @@
 // test (1-pixel points; ties go to the earlier point, as primitives rasterize in order), then
 // a compute pass that copies the id and view-depth targets into the G-buffer.
 
+// The compute projection's ChunkBlock (the hardware path reads base, count and cull).
 struct Chunk {
     base: u32,
     count: u32,
     cull: u32,
-    pad: u32,
+    slot: u32,
+    peel: u32,
+    gap: f32,
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
