@@ -12,6 +12,8 @@
 //! * no background in the interior, no covered pixel in the exterior;
 //! * at least 98% of interior pixels within 0.5% of the true depth range.
 
+mod common;
+
 use glam::{DVec3, Vec3};
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::{
@@ -94,14 +96,6 @@ fn torus_rings(s: f64) -> PointCloud {
     c
 }
 
-/// Writes the frame under target/test-output/ so a failing fidelity test leaves its picture.
-fn dump(name: &str, f: &stipple_render::Frame) {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
-    let _ = std::fs::create_dir_all(&dir);
-    let _ =
-        stipple_io::image::write_png(&dir.join(format!("{name}.png")), f.width, f.height, &f.rgba);
-}
-
 struct Report {
     interior: usize,
     interior_background: usize,
@@ -176,7 +170,7 @@ fn measure_with(
     };
     let prepared = PreparedCloud::new(cloud);
     let frame = render(&prepared, cam, pipe, Backend::Cpu).unwrap();
-    dump(name, &frame);
+    common::dump(name, &frame);
     let mut r = Report {
         interior: 0,
         interior_background: 0,

@@ -2,6 +2,8 @@
 //! answers, on the CPU and (where an adapter exists; required with STIPPLE_REQUIRE_GPU=1)
 //! the GPU, plus GPU/CPU parity of the new passes end to end.
 
+mod common;
+
 use glam::{DVec3, Vec3};
 use stipple_core::rng::Rng;
 use stipple_core::{Camera, PointCloud, Projection};
@@ -11,20 +13,6 @@ use stipple_render::{
     AreaLight, AreaShape, Backend, GeometryPass, Light, LitTexture, Pipeline, PreparedCloud,
     Renderer,
 };
-
-fn backends() -> Vec<Renderer> {
-    let mut r = vec![Renderer::new(Backend::Cpu, GpuOptions::default()).unwrap()];
-    match Renderer::new(Backend::Gpu, GpuOptions::default()) {
-        Ok(g) => r.push(g),
-        Err(e) => {
-            if std::env::var("STIPPLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("STIPPLE_REQUIRE_GPU=1 but there is no usable GPU adapter: {e}");
-            }
-            eprintln!("GPU part skipped: no GPU adapter ({e})");
-        }
-    }
-    r
-}
 
 /// A square of side `side` at height z (normal +z), `n` jittered-grid points.
 fn plane(n: usize, side: f32, z: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
@@ -40,18 +28,6 @@ fn plane(n: usize, side: f32, z: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
     }
     let n = vec![Vec3::Z; p.len()];
     (p, n)
-}
-
-fn sphere(n: usize, centre: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = Rng::new(seed);
-    let mut p = Vec::with_capacity(n);
-    let mut nn = Vec::with_capacity(n);
-    for _ in 0..n {
-        let d = stipple_core::demo::sphere_point(&mut rng);
-        p.push(centre + d * r);
-        nn.push(d);
-    }
-    (p, nn)
 }
 
 /// Positions, normals, colour and opacity of one part of a test cloud.
@@ -107,7 +83,7 @@ fn two_planes_peel_to_two_layers_or_one_depending_on_the_layer_gap() {
         (p2, n2, [40, 40, 200], 0.5),
     ]));
     let cam = top_camera(128);
-    for mut r in backends() {
+    for mut r in common::backends() {
         for (gap, want) in [(0.03, 2), (0.3, 1)] {
             let pipe = with_gap(
                 Pipeline {
@@ -173,7 +149,7 @@ fn blending_matches_the_analytic_composite() {
         want[i] += t * lin(background)[i];
     }
     let want = want.map(stipple_render::srgb::linear_to_srgb8);
-    for mut r in backends() {
+    for mut r in common::backends() {
         let pipe = with_gap(
             Pipeline {
                 layers: 3,
@@ -215,7 +191,7 @@ struct SphereScene {
 fn sphere_scene() -> SphereScene {
     let (pp, pn) = plane(400_000, 4.0, 0.0, 3);
     let centre = Vec3::new(0.0, 0.0, 1.2);
-    let (sp, sn) = sphere(150_000, centre, 0.5, 4);
+    let (sp, sn) = common::sphere(150_000, centre, 0.5, 4);
     let plane = pp.len();
     SphereScene {
         cloud: PreparedCloud::new(cloud(&[
@@ -255,7 +231,7 @@ fn sphere_over_plane_point_light_shadow_matches_the_analytic_one() {
     let pos = &s.cloud.cloud.positions;
     let normals = s.cloud.cloud.normals.as_ref().unwrap();
     let mut results = Vec::new();
-    for mut r in backends() {
+    for mut r in common::backends() {
         let lit = shadows(&mut r, &s, light, 1);
         assert_eq!(lit.samples, [1, 0, 0, 0]);
         // Plane: marked unlit vs the analytic shadow.
@@ -330,7 +306,7 @@ fn sphere_over_plane_point_light_shadow_matches_the_analytic_one() {
 fn the_penumbra_widens_as_the_area_light_grows() {
     let s = sphere_scene();
     let n = 12;
-    for mut r in backends() {
+    for mut r in common::backends() {
         let mut widths = Vec::new();
         for size in [0.1, 0.4, 1.0] {
             let light = Light::Area(AreaLight {
@@ -402,7 +378,7 @@ fn shading_uses_the_lit_values() {
     let l = [2.5, 0.0, 4.0];
     let cam = top_camera(96);
     let mut frames = Vec::new();
-    for mut r in backends() {
+    for mut r in common::backends() {
         let lit = shadows(&mut r, &s, Light::Point(l), 1);
         let pipe = Pipeline {
             lights: vec![Light::Point(l)],

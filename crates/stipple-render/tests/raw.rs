@@ -1,6 +1,8 @@
 //! The raw-cloud pipeline (Pintus §4–6) on clouds without normals: visibility, anisotropic
 //! filling and shape depiction, against known surfaces.
 
+mod common;
+
 use glam::DVec3;
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::eval::{compare, mesh_depth, DepthError};
@@ -11,13 +13,6 @@ use stipple_render::{render, Backend, Pipeline, PreparedCloud, ViewParams, HOLE}
 fn data_dir() -> Option<std::path::PathBuf> {
     let d = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     d.is_dir().then_some(d)
-}
-
-fn dump(name: &str, f: &stipple_render::Frame) {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
-    let _ = std::fs::create_dir_all(&dir);
-    let _ =
-        stipple_io::image::write_png(&dir.join(format!("{name}.png")), f.width, f.height, &f.rgba);
 }
 
 fn framing(cloud: &PointCloud, size: u32, dir: DVec3) -> Camera {
@@ -39,7 +34,7 @@ fn fidelity(name: &str, cloud: &PointCloud, cam: &Camera, pipe: &Pipeline) -> De
     points.faces.clear();
     points.normals = None;
     let frame = render(&PreparedCloud::new(points), cam, pipe, Backend::Cpu).unwrap();
-    dump(name, &frame);
+    common::dump(name, &frame);
     let e = compare(&frame.depth, &truth, cam.width as usize, 2);
     let img = stipple_render::eval::error_image(&frame.depth, &truth, e.tolerance);
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");

@@ -16,6 +16,8 @@
 //! The GPU twin of the splat pass must agree with the CPU (Voronoi ids on ≥ 99% of pixels:
 //! GPUs may fuse multiply-adds, so a near tie between two splats can go either way).
 
+mod common;
+
 use glam::{DVec3, Vec3};
 use stipple_core::rng::Rng;
 use stipple_core::{Camera, PointCloud, Projection};
@@ -153,13 +155,6 @@ impl Report {
     }
 }
 
-fn dump(name: &str, f: &stipple_render::Frame) {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
-    let _ = std::fs::create_dir_all(&dir);
-    let _ =
-        stipple_io::image::write_png(&dir.join(format!("{name}.png")), f.width, f.height, &f.rgba);
-}
-
 /// Renders `cloud` the way the CLI's defaults do for a sparse cloud (surface preparation,
 /// then the splat pipeline) and measures it against the truth.
 fn measure(name: &str, cam: &Camera, sdf: Sdf, cloud: PointCloud, mode: SplatMode) -> Report {
@@ -188,7 +183,7 @@ fn measure(name: &str, cam: &Camera, sdf: Sdf, cloud: PointCloud, mode: SplatMod
         ..Default::default()
     });
     let frame = render(&prepared, cam, &pipe, Backend::Cpu).unwrap();
-    dump(name, &frame);
+    common::dump(name, &frame);
     let normals = frame.normal_image(&prepared, cam);
     let (mut inter, mut uni, mut within, mut behind) = (0usize, 0usize, 0usize, 0usize);
     let (mut over, mut under) = (0, 0);

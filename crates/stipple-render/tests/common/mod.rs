@@ -57,3 +57,11 @@ pub fn test_output_dir() -> std::path::PathBuf {
     std::fs::create_dir_all(&d).expect("create target/test-output");
     d
 }
+
+/// Writes a frame's image to `target/test-output/NAME.png` for a person to look at (errors
+/// are ignored: the image is an aid, not the test).
+pub fn dump(name: &str, f: &stipple_render::Frame) {
+    let dir = test_output_dir();
+    let _ =
+        stipple_io::image::write_png(&dir.join(format!("{name}.png")), f.width, f.height, &f.rgba);
+}
