@@ -2,16 +2,13 @@
 //! `--opacity`, `--shadows` and a scene's lights and render settings turn into.
 
 use crate::args::{CameraArgs, LookArgs};
-use crate::scene::{self, LoadedScene};
-use crate::shadow_cache;
 use crate::Result;
 use anyhow::anyhow;
-use glam::{DAffine3, DVec3};
-use std::path::PathBuf;
-use std::time::Instant;
+use glam::DVec3;
 use stipple_core::Camera;
 use stipple_render::shadow::{self, ShadowSettings};
 use stipple_render::{Light, Pipeline, PreparedCloud, Renderer};
+use stipple_scene::LoadedScene;
 
 /// The camera arguments with a scene's camera filling what the command line left out.
 pub fn scene_camera(args: &CameraArgs, s: &LoadedScene) -> CameraArgs {
@@ -145,100 +142,27 @@ pub fn apply(
             }
         }
     }
-    let cache: Option<PathBuf> = look
-        .shadow_cache
-        .clone()
-        .or_else(|| scene.and_then(|s| s.render.shadow_cache.as_ref().map(|p| s.dir.join(p))));
-    if let Some(c) = &cache {
-        if stipple_io::extension(c) != "stshadow" {
-            return Err(anyhow!(
-                "{}: a shadow cache must be a .stshadow file",
-                c.display()
-            ));
-        }
-    }
-    let key = match scene {
-        Some(s) => s.relative_key(&pipe.lights, &settings),
-        None => {
-            let (lo, hi) = cloud.cloud.world_bounds();
-            let unit = (hi - lo).length().max(1e-9);
-            scene::relative_key(
-                &[(scene::content_hash(&cloud.cloud), DAffine3::IDENTITY)],
-                unit,
-                &pipe.lights,
-                &settings,
-            )
-        }
+    let job = stipple_scene::shadows::ShadowJob {
+        settings,
+        max_samples,
+        cache: look
+            .shadow_cache
+            .clone()
+            .or_else(|| scene.and_then(|s| s.render.shadow_cache.as_ref().map(|p| s.dir.join(p)))),
+        scene,
     };
-    let wanted_samples: Vec<u32> = pipe
-        .lights
-        .iter()
-        .map(|l| shadow::light_samples(l).min(max_samples))
-        .collect();
-    let mut start = None;
-    let mut note = String::new();
-    if let Some(c) = cache.as_ref().filter(|c| c.exists()) {
-        match shadow_cache::read(c, cloud.cloud.len()) {
-            Ok(hit) if hit.key == key => {
-                let done = wanted_samples
-                    .iter()
-                    .enumerate()
-                    .all(|(l, &w)| hit.lit.samples[l] >= w);
-                if done {
-                    let line = format!("shadows loaded from {}", c.display());
-                    cloud.set_lit(Some(hit.lit))?;
-                    return Ok(Some(line));
-                }
-                note = format!(", refining the {} cached", c.display());
-                start = Some(hit.lit);
-            }
-            Ok(_) => {
-                note = format!(
-                    " ({} was made for other clouds, placement or lights)",
-                    c.display()
-                )
-            }
-            Err(e) => note = format!(" (cache not used: {e})"),
-        }
-    }
-    let total: u32 = wanted_samples
-        .iter()
-        .enumerate()
-        .map(|(l, &w)| {
-            w.saturating_sub(
-                start
-                    .as_ref()
-                    .map_or(0, |s: &stipple_render::LitTexture| s.samples[l]),
-            )
-        })
-        .sum();
-    let bar = indicatif::ProgressBar::new(total as u64);
+    let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
             "shadows {bar:30} {pos}/{len} light samples, {elapsed} (ETA {eta})",
         )
         .expect("template"),
     );
-    let t0 = Instant::now();
-    let lit = renderer.shadow_texture(
-        cloud,
-        &pipe.lights,
-        &settings,
-        start,
-        max_samples,
-        &mut |done, _| bar.set_position(done as u64),
-    )?;
+    let line = stipple_scene::shadows::make(renderer, cloud, &pipe.lights, &job, &mut |d, t| {
+        bar.set_length(t as u64);
+        bar.set_position(d as u64);
+    })?;
     bar.finish_and_clear();
-    let secs = t0.elapsed().as_secs_f64();
-    let mut line = format!(
-        "shadows: {total} light samples in {:.0} ms{note}",
-        secs * 1e3
-    );
-    if let Some(c) = &cache {
-        shadow_cache::write(c, key, &lit).map_err(anyhow::Error::msg)?;
-        line.push_str(&format!(", saved to {}", c.display()));
-    }
-    cloud.set_lit(Some(lit))?;
     Ok(Some(line))
 }
 
@@ -247,7 +171,7 @@ pub fn load_scene(
     path: &std::path::Path,
     camera: &CameraArgs,
 ) -> Result<(PreparedCloud, LoadedScene, Camera)> {
-    let (cloud, s) = scene::load(path).map_err(anyhow::Error::msg)?;
+    let (cloud, s) = stipple_scene::load_with(path, &mut CliHost)?;
     let cam = scene_camera(camera, &s).build(&cloud.cloud).map_err(|e| {
         anyhow!(
             "{}: {e} (from its [camera] table and the camera flags given)",
@@ -255,4 +179,26 @@ pub fn load_scene(
         )
     })?;
     Ok((cloud, s, cam))
+}
+
+/// Scene loading as the command line does it: a spinner while reading, the memory budget
+/// for generated clouds, notes on stderr.
+struct CliHost;
+
+impl stipple_scene::Host for CliHost {
+    fn read(
+        &mut self,
+        path: &std::path::Path,
+    ) -> std::result::Result<stipple_core::PointCloud, String> {
+        crate::args::read_with_progress(path).map_err(|e| format!("{e:#}"))
+    }
+
+    fn check_points(&mut self, what: &str, n: u64) -> std::result::Result<(), String> {
+        crate::memory::check_points(what, n, crate::memory::BYTES_PER_POINT)
+            .map_err(|e| format!("{e:#}"))
+    }
+
+    fn note(&mut self, message: &str) {
+        eprintln!("stipple: note: {message}");
+    }
 }

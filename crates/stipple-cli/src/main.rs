@@ -7,8 +7,6 @@ mod lod;
 mod look;
 mod memory;
 mod output;
-mod scene;
-mod shadow_cache;
 
 use clap::{Parser, Subcommand};
 use cmd::{gen::GenArgs, normals::NormalsArgs, render::RenderArgs};

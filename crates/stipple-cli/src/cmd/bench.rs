@@ -130,7 +130,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         .source
         .input
         .as_deref()
-        .filter(|p| crate::scene::is_scene(p));
+        .filter(|p| stipple_scene::is_scene(p));
     let (mut cloud, label, camera, scene) = match scene_file {
         Some(p) => {
             let (cloud, s, camera) = crate::look::load_scene(p, &a.camera)?;

@@ -3,7 +3,7 @@
 use crate::args::{BackendArgs, CameraArgs, LookArgs, PipelineArgs, SourceArgs};
 use crate::output::*;
 use crate::Result;
-use crate::{lod, look, memory, scene, Cmd};
+use crate::{lod, look, memory, Cmd};
 use anyhow::anyhow;
 use clap::Parser;
 use std::path::{Path, PathBuf};
@@ -78,7 +78,11 @@ pub fn render(a: RenderArgs) -> Result<()> {
         memory::check_frame(w, h, a.look.layers.unwrap_or(1))?;
     }
     let tree = a.source.input.as_deref().filter(|p| lod::is_tree(p));
-    let scene_file = a.source.input.as_deref().filter(|p| scene::is_scene(p));
+    let scene_file = a
+        .source
+        .input
+        .as_deref()
+        .filter(|p| stipple_scene::is_scene(p));
     let (mut cloud, label, camera, scene) = match (tree, scene_file) {
         (Some(p), _) => {
             let (cloud, label, camera) = lod::load_cut(p, &a.camera, &a.lod)?;

@@ -6,6 +6,7 @@
 //! u64 point count, 4 × u32 samples per light, then one u32 of packed counts per point
 //! (light l in byte l), then the CRC-32 of everything before it.
 
+use crate::SceneError;
 use std::io::Write;
 use std::path::Path;
 use stipple_render::LitTexture;
@@ -22,15 +23,16 @@ pub struct Cached {
 }
 
 /// Writes a cache file (atomically). Refuses to replace a file that is not a shadow cache.
-pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), String> {
+pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), SceneError> {
     if let Ok(mut f) = std::fs::File::open(path) {
         let mut magic = [0u8; 8];
         use std::io::Read;
         if f.read_exact(&mut magic).is_err() || &magic != MAGIC {
-            return Err(format!(
-                "{}: exists and is not a stipple shadow cache; refusing to overwrite it",
-                path.display()
-            ));
+            return Err(SceneError::Cache {
+                path: path.to_path_buf(),
+                message: "exists and is not a stipple shadow cache; refusing to overwrite it"
+                    .into(),
+            });
         }
     }
     let mut buf = Vec::with_capacity(HEADER + 4 * lit.counts.len() + 4);
@@ -54,17 +56,22 @@ pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), String> {
             f.sync_all()
         };
         w().map_err(|e| stipple_io::IoError::io(tmp, e))
-    })
-    .map_err(|e| e.to_string())
+    })?;
+    Ok(())
 }
 
 /// Reads a cache file made for a cloud of `points` points. Every inconsistency is an error
 /// naming the file; nothing is allocated from an unchecked count.
-pub fn read(path: &Path, points: usize) -> Result<Cached, String> {
-    let bad = |m: &str| format!("{}: {m}", path.display());
-    let len = std::fs::metadata(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?
-        .len();
+pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
+    let bad = |m: &str| SceneError::Cache {
+        path: path.to_path_buf(),
+        message: m.to_string(),
+    };
+    let read_error = |e| SceneError::Read {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let len = std::fs::metadata(path).map_err(read_error)?.len();
     let want = (HEADER + 4 * points + 4) as u64;
     if len < HEADER as u64 {
         return Err(bad("too short to be a shadow cache"));
@@ -75,7 +82,7 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, String> {
              another cloud, or cut short)"
         )));
     }
-    let buf = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let buf = std::fs::read(path).map_err(read_error)?;
     if &buf[..8] != MAGIC {
         return Err(bad("not a stipple shadow cache"));
     }
@@ -134,18 +141,24 @@ mod tests {
         assert_eq!(back.key, 42);
         assert_eq!(back.lit, lit);
         // Another cloud size, a flipped byte, a cut file: errors naming the file.
-        assert!(read(&p, 999).unwrap_err().contains("a.stshadow"));
+        assert!(read(&p, 999)
+            .unwrap_err()
+            .to_string()
+            .contains("a.stshadow"));
         let mut bytes = std::fs::read(&p).unwrap();
         bytes[HEADER + 17] ^= 1;
         std::fs::write(&p, &bytes).unwrap();
-        assert!(read(&p, 1000).unwrap_err().contains("checksum"));
+        assert!(read(&p, 1000).unwrap_err().to_string().contains("checksum"));
         bytes.truncate(100);
         std::fs::write(&p, &bytes).unwrap();
-        assert!(read(&p, 1000).unwrap_err().contains("bytes"));
+        assert!(read(&p, 1000).unwrap_err().to_string().contains("bytes"));
         // A file that is not a cache is never overwritten.
         let other = dir.join("notes.stshadow");
         std::fs::write(&other, b"my notes").unwrap();
-        assert!(write(&other, 1, &lit).unwrap_err().contains("refusing"));
+        assert!(write(&other, 1, &lit)
+            .unwrap_err()
+            .to_string()
+            .contains("refusing"));
         assert_eq!(std::fs::read(&other).unwrap(), b"my notes");
         std::fs::remove_dir_all(dir).unwrap();
     }

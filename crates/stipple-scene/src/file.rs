@@ -2,9 +2,7 @@
 //! opacity and a material; lights; the camera; render settings. The format is documented in
 //! `docs/scenes.md`, with examples in `examples/`.
 
-/// Scene errors are messages naming the scene file and the entry (typed once scenes move
-/// into the library).
-type Result<T> = std::result::Result<T, String>;
+use crate::{Host, SceneError};
 use glam::{DAffine3, DMat3, DVec3};
 use serde::Deserialize;
 use std::hash::{Hash, Hasher};
@@ -125,14 +123,20 @@ pub fn is_scene(p: &Path) -> bool {
     matches!(stipple_io::extension(p).as_str(), "toml" | "json")
 }
 
-fn parse(path: &Path) -> Result<SceneFile> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+fn parse(path: &Path) -> std::result::Result<SceneFile, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|e| SceneError::Read {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
     let parsed = if stipple_io::extension(path) == "json" {
         serde_json::from_str(&text).map_err(|e| e.to_string())
     } else {
         toml::from_str(&text).map_err(|e| e.to_string())
     };
-    parsed.map_err(|e| format!("{}: {}", path.display(), e.trim_end()))
+    parsed.map_err(|e| SceneError::Parse {
+        path: path.to_path_buf(),
+        message: e.trim_end().to_string(),
+    })
 }
 
 /// The transform of a cloud spec: world = translate + R (scale · p), R = Rz · Ry · Rx.
@@ -143,14 +147,21 @@ fn transform(c: &CloudSpec) -> DAffine3 {
 }
 
 /// Loads a scene file: reads or generates every cloud, applies transforms, colours and
-/// opacities, and merges them into one cloud with an object table.
-pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
+/// opacities, and merges them into one cloud with an object table. `host` reads the cloud
+/// files and checks what generated clouds may allocate (see [`Host`]).
+pub fn load_with(
+    path: &Path,
+    host: &mut dyn Host,
+) -> std::result::Result<(PreparedCloud, LoadedScene), SceneError> {
     let spec = parse(path)?;
     let dir = path
         .parent()
         .map(Path::to_path_buf)
         .unwrap_or_else(|| PathBuf::from("."));
-    let err = |what: String| format!("{}: {what}", path.display());
+    let err = |what: String| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message: what,
+    };
     if spec.clouds.is_empty() {
         return Err(err("the scene lists no [[cloud]]".into()));
     }
@@ -165,7 +176,7 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
     let mut objects = Vec::new();
     for (k, c) in spec.clouds.iter().enumerate() {
         let what = |m: String| err(format!("cloud {}: {m}", k + 1));
-        let (cloud, name) = source(c, &dir).map_err(what)?;
+        let (cloud, name) = source(c, &dir, host).map_err(what)?;
         if cloud.is_empty() {
             return Err(what(format!("{name} has no points")));
         }
@@ -194,12 +205,12 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
     };
     let with_normals = parts.iter().filter(|p| p.normals.is_some()).count();
     if with_normals != 0 && with_normals != parts.len() {
-        eprintln!(
-            "stipple: note: {}: only {with_normals} of {} clouds have normals; the scene is \
-             rendered without normals (unlit, raw pipeline)",
+        host.note(&format!(
+            "{}: only {with_normals} of {} clouds have normals; the scene is rendered without \
+             normals (unlit, raw pipeline)",
             path.display(),
             parts.len()
-        );
+        ));
         for p in &mut parts {
             p.normals = None;
         }
@@ -227,7 +238,7 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
         .iter()
         .enumerate()
         .map(|(i, l)| light(l, centre).map_err(|m| err(format!("light {}: {m}", i + 1))))
-        .collect::<Result<Vec<_>>>()?;
+        .collect::<std::result::Result<Vec<_>, SceneError>>()?;
     if lights.len() > stipple_render::shadow::MAX_LIGHTS {
         return Err(err(format!(
             "{} lights; a scene holds at most {}",
@@ -269,7 +280,11 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene)> {
     ))
 }
 
-fn source(c: &CloudSpec, dir: &Path) -> std::result::Result<(PointCloud, String), String> {
+fn source(
+    c: &CloudSpec,
+    dir: &Path,
+    host: &mut dyn Host,
+) -> std::result::Result<(PointCloud, String), String> {
     match (&c.file, &c.demo) {
         (Some(f), None) => {
             let p = if f.is_absolute() {
@@ -277,22 +292,14 @@ fn source(c: &CloudSpec, dir: &Path) -> std::result::Result<(PointCloud, String)
             } else {
                 dir.join(f)
             };
-            Ok((
-                crate::args::read_with_progress(&p).map_err(|e| format!("{e:#}"))?,
-                p.display().to_string(),
-            ))
+            Ok((host.read(&p)?, p.display().to_string()))
         }
         (None, Some(d)) => {
             let n = c.points.unwrap_or(200_000);
             if n == 0 {
                 return Err("points must be at least 1".to_string());
             }
-            crate::memory::check_points(
-                &format!("points = {n}"),
-                n as u64,
-                crate::memory::BYTES_PER_POINT,
-            )
-            .map_err(|e| format!("{e:#}"))?;
+            host.check_points(&format!("points = {n}"), n as u64)?;
             let seed = c.seed.unwrap_or(1);
             let grey = [200, 200, 200];
             let cloud = match d.as_str() {
@@ -543,6 +550,7 @@ pub fn relative_key(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::load;
     use glam::Vec3;
 
     fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
@@ -631,7 +639,10 @@ samples = 8
             ("[[cloud]]\ndemo = \"sphere\"\n[render]\nlayers = 0\n", "layers = 0"),
         ] {
             let p = write(&d, "bad.toml", text);
-            let e = load(&p).err().unwrap_or_else(|| panic!("{text:?} loaded"));
+            let e = load(&p)
+                .err()
+                .unwrap_or_else(|| panic!("{text:?} loaded"))
+                .to_string();
             assert!(e.contains("bad.toml") && e.contains(want), "{text:?}: {e}");
         }
         std::fs::remove_dir_all(d).unwrap();
