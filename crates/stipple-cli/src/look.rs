@@ -55,11 +55,14 @@ pub fn apply(
     renderer: &mut Renderer,
 ) -> Result<Option<String>> {
     if let Some(s) = scene {
-        if !s.lights.is_empty() {
-            pipe.lights = s.lights.clone();
-        }
-        if let (Some(b), false) = (s.render.background, background_given) {
-            pipe.background = b;
+        s.apply_to(pipe, background_given);
+    }
+    // --depth-cue fades into the background: the scene's, when it set one.
+    let lut = stipple_render::srgb::srgb_to_linear_table();
+    let background = pipe.background.map(|c| lut[c as usize]);
+    for c in &mut pipe.colour {
+        if let stipple_render::ColourPass::DepthCue { colour, .. } = c {
+            *colour = background;
         }
     }
     aim_area_lights(&mut pipe.lights, cloud);

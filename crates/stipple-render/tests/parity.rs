@@ -687,3 +687,38 @@ fn pixel_passes_match_the_cpu() {
         "whole frame with depth cueing: {close} of {n} pixels agree"
     );
 }
+
+/// Bind groups are made when a step first needs them and reused afterwards: a second frame
+/// of the same size makes none, and a pipeline with fewer passes makes fewer.
+#[test]
+fn bind_groups_are_made_on_first_use_and_reused() {
+    let Some(ctx) = gpu(GpuOptions::default()) else {
+        return;
+    };
+    let cloud = PreparedCloud::new(stipple_core::demo::generate(
+        stipple_core::demo::DemoScene::Torus,
+        20_000,
+        2,
+    ));
+    let up = GpuCloud::upload(&ctx, &cloud).unwrap();
+    let cam = camera(64, 48, true);
+    let v = ViewParams::new(&cam, cloud.cloud.origin);
+    let made = |pipe: &Pipeline| {
+        let mut r = GpuRenderer::new(ctx.clone()).unwrap();
+        r.render(&up, &v, pipe).unwrap();
+        let first = r.bind_groups_made();
+        r.render(&up, &v, pipe).unwrap();
+        assert_eq!(
+            r.bind_groups_made(),
+            first,
+            "a second frame made new groups"
+        );
+        first
+    };
+    let full = made(&Pipeline::default());
+    let points = made(&Pipeline::points_only());
+    assert!(
+        points > 0 && points < full,
+        "points only {points}, default {full}"
+    );
+}

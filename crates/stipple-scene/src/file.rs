@@ -153,7 +153,17 @@ pub fn load_with(
     path: &Path,
     host: &mut dyn Host,
 ) -> std::result::Result<(PreparedCloud, LoadedScene), SceneError> {
-    let spec = parse(path)?;
+    build(parse(path)?, path, host)
+}
+
+/// Builds a scene described in code (or parsed): what [`load_with`] does after reading the
+/// file. `path` names the scene in messages, and its directory is where relative cloud files
+/// are looked for.
+pub fn build(
+    spec: SceneFile,
+    path: &Path,
+    host: &mut dyn Host,
+) -> std::result::Result<(PreparedCloud, LoadedScene), SceneError> {
     let dir = path
         .parent()
         .map(Path::to_path_buf)
@@ -464,6 +474,20 @@ fn q(x: f64, unit: f64) -> i64 {
 }
 
 impl LoadedScene {
+    /// Gives a pipeline the scene's lights (where it lists any), its background (unless
+    /// `keep_background`: the user chose one) and its `layers` (where set).
+    pub fn apply_to(&self, pipe: &mut stipple_render::Pipeline, keep_background: bool) {
+        if !self.lights.is_empty() {
+            pipe.lights = self.lights.clone();
+        }
+        if let (Some(b), false) = (self.render.background, keep_background) {
+            pipe.background = b;
+        }
+        if let Some(l) = self.render.layers {
+            pipe.layers = l;
+        }
+    }
+
     /// A key for the shadow texture of this scene under `lights` and `settings`: the clouds'
     /// contents, each cloud's placement relative to the first and the lights relative to the
     /// first cloud, quantised to a millionth of its size. Moving or turning the whole scene
@@ -677,6 +701,57 @@ samples = 8
         assert_ne!(
             base,
             relative_key(&[(8, a), (9, b)], 2.0, &[light(DVec3::Y * 5.0)], &s)
+        );
+    }
+
+    /// A scene built in code: two placed demo clouds, a light and a background, given to a
+    /// pipeline.
+    #[test]
+    fn a_scene_built_in_code_configures_a_pipeline() {
+        let cloud = |demo: &str, x: f64| CloudSpec {
+            file: None,
+            demo: Some(demo.into()),
+            points: Some(2_000),
+            seed: None,
+            tube: None,
+            translate: [x, 0.0, 0.0],
+            rotate: [0.0; 3],
+            scale: None,
+            colour: None,
+            opacity: Some(0.5),
+            material: MaterialSpec::default(),
+        };
+        let spec = SceneFile {
+            clouds: vec![cloud("sphere", -2.0), cloud("torus", 2.0)],
+            lights: vec![LightSpec {
+                kind: "point".into(),
+                position: Some([0.0, 5.0, 0.0]),
+                direction: None,
+                facing: None,
+                shape: None,
+                size: None,
+                radius: None,
+                samples: None,
+            }],
+            render: RenderSpec {
+                layers: Some(3),
+                background: Some([1, 2, 3]),
+                ..RenderSpec::default()
+            },
+            ..SceneFile::default()
+        };
+        let (c, s) = build(spec, Path::new("in-code"), &mut crate::Plain).unwrap();
+        assert_eq!(c.cloud.len(), 4_000);
+        assert_eq!(c.objects.as_ref().unwrap().materials.len(), 2);
+        let mut pipe = stipple_render::Pipeline::default();
+        s.apply_to(&mut pipe, false);
+        assert_eq!(pipe.lights, vec![Light::Point([0.0, 5.0, 0.0])]);
+        assert_eq!((pipe.background, pipe.layers), ([1, 2, 3], 3));
+        let mut kept = stipple_render::Pipeline::default();
+        s.apply_to(&mut kept, true);
+        assert_eq!(
+            kept.background,
+            stipple_render::Pipeline::default().background
         );
     }
 }

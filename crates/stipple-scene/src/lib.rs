@@ -14,7 +14,7 @@ pub mod cache;
 pub mod file;
 pub mod shadows;
 
-pub use file::{load_with, LoadedScene};
+pub use file::{build, load_with, LoadedScene, SceneFile};
 use std::path::{Path, PathBuf};
 use stipple_core::PointCloud;
 use stipple_render::PreparedCloud;
@@ -77,4 +77,59 @@ pub fn load(path: &Path) -> Result<(PreparedCloud, LoadedScene), SceneError> {
 /// Whether a path names a scene file (by extension: `.toml` or `.json`).
 pub fn is_scene(p: &Path) -> bool {
     file::is_scene(p)
+}
+
+/// Entry points for fuzzing (`fuzz/fuzz_targets/scene.rs`, `stshadow.rs`) and for replaying
+/// their corpora in the tests: errors are fine, panics and runaway allocations are not.
+#[doc(hidden)]
+pub mod fuzzing {
+    use super::*;
+
+    /// A host that reads no files and allows at most 400 000 generated points in all.
+    struct Sandbox(u64);
+
+    impl Host for Sandbox {
+        fn read(&mut self, path: &Path) -> Result<PointCloud, String> {
+            Err(format!(
+                "{}: files are not read while fuzzing",
+                path.display()
+            ))
+        }
+
+        fn check_points(&mut self, what: &str, n: u64) -> Result<(), String> {
+            self.0 = self.0.saturating_add(n);
+            if self.0 > 400_000 {
+                return Err(format!("{what}: over the fuzzing budget"));
+            }
+            Ok(())
+        }
+
+        fn note(&mut self, _message: &str) {}
+    }
+
+    /// A scene file's text, as TOML and as JSON, built with no file access.
+    pub fn scene_text(data: &[u8]) {
+        let Ok(text) = std::str::from_utf8(data) else {
+            return;
+        };
+        let specs = [
+            toml::from_str::<SceneFile>(text).ok(),
+            serde_json::from_str::<SceneFile>(text).ok(),
+        ];
+        for spec in specs.into_iter().flatten() {
+            let _ = build(spec, Path::new("fuzz.toml"), &mut Sandbox(0));
+        }
+    }
+
+    /// A `.stshadow` file's bytes, read for the point count its length implies and for a
+    /// fixed one.
+    pub fn stshadow_bytes(data: &[u8], scratch: &Path) {
+        if std::fs::write(scratch, data).is_err() {
+            return;
+        }
+        let implied = data.len().saturating_sub(52) / 4;
+        for points in [implied, 1000] {
+            let _ = cache::read(scratch, points);
+        }
+    }
 }

@@ -105,6 +105,59 @@ pub(crate) enum Res<'a> {
     Skip,
 }
 
+/// What identifies a bound resource (wgpu's handles compare by identity).
+#[derive(Clone, PartialEq, Eq, Hash)]
+enum ResKey {
+    Buf(wgpu::Buffer),
+    Arena(wgpu::Buffer, u64),
+    View(wgpu::TextureView),
+    Skip,
+}
+
+/// Bind groups made when first asked for and kept, keyed by the layout and the resources
+/// they bind. Owned by the frame buffers they bind (dropped with them), so it never keeps a
+/// resource alive longer than its frame size.
+#[derive(Default)]
+pub(crate) struct BindCache {
+    map: std::cell::RefCell<
+        std::collections::HashMap<(wgpu::BindGroupLayout, Vec<ResKey>), wgpu::BindGroup>,
+    >,
+}
+
+impl BindCache {
+    /// The group of `layout` over `res`, from the cache or made now.
+    pub(crate) fn get(
+        &self,
+        device: &Device,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        res: &[Res],
+    ) -> wgpu::BindGroup {
+        let key = (
+            layout.clone(),
+            res.iter()
+                .map(|r| match r {
+                    Res::Buf(b) => ResKey::Buf((*b).clone()),
+                    Res::Arena(b, size) => ResKey::Arena((*b).clone(), *size),
+                    Res::View(v) => ResKey::View((*v).clone()),
+                    Res::Skip => ResKey::Skip,
+                })
+                .collect::<Vec<_>>(),
+        );
+        if let Some(g) = self.map.borrow().get(&key) {
+            return g.clone();
+        }
+        let g = bind(device, label, layout, res);
+        self.map.borrow_mut().insert(key, g.clone());
+        g
+    }
+
+    /// Groups made so far.
+    pub(crate) fn len(&self) -> usize {
+        self.map.borrow().len()
+    }
+}
+
 pub(crate) fn bind(
     device: &Device,
     label: &str,

@@ -102,6 +102,7 @@ impl GpuRenderer {
         let iterate = crate::device::iterate::new(&ctx);
         let (vis_table, vis_ranges) = crate::passes::visibility::gpu::offset_table();
         let kit = Kit {
+            arena: arena.buffer.clone(),
             cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
             cell_ranges,
             to_linear: util::storage_init(
@@ -171,6 +172,12 @@ impl GpuRenderer {
         })
     }
 
+    /// Bind groups made over the current frame buffers so far (they are made when a step
+    /// first needs them and reused by later frames of the same size).
+    pub fn bind_groups_made(&self) -> usize {
+        self.frame.as_ref().map_or(0, |f| f.binds.len())
+    }
+
     pub fn context(&self) -> &Arc<GpuContext> {
         &self.ctx
     }
@@ -211,16 +218,7 @@ impl GpuRenderer {
         grid_2d(&self.ctx, v.width, v.height)?;
         let f = match self.frame.take() {
             Some(f) if f.width == v.width && f.height == v.height => f,
-            _ => {
-                let mut f = FrameBuffers::new(&self.ctx, v.width, v.height);
-                f.groups = Some(FrameGroups::new(
-                    &self.ctx,
-                    &self.kit,
-                    &self.arena.buffer,
-                    &f,
-                ));
-                f
-            }
+            _ => FrameBuffers::new(&self.ctx, v.width, v.height),
         };
         let f = self.frame.insert(f);
         if self.projection == ProjectionPath::Hardware && self.kit.project_hw.is_none() {
@@ -293,13 +291,7 @@ impl GpuRenderer {
         };
         let mut f = self.frame.take().expect("prepared");
         ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
-        ensure_pixel_passes(
-            &self.ctx,
-            &mut self.kit,
-            &self.arena.buffer,
-            &mut f,
-            &pipe.colour,
-        );
+        ensure_pixel_passes(&self.ctx, &mut self.kit, &pipe.colour);
         let n = v.width as u64 * v.height as u64;
         if layers > 1 && pipe.keep_layers {
             let bytes = 4 * n * layers as u64;
@@ -540,14 +532,8 @@ impl GpuRenderer {
         pass: &ColourPass,
     ) -> Result<ColourPassResult, GpuError> {
         self.prepare(v)?;
-        let mut f = self.frame.take().expect("prepared");
-        ensure_pixel_passes(
-            &self.ctx,
-            &mut self.kit,
-            &self.arena.buffer,
-            &mut f,
-            std::slice::from_ref(pass),
-        );
+        let f = self.frame.take().expect("prepared");
+        ensure_pixel_passes(&self.ctx, &mut self.kit, std::slice::from_ref(pass));
         let r = (|| {
             let kit = &self.kit;
             let q = &self.ctx.queue;

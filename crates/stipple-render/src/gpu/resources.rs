@@ -33,6 +33,8 @@ pub(crate) struct Timer {
 
 pub(crate) struct Kit {
     pub(crate) view: Buffer,
+    /// The uniform arena's buffer (dynamic offsets per step).
+    pub(crate) arena: Buffer,
     pub(crate) cells: Buffer,
     pub(crate) cell_ranges: Vec<(u32, u32)>,
     pub(crate) to_linear: Buffer,
@@ -94,13 +96,10 @@ pub(crate) struct FrameBuffers {
     pub(crate) read: Buffer,
     /// The hardware path's render targets and the group that copies them out.
     pub(crate) targets: Option<(Targets, wgpu::BindGroup)>,
-    /// Made with the buffers (see [`FrameGroups`]).
-    pub(crate) groups: Option<FrameGroups>,
+    /// Bind groups over these buffers, made when first used (see [`Binder`]).
+    pub(crate) binds: util::BindCache,
     /// The per-chunk groups of the last cloud rendered at this size.
     pub(crate) cloud: Option<CloudGroups>,
-    /// Pixel passes' bind groups over these buffers, made when first used, by pass name,
-    /// geometry image and colour image.
-    pub(crate) pixel: std::collections::HashMap<(&'static str, usize, usize), wgpu::BindGroup>,
 }
 
 impl FrameBuffers {
@@ -134,14 +133,9 @@ impl FrameBuffers {
                 mapped_at_creation: false,
             }),
             targets: None,
-            groups: None,
+            binds: Default::default(),
             cloud: None,
-            pixel: Default::default(),
         }
-    }
-
-    pub(crate) fn groups(&self) -> &FrameGroups {
-        self.groups.as_ref().expect("made with the buffers")
     }
 
     pub(crate) fn cloud_groups(&self) -> &CloudGroups {
@@ -154,221 +148,219 @@ pub(crate) fn block<T>() -> u64 {
     size_of::<T>() as u64
 }
 
-/// Bind groups over the frame buffers, made once per frame size. Arrays are indexed by which
-/// ping-pong image is the source (`g`: geometry, `c`: colour).
-pub(crate) struct FrameGroups {
-    pub(crate) resolve: wgpu::BindGroup,
-    pub(crate) fill_background: [wgpu::BindGroup; 2],
-    pub(crate) fill_occluded: [wgpu::BindGroup; 2],
-    pub(crate) shade: [wgpu::BindGroup; 2],
-    pub(crate) smooth: [[wgpu::BindGroup; 2]; 2],
-    pub(crate) antialias: [wgpu::BindGroup; 2],
-    pub(crate) output: [wgpu::BindGroup; 2],
-    pub(crate) visibility: [wgpu::BindGroup; 2],
-    /// By geometry image, colour image and depth image (0: surface, 1: surface_b).
-    pub(crate) fill_anisotropic: [[[wgpu::BindGroup; 2]; 2]; 2],
-    /// By source level image.
-    pub(crate) depiction_level: [wgpu::BindGroup; 2],
-    pub(crate) depiction_apply: [wgpu::BindGroup; 2],
-    pub(crate) edl: [wgpu::BindGroup; 2],
-    /// By geometry image and colour image (compose writes colour 0 through `[g][0]`).
-    pub(crate) blend: [[wgpu::BindGroup; 2]; 2],
+/// Bind groups over the frame buffers, made when a step first asks for them and cached by
+/// the layout and the buffers they bind (`FrameBuffers::binds`), so a frame size that never
+/// runs a pass never makes its groups. Indices say which ping-pong image is the source
+/// (`g`: geometry, `c`: colour).
+pub(crate) struct Binder<'a> {
+    d: &'a wgpu::Device,
+    kit: &'a Kit,
+    f: &'a FrameBuffers,
 }
 
-impl FrameGroups {
-    pub(crate) fn new(
-        ctx: &GpuContext,
-        kit: &Kit,
-        arena: &Buffer,
-        f: &FrameBuffers,
-    ) -> FrameGroups {
-        let d = &ctx.device;
-        let fill = |pass: &Pass, src: usize| {
-            pass.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<FillBlock>()),
-                    Res::Buf(&kit.cells),
-                    Res::Buf(&f.depth[src]),
-                    Res::Buf(&f.id[src]),
-                    Res::Buf(&f.depth[1 - src]),
-                    Res::Buf(&f.id[1 - src]),
-                    Res::Buf(&kit.counters),
-                ],
-            )
-        };
-        let shade = |g: usize| {
-            kit.shade.shade.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<ShadeBlock>()),
-                    Res::Buf(&f.depth[g]),
-                    Res::Buf(&f.id[g]),
-                    Res::Buf(&f.attr_pos),
-                    Res::Buf(&f.attr_normal),
-                    Res::Buf(&kit.to_linear),
-                    Res::Buf(&f.colour[0]),
-                    Res::Buf(&f.surface),
-                    Res::Buf(&f.attr_style),
-                    Res::Buf(&kit.materials),
-                ],
-            )
-        };
-        let blend = |g: usize, c: usize| {
-            util::bind(
-                d,
-                "blend_layers",
-                &kit.blend.bgl,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<BlendBlock>()),
-                    Res::Buf(&f.id[g]),
-                    Res::Buf(&f.surface),
-                    Res::Buf(&f.attr_style),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(&f.acc),
-                    Res::Buf(&kit.counters),
-                ],
-            )
-        };
-        let smooth = |g: usize, c: usize| {
-            kit.smooth.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<SmoothBlock>()),
-                    Res::Buf(&f.id[g]),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(&f.colour[1 - c]),
-                ],
-            )
-        };
-        let antialias = |c: usize| {
-            kit.antialias.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<AntialiasBlock>()),
-                    Res::Buf(&f.surface),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(&f.colour[1 - c]),
-                    Res::Buf(&kit.counters),
-                ],
-            )
-        };
-        let output = |c: usize| {
-            kit.output.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(&kit.encode_table),
-                    Res::Buf(&f.rgba),
-                ],
-            )
-        };
-        let visibility = |g: usize| {
-            kit.visibility.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<VisibilityBlock>()),
-                    Res::Buf(&kit.vis_offsets),
-                    Res::Buf(&f.depth[g]),
-                    Res::Buf(&f.id[g]),
-                    Res::Buf(&f.depth[1 - g]),
-                    Res::Buf(&f.id[1 - g]),
-                    Res::Buf(&kit.counters),
-                ],
-            )
-        };
-        let surfaces = [&f.surface, &f.surface_b];
-        let fill_anisotropic = |g: usize, c: usize, s: usize| {
-            kit.fill_anisotropic.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<FillAnisotropicBlock>()),
-                    Res::Buf(&f.id[g]),
-                    Res::Buf(surfaces[s]),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(surfaces[1 - s]),
-                    Res::Buf(&f.colour[1 - c]),
-                    Res::Buf(&kit.counters),
-                ],
-            )
-        };
-        let level = |l: usize| {
-            kit.depiction.level.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<DepictionBlock>()),
-                    Res::Buf(&f.levels[l]),
-                    Res::Buf(&f.levels[1 - l]),
-                    Res::Buf(&f.shading),
-                ],
-            )
-        };
-        let apply = |c: usize| {
-            kit.depiction.apply.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Buf(&f.surface),
-                    Res::Buf(&f.shading),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(&f.colour[1 - c]),
-                ],
-            )
-        };
-        let edl = |c: usize| {
-            kit.edl.bind(
-                d,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<EdlBlock>()),
-                    Res::Buf(&f.surface),
-                    Res::Buf(&f.colour[c]),
-                    Res::Buf(&f.colour[1 - c]),
-                ],
-            )
-        };
-        let fa = |g: usize| {
-            [
-                [fill_anisotropic(g, 0, 0), fill_anisotropic(g, 0, 1)],
-                [fill_anisotropic(g, 1, 0), fill_anisotropic(g, 1, 1)],
-            ]
-        };
-        FrameGroups {
-            blend: [[blend(0, 0), blend(0, 1)], [blend(1, 0), blend(1, 1)]],
-            visibility: [visibility(0), visibility(1)],
-            fill_anisotropic: [fa(0), fa(1)],
-            depiction_level: [level(0), level(1)],
-            depiction_apply: [apply(0), apply(1)],
-            edl: [edl(0), edl(1)],
-            resolve: util::bind(
-                d,
-                "resolve",
-                &kit.project.resolve_bgl,
-                &[
-                    Res::Buf(&kit.view),
-                    Res::Arena(arena, block::<ResolveBlock>()),
-                    Res::Buf(&f.vis),
-                    Res::Buf(&f.vis_id),
-                    Res::Buf(&f.depth[0]),
-                    Res::Buf(&f.id[0]),
-                ],
-            ),
-            fill_background: [fill(&kit.fill_background, 0), fill(&kit.fill_background, 1)],
-            fill_occluded: [fill(&kit.fill_occluded, 0), fill(&kit.fill_occluded, 1)],
-            shade: [shade(0), shade(1)],
-            smooth: [[smooth(0, 0), smooth(0, 1)], [smooth(1, 0), smooth(1, 1)]],
-            antialias: [antialias(0), antialias(1)],
-            output: [output(0), output(1)],
+impl<'a> Binder<'a> {
+    pub(crate) fn new(ctx: &'a GpuContext, kit: &'a Kit, f: &'a FrameBuffers) -> Binder<'a> {
+        Binder {
+            d: &ctx.device,
+            kit,
+            f,
         }
+    }
+    pub(crate) fn fill(&self, pass: &Pass, src: usize) -> wgpu::BindGroup {
+        self.bind(
+            "fill",
+            &pass.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<FillBlock>()),
+                Res::Buf(&self.kit.cells),
+                Res::Buf(&self.f.depth[src]),
+                Res::Buf(&self.f.id[src]),
+                Res::Buf(&self.f.depth[1 - src]),
+                Res::Buf(&self.f.id[1 - src]),
+                Res::Buf(&self.kit.counters),
+            ],
+        )
+    }
+    pub(crate) fn shade(&self, g: usize) -> wgpu::BindGroup {
+        self.bind(
+            "shade",
+            &self.kit.shade.shade.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<ShadeBlock>()),
+                Res::Buf(&self.f.depth[g]),
+                Res::Buf(&self.f.id[g]),
+                Res::Buf(&self.f.attr_pos),
+                Res::Buf(&self.f.attr_normal),
+                Res::Buf(&self.kit.to_linear),
+                Res::Buf(&self.f.colour[0]),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.attr_style),
+                Res::Buf(&self.kit.materials),
+            ],
+        )
+    }
+    pub(crate) fn blend(&self, g: usize, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            "blend_layers",
+            &self.kit.blend.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<BlendBlock>()),
+                Res::Buf(&self.f.id[g]),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.attr_style),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.f.acc),
+                Res::Buf(&self.kit.counters),
+            ],
+        )
+    }
+    pub(crate) fn smooth(&self, g: usize, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            "smooth",
+            &self.kit.smooth.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<SmoothBlock>()),
+                Res::Buf(&self.f.id[g]),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.f.colour[1 - c]),
+            ],
+        )
+    }
+    pub(crate) fn antialias(&self, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            "antialias",
+            &self.kit.antialias.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<AntialiasBlock>()),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.f.colour[1 - c]),
+                Res::Buf(&self.kit.counters),
+            ],
+        )
+    }
+    pub(crate) fn output(&self, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            "output",
+            &self.kit.output.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.kit.encode_table),
+                Res::Buf(&self.f.rgba),
+            ],
+        )
+    }
+    pub(crate) fn visibility(&self, g: usize) -> wgpu::BindGroup {
+        self.bind(
+            "visibility",
+            &self.kit.visibility.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<VisibilityBlock>()),
+                Res::Buf(&self.kit.vis_offsets),
+                Res::Buf(&self.f.depth[g]),
+                Res::Buf(&self.f.id[g]),
+                Res::Buf(&self.f.depth[1 - g]),
+                Res::Buf(&self.f.id[1 - g]),
+                Res::Buf(&self.kit.counters),
+            ],
+        )
+    }
+    pub(crate) fn fill_anisotropic(&self, g: usize, c: usize, s: usize) -> wgpu::BindGroup {
+        self.bind(
+            "fill_anisotropic",
+            &self.kit.fill_anisotropic.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<FillAnisotropicBlock>()),
+                Res::Buf(&self.f.id[g]),
+                Res::Buf([&self.f.surface, &self.f.surface_b][s]),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf([&self.f.surface, &self.f.surface_b][1 - s]),
+                Res::Buf(&self.f.colour[1 - c]),
+                Res::Buf(&self.kit.counters),
+            ],
+        )
+    }
+    pub(crate) fn level(&self, l: usize) -> wgpu::BindGroup {
+        self.bind(
+            "level",
+            &self.kit.depiction.level.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<DepictionBlock>()),
+                Res::Buf(&self.f.levels[l]),
+                Res::Buf(&self.f.levels[1 - l]),
+                Res::Buf(&self.f.shading),
+            ],
+        )
+    }
+    pub(crate) fn apply(&self, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            "apply",
+            &self.kit.depiction.apply.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.shading),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.f.colour[1 - c]),
+            ],
+        )
+    }
+    pub(crate) fn edl(&self, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            "edl",
+            &self.kit.edl.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<EdlBlock>()),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.f.colour[1 - c]),
+            ],
+        )
+    }
+    pub(crate) fn resolve(&self) -> wgpu::BindGroup {
+        self.bind(
+            "resolve",
+            &self.kit.project.resolve_bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, block::<ResolveBlock>()),
+                Res::Buf(&self.f.vis),
+                Res::Buf(&self.f.vis_id),
+                Res::Buf(&self.f.depth[0]),
+                Res::Buf(&self.f.id[0]),
+            ],
+        )
+    }
+
+    /// A pixel pass's group (see [`crate::passes::pixel`]).
+    pub(crate) fn pixel(&self, name: &str, pass: &Pass, g: usize, c: usize) -> wgpu::BindGroup {
+        self.bind(
+            name,
+            &pass.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(&self.kit.arena, util::BLOCK),
+                Res::Buf(&self.f.id[g]),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.colour[c]),
+                Res::Buf(&self.f.colour[1 - c]),
+            ],
+        )
+    }
+
+    /// The cached group of `layout` over `res`, made now if it is not there.
+    fn bind(&self, label: &str, layout: &wgpu::BindGroupLayout, res: &[Res]) -> wgpu::BindGroup {
+        self.f.binds.get(self.d, label, layout, res)
     }
 }
 
@@ -478,43 +470,22 @@ pub(crate) fn ensure_cloud(
     }
 }
 
-/// Makes the pipelines of the pixel passes in `passes` and their bind groups over `f`
-/// unless they exist (see [`crate::passes::pixel`]).
+/// Makes the pipelines of the pixel passes in `passes` unless they exist (see
+/// [`crate::passes::pixel`]; their bind groups are made by [`Binder::pixel`] when recorded).
 pub(crate) fn ensure_pixel_passes(
     ctx: &GpuContext,
     kit: &mut Kit,
-    arena: &Buffer,
-    f: &mut FrameBuffers,
     passes: &[crate::pipeline::ColourPass],
 ) {
     use crate::device::util::{DYNAMIC, READ, UNIFORM, WRITE};
-    let d = &ctx.device;
     for pp in passes.iter().filter_map(|p| p.pixel()) {
-        let name = pp.name();
-        let pass = kit.pixel.entry(name).or_insert_with(|| {
+        kit.pixel.entry(pp.name()).or_insert_with(|| {
             Pass::new(
-                d,
+                &ctx.device,
                 pp.module(),
-                name,
+                pp.name(),
                 &[UNIFORM, DYNAMIC, READ, READ, READ, WRITE],
             )
         });
-        for g in 0..2 {
-            for c in 0..2 {
-                f.pixel.entry((name, g, c)).or_insert_with(|| {
-                    pass.bind(
-                        d,
-                        &[
-                            Res::Buf(&kit.view),
-                            Res::Arena(arena, crate::device::util::BLOCK),
-                            Res::Buf(&f.id[g]),
-                            Res::Buf(&f.surface),
-                            Res::Buf(&f.colour[c]),
-                            Res::Buf(&f.colour[1 - c]),
-                        ],
-                    )
-                });
-            }
-        }
     }
 }

@@ -68,7 +68,7 @@ pub(crate) fn record_project(
         }
     }
     pass.set_pipeline(&kit.project.resolve);
-    pass.set_bind_group(0, &f.groups().resolve, &[roff]);
+    pass.set_bind_group(0, &Binder::new(ctx, kit, f).resolve(), &[roff]);
     let (gx, gy) = flat_groups(ctx, f.width as u64 * f.height as u64);
     pass.dispatch_workgroups(gx, gy, 1);
     drop(pass);
@@ -226,21 +226,16 @@ pub(crate) fn record_geometry(
 ) -> Result<(), GpuError> {
     let ctx = rec.ctx;
     rec.start();
-    let (fill, groups, its, radius, gap) = match *pass {
-        GeometryPass::FillBackground { iterations, radius } => (
-            &kit.fill_background,
-            &f.groups().fill_background,
-            iterations,
-            radius,
-            0.0,
-        ),
+    let (fill, its, radius, gap) = match *pass {
+        GeometryPass::FillBackground { iterations, radius } => {
+            (&kit.fill_background, iterations, radius, 0.0)
+        }
         GeometryPass::FillOccluded {
             iterations,
             layer_gap,
             radius,
         } => (
             &kit.fill_occluded,
-            &f.groups().fill_occluded,
             iterations,
             radius,
             layer_gap.unwrap_or(default_gap),
@@ -264,7 +259,7 @@ pub(crate) fn record_geometry(
             let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.visibility.pipeline);
-            p.set_bind_group(0, &f.groups().visibility[cur.g], &[off]);
+            p.set_bind_group(0, &Binder::new(ctx, kit, f).visibility(cur.g), &[off]);
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.g = 1 - cur.g;
@@ -303,6 +298,8 @@ pub(crate) fn record_geometry(
         slots.push(slot);
         cur.g = 1 - cur.g;
     }
+    let b = Binder::new(ctx, kit, f);
+    let groups = [b.fill(fill, 0), b.fill(fill, 1)];
     let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
     for (src, off, it, slot) in steps {
         if let Some(ioff) = it {
@@ -360,7 +357,7 @@ pub(crate) fn record_shade(
         sg.record_resolve(&mut p);
     }
     p.set_pipeline(&kit.shade.shade.pipeline);
-    p.set_bind_group(0, &f.groups().shade[cur.g], &[soff]);
+    p.set_bind_group(0, &Binder::new(ctx, kit, f).shade(cur.g), &[soff]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     rec.end(PassId::Shade, 1, vec![], q)
@@ -381,14 +378,11 @@ pub(crate) fn record_colour(
     if let Some(pp) = pass.pixel() {
         let off = rec.arena.push_bytes(&pp.block(v))?;
         let missing = || GpuError::Wgpu(format!("pixel pass {} was not set up", pp.name()));
-        let pipeline = &kit.pixel.get(pp.name()).ok_or_else(missing)?.pipeline;
-        let group = f
-            .pixel
-            .get(&(pp.name(), cur.g, cur.colour))
-            .ok_or_else(missing)?;
+        let pass = kit.pixel.get(pp.name()).ok_or_else(missing)?;
+        let group = Binder::new(ctx, kit, f).pixel(pp.name(), pass, cur.g, cur.colour);
         let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-        p.set_pipeline(pipeline);
-        p.set_bind_group(0, group, &[off]);
+        p.set_pipeline(&pass.pipeline);
+        p.set_bind_group(0, &group, &[off]);
         p.dispatch_workgroups(gx, gy, 1);
         drop(p);
         cur.colour = 1 - cur.colour;
@@ -397,11 +391,11 @@ pub(crate) fn record_colour(
     match *pass {
         ColourPass::Smooth { kernel, iterations } => {
             let off = rec.arena.push(&SmoothBlock::new(kernel))?;
-            let groups = &f.groups().smooth[cur.g];
+            let b = Binder::new(ctx, kit, f);
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.smooth.pipeline);
             for _ in 0..iterations {
-                p.set_bind_group(0, &groups[cur.colour], &[off]);
+                p.set_bind_group(0, &b.smooth(cur.g, cur.colour), &[off]);
                 p.dispatch_workgroups(gx, gy, 1);
                 cur.colour = 1 - cur.colour;
             }
@@ -421,7 +415,7 @@ pub(crate) fn record_colour(
             })?;
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.antialias.pipeline);
-            p.set_bind_group(0, &f.groups().antialias[cur.colour], &[off]);
+            p.set_bind_group(0, &Binder::new(ctx, kit, f).antialias(cur.colour), &[off]);
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
@@ -444,12 +438,12 @@ pub(crate) fn record_colour(
                 })?);
                 slots.push(slot);
             }
-            let groups = &f.groups().fill_anisotropic[cur.g];
+            let b = Binder::new(ctx, kit, f);
             let mut s = 0;
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.fill_anisotropic.pipeline);
             for off in steps {
-                p.set_bind_group(0, &groups[cur.colour][s], &[off]);
+                p.set_bind_group(0, &b.fill_anisotropic(cur.g, cur.colour, s), &[off]);
                 p.dispatch_workgroups(gx, gy, 1);
                 cur.colour = 1 - cur.colour;
                 s = 1 - s;
@@ -486,11 +480,11 @@ pub(crate) fn record_colour(
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.depiction.level.pipeline);
             for (k, off) in offs.iter().enumerate() {
-                p.set_bind_group(0, &f.groups().depiction_level[k % 2], &[*off]);
+                p.set_bind_group(0, &Binder::new(ctx, kit, f).level(k % 2), &[*off]);
                 p.dispatch_workgroups(gx, gy, 1);
             }
             p.set_pipeline(&kit.depiction.apply.pipeline);
-            p.set_bind_group(0, &f.groups().depiction_apply[cur.colour], &[]);
+            p.set_bind_group(0, &Binder::new(ctx, kit, f).apply(cur.colour), &[]);
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
@@ -500,7 +494,7 @@ pub(crate) fn record_colour(
             let off = rec.arena.push(&EdlBlock::new(strength, radius))?;
             let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
             p.set_pipeline(&kit.edl.pipeline);
-            p.set_bind_group(0, &f.groups().edl[cur.colour], &[off]);
+            p.set_bind_group(0, &Binder::new(ctx, kit, f).edl(cur.colour), &[off]);
             p.dispatch_workgroups(gx, gy, 1);
             drop(p);
             cur.colour = 1 - cur.colour;
@@ -536,7 +530,11 @@ pub(crate) fn record_blend(
         Some(_) => &kit.blend.blend,
         None => &kit.blend.begin,
     });
-    p.set_bind_group(0, &f.groups().blend[cur.g][cur.colour], &[off]);
+    p.set_bind_group(
+        0,
+        &Binder::new(ctx, kit, f).blend(cur.g, cur.colour),
+        &[off],
+    );
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     match hole_alpha {
@@ -565,7 +563,7 @@ pub(crate) fn record_compose(
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
     p.set_pipeline(&kit.blend.compose);
-    p.set_bind_group(0, &f.groups().blend[0][0], &[off]);
+    p.set_bind_group(0, &Binder::new(ctx, kit, f).blend(0, 0), &[off]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     rec.end(PassId::Compose, 1, vec![], q)
@@ -623,7 +621,7 @@ pub(crate) fn record_output(
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
     let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
     p.set_pipeline(&kit.output.pipeline);
-    p.set_bind_group(0, &f.groups().output[cur.colour], &[]);
+    p.set_bind_group(0, &Binder::new(ctx, kit, f).output(cur.colour), &[]);
     p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     rec.end(PassId::Output, 1, vec![], q)
