@@ -65,3 +65,25 @@ pub fn dump(name: &str, f: &stipple_render::Frame) {
     let _ =
         stipple_io::image::write_png(&dir.join(format!("{name}.png")), f.width, f.height, &f.rgba);
 }
+
+/// The same frame on the CPU and, where an adapter exists, on the GPU (see [`gpu`]): any
+/// pipeline runs through both backends' one schedule.
+pub fn both(
+    cloud: &stipple_render::PreparedCloud,
+    camera: &stipple_core::Camera,
+    pipe: &stipple_render::Pipeline,
+) -> Option<(stipple_render::Frame, stipple_render::Frame)> {
+    let mut g = gpu()?;
+    let a = cpu().render(cloud, camera, pipe).expect("cpu frame");
+    let b = g.render(cloud, camera, pipe).expect("gpu frame");
+    Some((a, b))
+}
+
+/// Share of pixels whose colours differ by at most `levels` in every channel.
+pub fn agreeing(a: &[u8], b: &[u8], levels: u8) -> f64 {
+    let n = a.len() / 4;
+    let ok = (0..n)
+        .filter(|&k| (0..3).all(|i| a[4 * k + i].abs_diff(b[4 * k + i]) <= levels))
+        .count();
+    ok as f64 / n as f64
+}
