@@ -29,6 +29,18 @@ pub enum IoError {
     Unsupported { path: PathBuf, message: String },
 }
 
+/// What is wrong with a cloud held in memory (no file name: [`IoError`] adds it when the
+/// bytes came from a file).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ParseError(pub String);
+
+impl From<String> for ParseError {
+    fn from(m: String) -> ParseError {
+        ParseError(m)
+    }
+}
+
 impl IoError {
     pub fn io(path: &Path, source: std::io::Error) -> IoError {
         IoError::Io {

@@ -550,11 +550,15 @@ fn read_ply_bytes(path: &Path) -> Result<Vec<u8>, IoError> {
 /// Reads a PLY file (gzip-compressed or not).
 pub fn read_ply(path: &Path) -> Result<PointCloud, IoError> {
     let data = read_ply_bytes(path)?;
-    parse_ply(&data).map_err(|m| IoError::invalid(path, m))
+    parse_bytes(&data).map_err(|m| IoError::invalid(path, m))
 }
 
 /// Parses PLY bytes.
-pub fn parse_ply(data: &[u8]) -> Result<PointCloud, String> {
+pub fn parse_ply(data: &[u8]) -> Result<PointCloud, crate::ParseError> {
+    parse_bytes(data).map_err(crate::ParseError)
+}
+
+fn parse_bytes(data: &[u8]) -> Result<PointCloud, String> {
     let h = parse_header(data)?;
     let body = &data[h.data_start..];
     match h.encoding {

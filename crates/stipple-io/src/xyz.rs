@@ -66,7 +66,7 @@ pub fn read_xyz(path: &Path) -> Result<PointCloud, IoError> {
             ),
         )
     })?;
-    parse_xyz(text).map_err(|m| IoError::invalid(path, m))
+    parse_text(text).map_err(|m| IoError::invalid(path, m))
 }
 
 /// The longest line a text point file may have (a point with dozens of attributes takes a
@@ -74,7 +74,11 @@ pub fn read_xyz(path: &Path) -> Result<PointCloud, IoError> {
 pub const MAX_LINE: usize = 64 << 10;
 
 /// Parses the text of a point file (see [`read_xyz`] for the layouts understood).
-pub fn parse_xyz(text: &str) -> Result<PointCloud, String> {
+pub fn parse_xyz(text: &str) -> Result<PointCloud, crate::ParseError> {
+    parse_text(text).map_err(crate::ParseError)
+}
+
+fn parse_text(text: &str) -> Result<PointCloud, String> {
     let mut names: Option<Vec<Col>> = None;
     let mut ncols = 0usize;
     let mut rows: Vec<f64> = Vec::new();

@@ -3,8 +3,17 @@
 
 pub use stipple_core::sys::{address_space_limit, available_memory, peak_rss, total_memory};
 
+/// A size or count that is not one (the message quotes what was given).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct FigureError(pub String);
+
 /// Parses `512M`, `6G`, `1.5GiB`, `100000000` (bytes), case-insensitive.
-pub fn parse_size(s: &str) -> Result<u64, String> {
+pub fn parse_size(s: &str) -> Result<u64, FigureError> {
+    size(s).map_err(FigureError)
+}
+
+fn size(s: &str) -> Result<u64, String> {
     let t = s.trim().to_ascii_lowercase();
     let t = t.trim_end_matches("ib").trim_end_matches('b');
     let (num, mul) = match t.chars().last() {
@@ -25,7 +34,11 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
 }
 
 /// Parses a count such as `5000000`, `5M`, `2.5m`, `32k`, `1e9`.
-pub fn parse_count(s: &str) -> Result<u64, String> {
+pub fn parse_count(s: &str) -> Result<u64, FigureError> {
+    count(s).map_err(FigureError)
+}
+
+fn count(s: &str) -> Result<u64, String> {
     let t = s.trim().to_ascii_lowercase().replace('_', "");
     let (num, mul) = match t.chars().last() {
         Some('k') => (&t[..t.len() - 1], 1e3),

@@ -26,15 +26,20 @@ impl Iterations {
     }
 
     /// Parses `N` or `auto` (until stable, at most 64 iterations).
-    pub fn parse(s: &str) -> Result<Iterations, String> {
+    pub fn parse(s: &str) -> Result<Iterations, IterationsError> {
         if s == "auto" {
             return Ok(Iterations::UntilStable { max: 64 });
         }
         s.parse::<u32>()
             .map(Iterations::Fixed)
-            .map_err(|_| format!("`{s}` is not an iteration count (a number or `auto`)"))
+            .map_err(|_| IterationsError(s.to_string()))
     }
 }
+
+/// Text that is not an iteration count.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("`{0}` is not an iteration count (a number or `auto`)")]
+pub struct IterationsError(pub String);
 
 /// Low-pass kernels of Dobrev Table 1.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -13,7 +13,7 @@ use stipple_lod::Phase;
 const ABORT_ENV: &str = "STIPPLE_TEST_ABORT_BUILD_AFTER_CHUNKS";
 
 fn parse_m(s: &str) -> std::result::Result<u32, String> {
-    let v = parse_count(s)?;
+    let v = parse_count(s).map_err(|e| e.to_string())?;
     if !(2..=1 << 24).contains(&v) {
         return Err(format!("`{s}`: the node size must lie in 2..16M"));
     }

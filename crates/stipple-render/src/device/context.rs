@@ -48,11 +48,16 @@ pub struct AdapterReport {
     pub max_storage_binding: u64,
     pub max_buffer: u64,
     /// `Err(reason)` when the pipeline cannot run on it.
-    pub suitable: Result<(), String>,
+    pub suitable: Result<(), Unsupported>,
     /// `Err(reason)` when the hardware projection path (`--projection hardware`, a
     /// baseline) cannot run on it: its colour targets must be renderable.
-    pub hardware_projection: Result<(), String>,
+    pub hardware_projection: Result<(), Unsupported>,
 }
+
+/// Why an adapter cannot run something (a missing feature, limit or format).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct Unsupported(pub String);
 
 /// Whether the hardware projection's render targets work on `a`.
 fn hardware_projection(a: &Adapter) -> Result<(), String> {
@@ -82,8 +87,8 @@ impl AdapterReport {
             timestamps: f.contains(Features::TIMESTAMP_QUERY),
             max_storage_binding: l.max_storage_buffer_binding_size,
             max_buffer: l.max_buffer_size,
-            suitable: suitability(a),
-            hardware_projection: hardware_projection(a),
+            suitable: suitability(a).map_err(Unsupported),
+            hardware_projection: hardware_projection(a).map_err(Unsupported),
         }
     }
 
