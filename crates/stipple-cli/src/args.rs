@@ -6,7 +6,7 @@ use glam::DVec3;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use stipple_core::demo::{self, DemoScene};
-use stipple_core::{Camera, PointCloud, Projection};
+use stipple_core::{Camera, PointCloud};
 use stipple_render::gpu::{GpuOptions, ProjectionPath};
 use stipple_render::pipeline::{
     ColourPass, GeometryPass, Iterations, Kernel, Pipeline, RawSettings, RawShading,
@@ -111,12 +111,6 @@ fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
 /// Below this address-space limit (`ulimit -v`) `--backend auto` does not probe GPU drivers.
 pub const AUTO_PROBE_MIN_ADDRESS_SPACE: u64 = 8 << 30;
 
-/// The image size when neither the command line nor a scene gives one.
-pub const DEFAULT_SIZE: (u32, u32) = (1024, 1024);
-
-/// The vertical field of view when neither the command line nor a scene gives one.
-pub const DEFAULT_FOV: f64 = 45.0;
-
 /// The background when neither the command line nor a scene gives one.
 pub const DEFAULT_BACKGROUND: [u8; 3] = [24, 26, 31];
 
@@ -155,27 +149,15 @@ impl CameraArgs {
     /// The camera for a scene with these world bounds (a LOD tree's root box): the default
     /// framing (Z-up when `z_up`), then the overrides.
     pub fn build_framed(&self, lo: DVec3, hi: DVec3, z_up: bool) -> Result<Camera> {
-        let (w, h) = self.size.unwrap_or(DEFAULT_SIZE);
-        let mut cam = Camera::framing_up(lo, hi, w, h, self.fov.unwrap_or(DEFAULT_FOV), z_up);
-        let framed_dir = cam.eye - cam.target;
-        if let Some(t) = self.target {
-            cam.target = t;
-            if self.eye.is_none() {
-                cam.eye = t + framed_dir;
-            }
-        }
-        if let Some(e) = self.eye {
-            cam.eye = e;
-        }
-        if let Some(u) = self.up {
-            cam.up = u;
-        }
-        if let Some(hh) = self.ortho {
-            cam.projection = Projection::Orthographic { height: hh };
-        }
-        cam.validate().map_err(|e| anyhow!("camera: {e}"))?;
-        cam.fit_clip(lo, hi);
-        Ok(cam)
+        let spec = stipple_scene::file::CameraSpec {
+            eye: self.eye.map(|v| v.to_array()),
+            target: self.target.map(|v| v.to_array()),
+            up: self.up.map(|v| v.to_array()),
+            fov: self.fov,
+            size: self.size.map(|(w, h)| [w, h]),
+        };
+        spec.camera(lo, hi, z_up, self.ortho)
+            .map_err(|e| anyhow!("camera: {e}"))
     }
 }
 

@@ -26,6 +26,11 @@ pub struct SceneFile {
     pub lights: Vec<LightSpec>,
 }
 
+/// The image size when neither the caller nor the scene gives one.
+pub const DEFAULT_SIZE: (u32, u32) = (1024, 1024);
+/// The vertical field of view (degrees) when neither the caller nor the scene gives one.
+pub const DEFAULT_FOV: f64 = 45.0;
+
 #[derive(Deserialize, Debug, Default, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct CameraSpec {
@@ -473,7 +478,53 @@ fn q(x: f64, unit: f64) -> i64 {
     (x / unit * 1e6).round() as i64
 }
 
+impl CameraSpec {
+    /// The camera for a scene whose world bounds are `lo`..`hi`: the default framing (from
+    /// the side, Z up when `z_up`), then what the spec gives: a target moves the framed view
+    /// with it, an eye replaces it; an orthographic view of height `ortho` if given. Near and
+    /// far always fit the bounds.
+    pub fn camera(
+        &self,
+        lo: glam::DVec3,
+        hi: glam::DVec3,
+        z_up: bool,
+        ortho: Option<f64>,
+    ) -> std::result::Result<stipple_core::Camera, stipple_core::camera::CameraError> {
+        let (w, h) = self.size.map(|[w, h]| (w, h)).unwrap_or(DEFAULT_SIZE);
+        let fov = self.fov.unwrap_or(DEFAULT_FOV);
+        let mut cam = stipple_core::Camera::framing_up(lo, hi, w, h, fov, z_up);
+        let framed_dir = cam.eye - cam.target;
+        if let Some(t) = self.target.map(DVec3::from) {
+            cam.target = t;
+            if self.eye.is_none() {
+                cam.eye = t + framed_dir;
+            }
+        }
+        if let Some(e) = self.eye {
+            cam.eye = DVec3::from(e);
+        }
+        if let Some(u) = self.up {
+            cam.up = DVec3::from(u);
+        }
+        if let Some(hh) = ortho {
+            cam.projection = stipple_core::Projection::Orthographic { height: hh };
+        }
+        cam.validate()?;
+        cam.fit_clip(lo, hi);
+        Ok(cam)
+    }
+}
+
 impl LoadedScene {
+    /// The scene's camera for its merged cloud (see [`CameraSpec::camera`]).
+    pub fn camera(
+        &self,
+        cloud: &PreparedCloud,
+    ) -> std::result::Result<stipple_core::Camera, stipple_core::camera::CameraError> {
+        let (lo, hi) = cloud.cloud.world_bounds();
+        self.camera.camera(lo, hi, cloud.cloud.z_up, None)
+    }
+
     /// Gives a pipeline the scene's lights (where it lists any), its background (unless
     /// `keep_background`: the user chose one) and its `layers` (where set).
     pub fn apply_to(&self, pipe: &mut stipple_render::Pipeline, keep_background: bool) {
@@ -753,5 +804,34 @@ samples = 8
             kept.background,
             stipple_render::Pipeline::default().background
         );
+    }
+
+    /// The scene's camera: its size, fov and target, the framing's direction kept, near and
+    /// far around the cloud.
+    #[test]
+    fn the_scene_camera_applies_the_spec_over_the_framing() {
+        let d = tmp("camera");
+        let p = write(
+            &d,
+            "c.toml",
+            "[camera]\nsize = [320, 200]\nfov = 30\ntarget = [0.5, 0, 0]\n\
+             [[cloud]]\ndemo = \"sphere\"\npoints = 500\n",
+        );
+        let (c, s) = load(&p).unwrap();
+        let cam = s.camera(&c).unwrap();
+        assert_eq!((cam.width, cam.height), (320, 200));
+        assert_eq!(
+            cam.projection,
+            stipple_core::Projection::Perspective { fov_deg: 30.0 }
+        );
+        assert_eq!(cam.target, DVec3::new(0.5, 0.0, 0.0));
+        let framed = CameraSpec::default()
+            .camera(DVec3::splat(-1.0), DVec3::splat(1.0), false, None)
+            .unwrap();
+        let dir = |e: DVec3, t: DVec3| (e - t).normalize();
+        assert!(dir(cam.eye, cam.target).dot(dir(framed.eye, framed.target)) > 0.999);
+        let dist = (cam.eye - DVec3::new(0.5, 0.0, 0.0)).length();
+        assert!(cam.near < dist - 0.9 && cam.far > dist + 0.9, "{cam:?}");
+        std::fs::remove_dir_all(d).unwrap();
     }
 }
