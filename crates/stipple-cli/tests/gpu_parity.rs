@@ -8,28 +8,11 @@
 //! such a point to the neighbouring pixel. So at most 0.1% of pixels may differ. Skipped
 //! without a GPU adapter unless STIPPLE_REQUIRE_GPU=1.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use common::gpu_available;
+use std::path::Path;
 use std::process::Command;
-
-fn tempdir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("stipple-gpu-parity-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn gpu_available() -> bool {
-    match stipple_render::gpu::GpuContext::new(Default::default()) {
-        Ok(_) => true,
-        Err(e) => {
-            if std::env::var("STIPPLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("STIPPLE_REQUIRE_GPU=1 but there is no usable GPU adapter: {e}");
-            }
-            eprintln!("skipped: no GPU adapter ({e})");
-            false
-        }
-    }
-}
 
 fn render(dir: &Path, tag: &str, backend: &str, args: &[&str]) -> (Vec<u8>, Vec<f32>) {
     let name = tag.replace(['/', '.'], "_");
@@ -78,7 +61,7 @@ fn gpu_and_cpu_render_the_same_frames() {
     if !gpu_available() {
         return;
     }
-    let dir = tempdir();
+    let dir = common::tempdir("gpu-parity");
     let size = ["--size", "384x288"];
     for scene in ["plane-objects", "sphere", "torus", "nested-tori"] {
         let mut a = vec!["--demo", scene, "--points", "150000"];

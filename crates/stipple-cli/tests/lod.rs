@@ -2,14 +2,8 @@
 
 mod common;
 
-use common::{stipple, stipple_env, text};
+use common::{ok, stipple, stipple_env, text};
 use std::path::{Path, PathBuf};
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let o = stipple(dir, args);
-    assert!(o.status.success(), "stipple {args:?}: {}", text(&o));
-    text(&o)
-}
 
 fn tempdir(tag: &str) -> PathBuf {
     common::tempdir(&format!("lod-{tag}"))

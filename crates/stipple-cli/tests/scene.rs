@@ -1,7 +1,7 @@
 //! Scene files, depth peeling, transparency and shadow caches through the `stipple` binary.
 
 mod common;
-use common::{stipple, tempdir, text};
+use common::{ok, stipple, tempdir, text};
 use std::path::Path;
 
 const SCENE: &str = r#"
@@ -39,13 +39,6 @@ fn scene(dir: &Path, tx: f64, lx: f64) {
         .replace("TX", &format!("{tx:.1}"))
         .replace("LX", &format!("{lx:.1}"));
     std::fs::write(dir.join("s.toml"), s).unwrap();
-}
-
-fn ok(dir: &Path, args: &[&str]) -> String {
-    let o = stipple(dir, args);
-    let t = text(&o);
-    assert!(o.status.success(), "{args:?}: {t}");
-    t
 }
 
 #[test]

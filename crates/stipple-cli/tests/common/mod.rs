@@ -33,3 +33,26 @@ pub fn tempdir(tag: &str) -> PathBuf {
     std::fs::create_dir_all(&d).unwrap();
     d
 }
+
+/// Runs stipple and returns its output text, failing the test (with that text) on an error.
+pub fn ok(dir: &Path, args: &[&str]) -> String {
+    let o = stipple(dir, args);
+    let t = text(&o);
+    assert!(o.status.success(), "stipple {args:?}: {t}");
+    t
+}
+
+/// Whether a GPU adapter exists; without one the test skips, with a printed reason, unless
+/// STIPPLE_REQUIRE_GPU=1 makes that a failure.
+pub fn gpu_available() -> bool {
+    match stipple_render::gpu::GpuContext::new(Default::default()) {
+        Ok(_) => true,
+        Err(e) => {
+            if std::env::var("STIPPLE_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("STIPPLE_REQUIRE_GPU=1 but there is no usable GPU adapter: {e}");
+            }
+            eprintln!("skipped: no GPU adapter ({e})");
+            false
+        }
+    }
+}
