@@ -77,6 +77,22 @@ impl<'a> Rec<'a> {
             .forget_lifetime()
     }
 
+    /// One compute pass of a single dispatch of `grid` workgroups (the shape of most image
+    /// passes), timed with the section's queries `q`.
+    pub(crate) fn image_pass(
+        &mut self,
+        q: Option<(u32, u32)>,
+        pipeline: &wgpu::ComputePipeline,
+        group: &wgpu::BindGroup,
+        offsets: &[u32],
+        grid: (u32, u32),
+    ) {
+        let mut p = self.cpass(q.map(|q| q.0), q.map(|q| q.1));
+        p.set_pipeline(pipeline);
+        p.set_bind_group(0, group, offsets);
+        p.dispatch_workgroups(grid.0, grid.1, 1);
+    }
+
     pub(crate) fn start(&mut self) {
         self.started = Instant::now();
     }

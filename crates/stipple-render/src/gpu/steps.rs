@@ -257,11 +257,13 @@ pub(crate) fn record_geometry(
             })?;
             let q = rec.queries();
             let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
-            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-            p.set_pipeline(&kit.visibility.pipeline);
-            p.set_bind_group(0, &Binder::new(ctx, kit, f).visibility(cur.g), &[off]);
-            p.dispatch_workgroups(gx, gy, 1);
-            drop(p);
+            rec.image_pass(
+                q,
+                &kit.visibility.pipeline,
+                &Binder::new(ctx, kit, f).visibility(cur.g),
+                &[off],
+                (gx, gy),
+            );
             cur.g = 1 - cur.g;
             return rec.end(pass.id(), 1, vec![slot], q);
         }
@@ -380,11 +382,7 @@ pub(crate) fn record_colour(
         let missing = || GpuError::Wgpu(format!("pixel pass {} was not set up", pp.name()));
         let pass = kit.pixel.get(pp.name()).ok_or_else(missing)?;
         let group = Binder::new(ctx, kit, f).pixel(pp.name(), pass, cur.g, cur.colour);
-        let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-        p.set_pipeline(&pass.pipeline);
-        p.set_bind_group(0, &group, &[off]);
-        p.dispatch_workgroups(gx, gy, 1);
-        drop(p);
+        rec.image_pass(q, &pass.pipeline, &group, &[off], (gx, gy));
         cur.colour = 1 - cur.colour;
         return rec.end(pp.id(), 1, vec![], q);
     }
@@ -413,11 +411,13 @@ pub(crate) fn record_colour(
                 strength,
                 slot,
             })?;
-            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-            p.set_pipeline(&kit.antialias.pipeline);
-            p.set_bind_group(0, &Binder::new(ctx, kit, f).antialias(cur.colour), &[off]);
-            p.dispatch_workgroups(gx, gy, 1);
-            drop(p);
+            rec.image_pass(
+                q,
+                &kit.antialias.pipeline,
+                &Binder::new(ctx, kit, f).antialias(cur.colour),
+                &[off],
+                (gx, gy),
+            );
             cur.colour = 1 - cur.colour;
             rec.end(PassId::Antialias, 1, vec![slot], q)
         }
@@ -492,11 +492,13 @@ pub(crate) fn record_colour(
         }
         ColourPass::Edl { strength, radius } => {
             let off = rec.arena.push(&EdlBlock::new(strength, radius))?;
-            let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-            p.set_pipeline(&kit.edl.pipeline);
-            p.set_bind_group(0, &Binder::new(ctx, kit, f).edl(cur.colour), &[off]);
-            p.dispatch_workgroups(gx, gy, 1);
-            drop(p);
+            rec.image_pass(
+                q,
+                &kit.edl.pipeline,
+                &Binder::new(ctx, kit, f).edl(cur.colour),
+                &[off],
+                (gx, gy),
+            );
             cur.colour = 1 - cur.colour;
             rec.end(PassId::Edl, 1, vec![], q)
         }
@@ -561,11 +563,13 @@ pub(crate) fn record_compose(
     })?;
     let q = rec.queries();
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
-    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-    p.set_pipeline(&kit.blend.compose);
-    p.set_bind_group(0, &Binder::new(ctx, kit, f).blend(0, 0), &[off]);
-    p.dispatch_workgroups(gx, gy, 1);
-    drop(p);
+    rec.image_pass(
+        q,
+        &kit.blend.compose,
+        &Binder::new(ctx, kit, f).blend(0, 0),
+        &[off],
+        (gx, gy),
+    );
     rec.end(PassId::Compose, 1, vec![], q)
 }
 
@@ -619,10 +623,12 @@ pub(crate) fn record_output(
     rec.start();
     let q = rec.queries();
     let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
-    let mut p = rec.cpass(q.map(|q| q.0), q.map(|q| q.1));
-    p.set_pipeline(&kit.output.pipeline);
-    p.set_bind_group(0, &Binder::new(ctx, kit, f).output(cur.colour), &[]);
-    p.dispatch_workgroups(gx, gy, 1);
-    drop(p);
+    rec.image_pass(
+        q,
+        &kit.output.pipeline,
+        &Binder::new(ctx, kit, f).output(cur.colour),
+        &[],
+        (gx, gy),
+    );
     rec.end(PassId::Output, 1, vec![], q)
 }
