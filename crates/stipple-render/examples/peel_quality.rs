@@ -62,6 +62,7 @@ fn main() {
             / (2.0 * 3.5 * 10f64.to_radians().tan() / size as f64);
         let mut pipe = Pipeline {
             layers: 4,
+            keep_layers: std::env::var("PEEL_QUALITY_OUT").is_ok(),
             lighting: false,
             ..Pipeline::default()
         };
@@ -81,10 +82,15 @@ fn main() {
         if let Ok(dir) = std::env::var("PEEL_QUALITY_OUT") {
             let out = std::path::Path::new(&dir).join(format!("peel-{size}.png"));
             stipple_io::image::write_png(&out, size, size, &f.rgba).unwrap();
+            for (k, l) in f.layers.iter().enumerate() {
+                let out = std::path::Path::new(&dir).join(format!("peel-{size}-layer{k}.png"));
+                stipple_io::image::write_png(&out, size, size, l).unwrap();
+            }
         }
         // The sphere's screen radius: 0.5 at distance ~4 under a 20° fov.
         let rad = 0.5 / (4.0 * (10f64.to_radians()).tan()) * size as f64 / 2.0;
         let (mut err, mut lum, mut count) = (0.0, Vec::new(), 0);
+        let mut signed = [0.0f64; 3];
         for j in 0..size {
             for i in 0..size {
                 let dx = i as f64 + 0.5 - size as f64 / 2.0;
@@ -94,7 +100,9 @@ fn main() {
                 }
                 let k = ((j * size + i) * 4) as usize;
                 for ch in 0..3 {
-                    err += (f.rgba[k + ch] as f64 - want8[ch] as f64).abs();
+                    let d = f.rgba[k + ch] as f64 - want8[ch] as f64;
+                    err += d.abs();
+                    signed[ch] += d;
                 }
                 let l: f32 = (0..3)
                     .map(|ch| lut[f.rgba[k + ch] as usize] * [0.2126, 0.7152, 0.0722][ch])
@@ -107,8 +115,11 @@ fn main() {
         let sd =
             (lum.iter().map(|l| (l - mean) * (l - mean)).sum::<f64>() / lum.len() as f64).sqrt();
         println!(
-            "{size}²: points {spacing:.2} px apart, {count} interior pixels, mean error {:.2} levels, sd of luminance {sd:.4}, layers {}",
+            "{size}²: points {spacing:.2} px apart, {count} interior pixels, mean error {:.2} levels (rgb bias {:.1} {:.1} {:.1}), sd of luminance {sd:.4}, layers {}",
             err / (3 * count) as f64,
+            signed[0] / count as f64,
+            signed[1] / count as f64,
+            signed[2] / count as f64,
             f.layers_peeled
         );
     }
