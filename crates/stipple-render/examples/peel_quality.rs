@@ -25,7 +25,7 @@ fn main() {
         col.push(sphere_c);
         a.push(0.5f32);
     }
-    let k = 400;
+    let k = 280;
     for i in 0..k {
         for j in 0..k {
             let x = (i as f32 + rng.f32()) / k as f32 * 2.0 - 1.0;
@@ -46,7 +46,15 @@ fn main() {
     let (s, pl) = (lin(sphere_c), lin(plane_c));
     let want: [f32; 3] = std::array::from_fn(|i| 0.5 * s[i] + 0.25 * s[i] + 0.25 * pl[i]);
     let want8 = want.map(stipple_render::srgb::linear_to_srgb8);
-    for size in [200u32, 256, 320, 400] {
+    for size in std::env::var("PEEL_QUALITY_SIZES")
+        .ok()
+        .map(|s| {
+            s.split(",")
+                .map(|v| v.parse().unwrap())
+                .collect::<Vec<u32>>()
+        })
+        .unwrap_or(vec![200, 256, 320, 400])
+    {
         let cam = Camera {
             eye: DVec3::new(0.0, 0.0, 4.0),
             target: DVec3::ZERO,
@@ -115,7 +123,8 @@ fn main() {
         let sd =
             (lum.iter().map(|l| (l - mean) * (l - mean)).sum::<f64>() / lum.len() as f64).sqrt();
         println!(
-            "{size}²: points {spacing:.2} px apart, {count} interior pixels, mean error {:.2} levels (rgb bias {:.1} {:.1} {:.1}), sd of luminance {sd:.4}, layers {}",
+            "{size}²: points {spacing:.2} px apart (median neighbour {:.2} px), {count} interior pixels, mean error {:.2} levels (rgb bias {:.1} {:.1} {:.1}), sd of luminance {sd:.4}, layers {}",
+            cloud.screen_spacing(&cam),
             err / (3 * count) as f64,
             signed[0] / count as f64,
             signed[1] / count as f64,

@@ -340,7 +340,41 @@ impl Pipeline {
                 }
             }
         }
+        if p.layers > 1 {
+            // Peeled layers: the fills follow the spacing (see `peel_fill_iterations`).
+            let want = peel_fill_iterations(px);
+            for g in &mut p.geometry {
+                if let GeometryPass::FillBackground { iterations, .. }
+                | GeometryPass::FillOccluded { iterations, .. } = g
+                {
+                    if let Iterations::Fixed(n) = iterations {
+                        *n = (*n).max(want);
+                    }
+                }
+            }
+        }
         p
+    }
+}
+
+/// Fill iterations of each peeled layer for points `spacing_px` pixels apart on screen (the
+/// median distance to the nearest neighbour, as [`crate::PreparedCloud::screen_spacing`]
+/// gives it; a pipeline asking for fewer gets these): 1 below 0.65 px, 2 below 1 px, then 3.
+/// Why: a layer's holes grow with the spacing and each iteration closes one pixel from each
+/// side; an unfilled hole of a front layer lets the surface behind win that pixel, which then
+/// shows once too often in the composite (the blotches of a transparent sphere), while more
+/// iterations than the holes need smear a layer's edge. Measured with
+/// `examples/peel_quality.rs` (a sphere of opacity 0.5 over a plane, errors to the analytic
+/// composite in 8-bit levels): at 0.39 px 1 iteration errs by 0.00 and 2 by 3.1; at 0.71 px
+/// 2 iterations by 0.07 and 1 by 1.3; at 1.1 px 3 iterations by 0.02, 2 by 0.20 and 1 by
+/// 4.4; at 1.33 px 3 by 0.63 and 2 by 2.9.
+pub fn peel_fill_iterations(spacing_px: f32) -> u32 {
+    if !spacing_px.is_finite() || spacing_px < 0.65 {
+        1
+    } else if spacing_px < 1.0 {
+        2
+    } else {
+        3
     }
 }
 

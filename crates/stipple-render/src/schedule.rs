@@ -59,8 +59,9 @@ pub trait PassExec {
     /// Keeps the current layer's own image (layer `k`, counted from 0).
     fn keep_layer(&mut self, k: u32) -> Result<(), Self::Error>;
 
-    /// The current layer's surface depth becomes the reference the next layer peels behind.
-    fn peel_behind(&mut self) -> Result<(), Self::Error>;
+    /// The current layer's surface depth becomes the reference the next layer peels behind
+    /// (see `passes::project::cpu::peel_reference`; `gap` is d̃).
+    fn peel_behind(&mut self, gap: f32) -> Result<(), Self::Error>;
 
     /// Composes the accumulator over the background into the colour image.
     fn compose(&mut self) -> Result<(), Self::Error>;
@@ -102,7 +103,7 @@ pub fn frame<X: PassExec>(x: &mut X, pipe: &Pipeline, gap: f32) -> Result<u32, X
             x.keep_layer(k)?;
         }
         if k + 1 < layers {
-            x.peel_behind()?;
+            x.peel_behind(gap)?;
         }
     }
     x.compose()?;
@@ -209,7 +210,7 @@ mod tests {
             self.steps.push(format!("keep_layer({k})"));
             Ok(())
         }
-        fn peel_behind(&mut self) -> Result<(), ()> {
+        fn peel_behind(&mut self, _gap: f32) -> Result<(), ()> {
             self.steps.push("peel_behind".into());
             Ok(())
         }

@@ -457,9 +457,15 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         Ok(())
     }
 
-    fn peel_behind(&mut self) -> Result<(), Self::Error> {
-        let r = &mut *self.r;
-        r.peel_ref.copy_from_slice(&r.surface_depth);
+    fn peel_behind(&mut self, gap: f32) -> Result<(), Self::Error> {
+        let (r, v) = (&mut *self.r, self.v);
+        let bound = project::PEEL_NEIGHBOUR_GAPS * gap;
+        let (w, h) = (v.width as usize, v.height as usize);
+        let (sd, pr) = (&r.surface_depth, &mut r.peel_ref);
+        timed(&mut self.stats, PassId::PeelReference, || {
+            project::peel_reference(w, h, sd, bound, pr);
+            ((), 1, 0)
+        });
         Ok(())
     }
 

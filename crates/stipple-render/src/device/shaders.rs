@@ -11,6 +11,7 @@ const PROJECT_ATOMIC64: &str = include_str!("../passes/project/project_atomic64.
 const PROJECT_ATOMIC32: &str = include_str!("../passes/project/project_atomic32.wgsl");
 const PROJECT_HW: &str = include_str!("../passes/project/project_hw.wgsl");
 const RESOLVE: &str = include_str!("../passes/project/resolve.wgsl");
+const PEEL_REFERENCE: &str = include_str!("../passes/project/peel_reference.wgsl");
 const FILL: &str = include_str!("../passes/fill/fill.wgsl");
 const FILL_BACKGROUND: &str = include_str!("../passes/fill_background/fill_background.wgsl");
 const FILL_OCCLUDED: &str = include_str!("../passes/fill_occluded/fill_occluded.wgsl");
@@ -73,6 +74,11 @@ pub const PROJECT32: ShaderModule = ShaderModule {
 pub const PROJECT_HW_MODULE: ShaderModule = ShaderModule {
     name: "project_hw",
     parts: &[PROJECT_HW],
+    int64: false,
+};
+pub const PEEL_REFERENCE_MODULE: ShaderModule = ShaderModule {
+    name: "peel_reference",
+    parts: &[PEEL_REFERENCE],
     int64: false,
 };
 pub const RESOLVE_MODULE: ShaderModule = ShaderModule {
@@ -170,6 +176,7 @@ pub const ALL: &[ShaderModule] = &[
     PROJECT32,
     PROJECT_HW_MODULE,
     RESOLVE_MODULE,
+    PEEL_REFERENCE_MODULE,
     FILL_BACKGROUND_MODULE,
     FILL_OCCLUDED_MODULE,
     ITERATE_MODULE,

@@ -157,12 +157,9 @@ impl PassExec for GpuExec<'_> {
         Ok(())
     }
 
-    fn peel_behind(&mut self) -> Result<(), GpuError> {
-        let (n4, f) = (self.image_bytes(), self.f);
-        self.rec
-            .enc
-            .copy_buffer_to_buffer(&f.surface, 0, &f.peel_ref, 0, n4);
-        Ok(())
+    fn peel_behind(&mut self, gap: f32) -> Result<(), GpuError> {
+        let bound = crate::passes::project::cpu::PEEL_NEIGHBOUR_GAPS * gap;
+        record_peel_reference(&mut self.rec, self.kit, self.f, bound)
     }
 
     fn compose(&mut self) -> Result<(), GpuError> {

@@ -156,6 +156,7 @@ impl GpuRenderer {
             }),
             blend: BlendLayers::new(&ctx),
             mark: crate::passes::shadow_texture::gpu::new(&ctx),
+            peel_reference: crate::passes::project::gpu::peel_reference(&ctx),
             pixel: Default::default(),
         };
         let splat = crate::passes::splat::gpu::SplatGpu::new(&ctx);

@@ -66,6 +66,8 @@ pub(crate) struct Kit {
     pub(crate) materials: Buffer,
     pub(crate) blend: BlendLayers,
     pub(crate) mark: Pass,
+    /// The next peeled layer's reference depth.
+    pub(crate) peel_reference: Pass,
     /// Pixel passes' pipelines, made when a frame first uses them (by pass name).
     pub(crate) pixel: std::collections::HashMap<&'static str, Pass>,
 }
@@ -338,6 +340,22 @@ impl<'a> Binder<'a> {
                 Res::Buf(&self.f.vis_id),
                 Res::Buf(&self.f.depth[0]),
                 Res::Buf(&self.f.id[0]),
+            ],
+        )
+    }
+
+    pub(crate) fn peel_reference(&self) -> wgpu::BindGroup {
+        self.bind(
+            "peel_reference",
+            &self.kit.peel_reference.bgl,
+            &[
+                Res::Buf(&self.kit.view),
+                Res::Arena(
+                    &self.kit.arena,
+                    block::<crate::passes::project::gpu::PeelReferenceBlock>(),
+                ),
+                Res::Buf(&self.f.surface),
+                Res::Buf(&self.f.peel_ref),
             ],
         )
     }

@@ -632,3 +632,23 @@ pub(crate) fn record_output(
     );
     rec.end(PassId::Output, 1, vec![], q)
 }
+
+/// The next peeled layer's reference depth from the current surface depth (see
+/// `passes::project::cpu::peel_reference`); `bound` = 4 d̃.
+pub(crate) fn record_peel_reference(
+    rec: &mut Rec<'_>,
+    kit: &Kit,
+    f: &FrameBuffers,
+    bound: f32,
+) -> Result<(), GpuError> {
+    let ctx = rec.ctx;
+    rec.start();
+    let off = rec
+        .arena
+        .push(&crate::passes::project::gpu::PeelReferenceBlock { bound, pad: [0; 3] })?;
+    let q = rec.queries();
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let group = Binder::new(ctx, kit, f).peel_reference();
+    rec.image_pass(q, &kit.peel_reference.pipeline, &group, &[off], (gx, gy));
+    rec.end(PassId::PeelReference, 1, vec![], q)
+}

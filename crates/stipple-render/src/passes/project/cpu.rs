@@ -15,8 +15,23 @@
 //! ([`project`], the shape of the GPU kernel, used with many threads).
 //!
 //! Depth peeling (Dobrev §4–5, the `peel` argument): a later layer keeps only the points
-//! farther than the previous layer's surface depth at their pixel plus d̃, so points of the
+//! farther than the previous layer's reference depth at their pixel plus d̃, so points of the
 //! same surface layer that share a pixel (Fig. 11) are not peeled as layers of their own.
+//!
+//! Deviation from the paper (the reference, [`peel_reference`]): Dobrev compares with the
+//! previous layer's depth at the pixel. Where that layer was sloped, or where the fills closed
+//! a hole of it with a nearer neighbour's depth, points of the same surface lie farther than
+//! that depth plus d̃ and come back as a layer of their own: on a transparent sphere whose
+//! points land 2 px apart, a third and a fourth "sphere" layer fill a wide ring, and the
+//! composite is blotchy (issue "Depth-peeled transparency without blotches"). So the
+//! reference is the largest depth of the previous layer over the pixel's 3×3 neighbourhood,
+//! counting only neighbours at most 4 d̃ behind the pixel's own depth (a neighbour farther
+//! back belongs to another surface: a silhouette must not hide what is behind its edge). A
+//! point of a later layer must lie behind its whole neighbourhood of the layer in front:
+//! measured on that sphere over a plane (`examples/peel_quality.rs`, 1.2–2.3 px apart), the
+//! interior's error to the analytic composite drops from 0.7–4.0 to 0.1–0.2 levels and the
+//! standard deviation of its luminance from 0.003–0.011 to 0.001–0.002, together with fills
+//! that follow the spacing ([`crate::pipeline::peel_fill_iterations`]).
 //!
 //! Deviation from the paper: points are lit after visibility is resolved (in `shade`), not
 //! before projection. The lit colour of the winning point is the same, and only visible
@@ -74,6 +89,35 @@ pub fn back_facing(v: &ViewParams, p: Vec3, n: Vec3) -> bool {
 
 /// Points per parallel task.
 const BATCH: usize = 1 << 15;
+
+/// How far behind a pixel's own depth a neighbour may be and still count for the peel
+/// reference, in layer gaps d̃ (see the module documentation).
+pub const PEEL_NEIGHBOUR_GAPS: f32 = 4.0;
+
+/// The reference depth of the next peeled layer from a layer's surface depth `surface`
+/// (`w`×`h`, +inf where it shows nothing): per pixel the largest finite depth of its 3×3
+/// neighbourhood that lies at most `bound` (= [`PEEL_NEIGHBOUR_GAPS`] d̃) behind the pixel's
+/// own; +inf stays +inf (nothing lies behind an empty pixel).
+pub fn peel_reference(w: usize, h: usize, surface: &[f32], bound: f32, out: &mut [f32]) {
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let d0 = surface[y * w + x];
+            let mut m = d0;
+            if d0.is_finite() {
+                let limit = d0 + bound;
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let d = surface[yy * w + xx];
+                        if d.is_finite() && d > m && d <= limit {
+                            m = d;
+                        }
+                    }
+                }
+            }
+            *o = m;
+        }
+    });
+}
 
 /// Reference depths of a peel and d̃: keep only points deeper than `reference[pixel] + d̃`.
 pub type Peel<'a> = Option<(&'a [f32], f32)>;

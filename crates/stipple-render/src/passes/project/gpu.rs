@@ -34,6 +34,24 @@ pub(crate) struct ResolveBlock {
     pub pad: [u32; 3],
 }
 
+/// The uniform block of `peel_reference.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct PeelReferenceBlock {
+    pub bound: f32,
+    pub pad: [u32; 3],
+}
+
+/// The peel reference pass (see `cpu::peel_reference`).
+pub(crate) fn peel_reference(ctx: &GpuContext) -> crate::device::util::Pass {
+    crate::device::util::Pass::new(
+        &ctx.device,
+        &crate::device::shaders::PEEL_REFERENCE_MODULE,
+        "peel_reference",
+        &[UNIFORM, DYNAMIC, READ, WRITE],
+    )
+}
+
 pub(crate) struct Project {
     pub wide: Option<(wgpu::BindGroupLayout, wgpu::ComputePipeline)>,
     pub narrow_bgl: wgpu::BindGroupLayout,
