@@ -32,6 +32,7 @@ Examples:
   stipple render tile.laz --backend gpu             on the GPU (auto: GPU if usable, else CPU)
   stipple devices                                   GPU adapters and what they support
   stipple render tile.laz --raw --shading edl       raw-cloud pipeline with eye-dome lighting
+  stipple render tile.laz --depth-cue 0.6           far points fade into the background
   stipple render sparse.xyz --normal-out n.npy      splats; world-space normals per pixel
   stipple normals scan.xyz -o scan-normals.ply      estimate normals and splat radii
   stipple eval bun_zipper.ply                       raw rendering of a mesh's vertices vs the mesh
