@@ -21,13 +21,46 @@ use rayon::prelude::*;
 /// One iteration from `src` into `dst` with masks over the (2·radius+1)² window (radius 1 is
 /// the paper's 3×3); returns the number of pixels filled.
 pub fn fill_background(src: &GBuffer, dst: &mut GBuffer, radius: u32) -> u64 {
-    fill_pass(
+    let spans = point_spans(src, radius);
+    fill_pass_in(
         src,
         dst,
         radius,
+        Some(&spans),
         |_, id| !is_point(id),
         |_, _, _, nid| is_point(nid),
     )
+}
+
+/// Per row, the columns within `radius` of a point in rows `y − radius ..= y + radius`
+/// (`None`: no point that near): a background pixel outside that span has no point in its
+/// window, so no mask is blocked and it is never filled; the row loop skips the mask test
+/// there (the same result, much less work on a frame that is mostly background).
+fn point_spans(g: &GBuffer, radius: u32) -> Vec<Option<(i32, i32)>> {
+    let (w, h) = (g.width as usize, g.height as usize);
+    let rows: Vec<Option<(i32, i32)>> =
+        g.id.par_chunks(w)
+            .map(|row| {
+                let lo = row.iter().position(|&id| is_point(id))?;
+                let hi = row.iter().rposition(|&id| is_point(id))?;
+                Some((lo as i32, hi as i32))
+            })
+            .collect();
+    let r = radius as i32;
+    (0..h as i32)
+        .map(|y| {
+            let mut span: Option<(i32, i32)> = None;
+            for yy in (y - r).max(0)..=(y + r).min(h as i32 - 1) {
+                if let Some((lo, hi)) = rows[yy as usize] {
+                    span = Some(match span {
+                        None => (lo, hi),
+                        Some((a, b)) => (a.min(lo), b.max(hi)),
+                    });
+                }
+            }
+            span.map(|(lo, hi)| (lo - r, hi + r))
+        })
+        .collect()
 }
 
 /// The row loop both fill passes share: every pixel for which `candidate(depth, id)` holds
@@ -40,6 +73,19 @@ pub(crate) fn fill_pass(
     candidate: impl Fn(f32, u32) -> bool + Sync,
     solid: impl Fn(f32, f32, u32, u32) -> bool + Sync,
 ) -> u64 {
+    fill_pass_in(src, dst, radius, None, candidate, solid)
+}
+
+/// [`fill_pass`], testing only the columns of each row's span when `spans` is given (pixels
+/// outside it are copied: the caller knows no mask can be blocked there).
+fn fill_pass_in(
+    src: &GBuffer,
+    dst: &mut GBuffer,
+    radius: u32,
+    spans: Option<&[Option<(i32, i32)>]>,
+    candidate: impl Fn(f32, u32) -> bool + Sync,
+    solid: impl Fn(f32, f32, u32, u32) -> bool + Sync,
+) -> u64 {
     let (w, h) = (src.width as i32, src.height as i32);
     let win = window(radius);
     dst.depth
@@ -49,11 +95,19 @@ pub(crate) fn fill_pass(
         .map(|(y, (drow, irow))| {
             let y = y as i32;
             let mut changed = 0u64;
-            for x in 0..w {
+            let row = (y * w) as usize..((y + 1) * w) as usize;
+            drow.copy_from_slice(&src.depth[row.clone()]);
+            irow.copy_from_slice(&src.id[row]);
+            let (x0, x1) = match spans {
+                Some(s) => match s[y as usize] {
+                    Some((lo, hi)) => (lo.max(0), (hi + 1).min(w)),
+                    None => return 0,
+                },
+                None => (0, w),
+            };
+            for x in x0..x1 {
                 let k = (y * w + x) as usize;
                 let (d, id) = (src.depth[k], src.id[k]);
-                drow[x as usize] = d;
-                irow[x as usize] = id;
                 if !candidate(d, id) {
                     continue;
                 }
