@@ -742,10 +742,10 @@ impl PipelineArgs {
             return Err(anyhow!("--depth-cue {s}: must lie in 0..1"));
         }
         if s > 0.0 {
-            let lut = stipple_render::srgb::srgb_to_linear_table();
+            // Fades into the frame's background (a scene's, when it sets one).
             p.colour.push(ColourPass::DepthCue {
                 strength: s,
-                colour: p.background.map(|c| lut[c as usize]),
+                colour: None,
             });
         }
         Ok(())

@@ -57,14 +57,6 @@ pub fn apply(
     if let Some(s) = scene {
         s.apply_to(pipe, background_given);
     }
-    // --depth-cue fades into the background: the scene's, when it set one.
-    let lut = stipple_render::srgb::srgb_to_linear_table();
-    let background = pipe.background.map(|c| lut[c as usize]);
-    for c in &mut pipe.colour {
-        if let stipple_render::ColourPass::DepthCue { colour, .. } = c {
-            *colour = background;
-        }
-    }
     aim_area_lights(&mut pipe.lights, cloud);
     stipple_render::lights::validate(&pipe.lights).map_err(|e| anyhow!("--light: {e}"))?;
     pipe.layers = layers(look, scene);

@@ -116,9 +116,13 @@ pub enum ColourPass {
     /// Eye-dome lighting (as in Potree and CloudCompare): darkens pixels by how much nearer
     /// their neighbours at `radius` pixels are, in log2 depth; background neighbours outline.
     Edl { strength: f32, radius: f32 },
-    /// Depth cueing: covered pixels fade towards `colour` (linear RGB) by `strength` × their
-    /// depth between the near and far planes (see [`crate::passes::depth_cue`]).
-    DepthCue { strength: f32, colour: [f32; 3] },
+    /// Depth cueing: covered pixels fade towards `colour` (linear RGB; None: the pipeline's
+    /// background, filled in by [`Pipeline::resolved`]) by `strength` × their depth between
+    /// the near and far planes (see [`crate::passes::depth_cue`]).
+    DepthCue {
+        strength: f32,
+        colour: Option<[f32; 3]>,
+    },
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -333,11 +337,17 @@ impl Pipeline {
                 kernel = *k;
             }
         }
+        let lut = crate::srgb::srgb_to_linear_table();
+        let background = p.background.map(|c| lut[c as usize]);
         for c in &mut p.colour {
-            if let ColourPass::FillAnisotropic { iterations, .. } = c {
-                if *iterations == 0 {
+            match c {
+                ColourPass::FillAnisotropic { iterations, .. } if *iterations == 0 => {
                     *iterations = 2 * kernel;
                 }
+                ColourPass::DepthCue { colour, .. } if colour.is_none() => {
+                    *colour = Some(background);
+                }
+                _ => {}
             }
         }
         if p.layers > 1 {
@@ -489,10 +499,55 @@ impl ColourPass {
             ColourPass::DepthCue { strength, colour } => {
                 Some(Box::new(crate::passes::depth_cue::DepthCue {
                     strength,
-                    colour,
+                    colour: colour.unwrap_or([0.0; 3]),
                 }))
             }
             _ => None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use stipple_core::{Camera, Projection};
+
+    /// Depth cueing without a colour fades into the pipeline's background once resolved;
+    /// a given colour is kept.
+    #[test]
+    fn depth_cue_defaults_to_the_background_when_resolved() {
+        let cam = Camera {
+            eye: glam::DVec3::new(0.0, 0.0, 5.0),
+            target: glam::DVec3::ZERO,
+            up: glam::DVec3::Y,
+            projection: Projection::Perspective { fov_deg: 40.0 },
+            width: 8,
+            height: 8,
+            near: 1.0,
+            far: 9.0,
+        };
+        let v = crate::ViewParams::new(&cam, glam::DVec3::ZERO);
+        let mut p = Pipeline {
+            background: [255, 0, 0],
+            ..Pipeline::points_only()
+        };
+        p.colour.push(ColourPass::DepthCue {
+            strength: 0.5,
+            colour: None,
+        });
+        p.colour.push(ColourPass::DepthCue {
+            strength: 0.5,
+            colour: Some([0.0, 0.0, 1.0]),
+        });
+        let r = p.resolved(&v, 0.01, 5.0);
+        let colours: Vec<_> = r
+            .colour
+            .iter()
+            .map(|c| match c {
+                ColourPass::DepthCue { colour, .. } => *colour,
+                _ => None,
+            })
+            .collect();
+        assert_eq!(colours, [Some([1.0, 0.0, 0.0]), Some([0.0, 0.0, 1.0])]);
     }
 }

@@ -617,11 +617,11 @@ fn pixel_passes_match_the_cpu() {
     let passes = [
         ColourPass::DepthCue {
             strength: 0.7,
-            colour: [0.1, 0.2, 0.3],
+            colour: Some([0.1, 0.2, 0.3]),
         },
         ColourPass::DepthCue {
             strength: 1.0,
-            colour: [0.0; 3],
+            colour: Some([0.0; 3]),
         },
     ];
     for pass in passes {
@@ -752,7 +752,7 @@ fn whole_pipelines_match_on_both_backends() {
     let mut cue = Pipeline::default();
     cue.colour.push(ColourPass::DepthCue {
         strength: 0.8,
-        colour: [0.0; 3],
+        colour: None,
     });
     let cases = [
         ("default", Pipeline::default()),

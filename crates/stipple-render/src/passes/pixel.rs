@@ -33,13 +33,8 @@ pub trait PixelPass: Send + Sync {
     /// The CPU reference: writes every pixel of `dst`; returns what the statistics count
     /// (pixels changed, or 0).
     fn cpu(&self, v: &ViewParams, input: &PixelImages<'_>, dst: &mut [[f32; 3]]) -> u64;
-    /// The WGSL module ([`pixel_module`] of the pass's file).
+    /// The WGSL module: `ShaderModule::new(name, &[PIXEL_PASS, include_str!(its file)])`.
     fn module(&self) -> &'static ShaderModule;
     /// The pass's uniform block (binding 1; at most 128 bytes).
     fn block(&self, v: &ViewParams) -> Vec<u8>;
-}
-
-/// The shader module of a pixel pass whose WGSL is `source` (see the module documentation).
-pub const fn pixel_module(name: &'static str, parts: &'static [&'static str]) -> ShaderModule {
-    ShaderModule::new(name, parts)
 }

@@ -10,7 +10,7 @@
 //! it is this folder, its variant [`crate::ColourPass::DepthCue`], one registration line
 //! in [`crate::ColourPass::pixel`] and the CLI flag `--depth-cue`.
 
-use super::pixel::{pixel_module, PixelImages, PixelPass};
+use super::pixel::{PixelImages, PixelPass};
 use crate::device::shaders::{ShaderModule, PIXEL_PASS};
 use crate::params::ViewParams;
 use rayon::prelude::*;
@@ -24,7 +24,7 @@ pub struct DepthCue {
 }
 
 const MODULE: ShaderModule =
-    pixel_module("depth_cue", &[PIXEL_PASS, include_str!("depth_cue.wgsl")]);
+    ShaderModule::new("depth_cue", &[PIXEL_PASS, include_str!("depth_cue.wgsl")]);
 
 /// The uniform block of `depth_cue.wgsl`.
 #[repr(C)]
