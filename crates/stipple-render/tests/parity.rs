@@ -16,12 +16,7 @@ use stipple_core::rng::Rng;
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::gpu::{GpuCloud, GpuContext, GpuOptions, GpuRenderer, ProjectionPath};
 mod common;
-use stipple_render::passes::{
-    antialias::cpu as antialias, depiction::cpu as depiction, edl::cpu as edl,
-    fill_anisotropic::cpu as fill_anisotropic, fill_background::cpu as fill_background,
-    fill_occluded::cpu as fill_occluded, project::cpu as project, shade::cpu as shade,
-    smooth::cpu as smooth, visibility::cpu as visibility,
-};
+use stipple_render::passes::{project::cpu as project, shade::cpu as shade};
 use stipple_render::{
     ColourPass, GBuffer, GeometryPass, Iterations, Kernel, Pipeline, PreparedCloud, ViewParams,
     BACKGROUND,
@@ -253,31 +248,12 @@ fn fill_passes_match_the_cpu() {
                     },
                 ] {
                     let (out, stat) = r.geometry_pass(&v, &g, &pass, gap).unwrap();
-                    let mut a = g.clone();
-                    let mut b = GBuffer::new(v.width, v.height);
-                    let mut done = 0;
-                    let mut changed = 0;
-                    while done < its.max() {
-                        let c = match pass {
-                            GeometryPass::FillBackground { .. } => {
-                                fill_background::fill_background(&a, &mut b, radius)
-                            }
-                            GeometryPass::FillOccluded { .. } => {
-                                fill_occluded::fill_occluded(&a, &mut b, gap, radius)
-                            }
-                            GeometryPass::Visibility { .. } => unreachable!(),
-                        };
-                        std::mem::swap(&mut a, &mut b);
-                        done += 1;
-                        changed += c;
-                        if c == 0 && matches!(its, Iterations::UntilStable { .. }) {
-                            break;
-                        }
-                    }
+                    let (a, want) = pass.run_cpu(&v, &g, gap);
                     let what = format!("{} r{radius} {its:?} seed {seed}", pass.name());
                     assert_g_equal(&out, &a, &what);
-                    assert_eq!(stat.count, changed, "{what}: changed pixels");
-                    assert_eq!(stat.iterations, done, "{what}: iterations");
+                    assert_eq!(stat.count, want.count, "{what}: changed pixels");
+                    assert_eq!(stat.iterations, want.iterations, "{what}: iterations");
+                    assert_eq!(stat.pass, want.pass);
                 }
             }
         }
@@ -371,29 +347,9 @@ fn colour_passes_match_the_cpu() {
     ] {
         let (out, _, stat) = r.colour_pass(&v, &g.id, &g.depth, &colour, &pass).unwrap();
         let mut a = colour.clone();
-        let mut b = colour.clone();
-        let mut count = 0;
-        match pass {
-            ColourPass::Smooth { kernel, iterations } => {
-                for _ in 0..iterations {
-                    smooth::smooth(w, h, &g.id, kernel, &a, &mut b);
-                    std::mem::swap(&mut a, &mut b);
-                }
-            }
-            ColourPass::Antialias {
-                threshold,
-                strength,
-            } => {
-                let p = antialias::AaParams {
-                    far: v.far,
-                    threshold,
-                    strength,
-                };
-                count = antialias::antialias(w, h, &g.depth, p, &a, &mut b);
-                std::mem::swap(&mut a, &mut b);
-                assert!(count > 0);
-            }
-            _ => unreachable!("raw_operators_match_the_cpu covers the raw passes"),
+        let count = pass.run_cpu(&v, &g.id, &mut g.depth.clone(), &mut a);
+        if let ColourPass::Antialias { .. } = pass {
+            assert!(count > 0, "{pass:?}: nothing blended");
         }
         assert_eq!(stat.count, count, "{pass:?}: pixels blended");
         for k in 0..w * h {
@@ -477,15 +433,13 @@ fn cpu_fill(
     iterations: u32,
     all_empty: bool,
 ) -> (Vec<f32>, Vec<[f32; 3]>, u64) {
+    let pass = ColourPass::FillAnisotropic {
+        iterations,
+        delta: 8.0,
+        all_empty,
+    };
     let (mut d, mut c) = (g.depth.clone(), colour.to_vec());
-    let (mut d2, mut c2) = (d.clone(), c.clone());
-    let mut filled = 0;
-    for _ in 0..iterations {
-        filled +=
-            fill_anisotropic::fill_anisotropic(v, &g.id, 8.0, all_empty, &d, &c, &mut d2, &mut c2);
-        std::mem::swap(&mut d, &mut d2);
-        std::mem::swap(&mut c, &mut c2);
-    }
+    let filled = pass.run_cpu(v, &g.id, &mut d, &mut c);
     (d, c, filled)
 }
 
@@ -504,8 +458,8 @@ fn raw_operators_match_the_cpu() {
             let what = format!("perspective {perspective}, kernel {kernel}");
             let pass = GeometryPass::Visibility { kernel, threshold };
             let (got, stat) = r.geometry_pass(&v, &g, &pass, 1.0).unwrap();
-            let mut want = GBuffer::new(v.width, v.height);
-            let hidden = visibility::visibility(&v, &g, &mut want, kernel, threshold);
+            let (want, want_stat) = pass.run_cpu(&v, &g, 1.0);
+            let hidden = want_stat.count;
             assert!(hidden > 0, "{what}: nothing hidden");
             // A pixel whose open fraction lies within rounding of the threshold may go either
             // way; allow 0.1% of pixels and check the rest exactly.
@@ -540,8 +494,11 @@ fn raw_operators_match_the_cpu() {
         }
         // Depiction and EDL on a filled depth image.
         let colour = smooth_colours(w, h);
-        let mut vis = GBuffer::new(v.width, v.height);
-        visibility::visibility(&v, &g, &mut vis, 7, 0.4);
+        let visibility = GeometryPass::Visibility {
+            kernel: 7,
+            threshold: 0.4,
+        };
+        let (vis, _) = visibility.run_cpu(&v, &g, 1.0);
         let (d, c, _) = cpu_fill(&v, &vis, &colour, 14, false);
         for pass in [
             ColourPass::Depiction {
@@ -566,32 +523,7 @@ fn raw_operators_match_the_cpu() {
             let what = format!("perspective {perspective}: {pass:?}");
             let (gc, _, _) = r.colour_pass(&v, &vis.id, &d, &c, &pass).unwrap();
             let mut want = c.clone();
-            match pass {
-                ColourPass::Depiction {
-                    levels,
-                    xi,
-                    epsilon,
-                } => {
-                    let mut scratch = (Vec::new(), Vec::new());
-                    let mut term = Vec::new();
-                    depiction::depiction(
-                        &v,
-                        &d,
-                        levels,
-                        xi,
-                        epsilon,
-                        &mut scratch,
-                        &mut term,
-                        &c,
-                        &mut want,
-                    );
-                    assert!(term.iter().any(|&t| t < 0.9), "{what}: flat shading");
-                }
-                ColourPass::Edl { strength, radius } => {
-                    edl::edl(&v, &d, strength, radius, &c, &mut want);
-                }
-                _ => unreachable!(),
-            }
+            pass.run_cpu(&v, &vis.id, &mut d.clone(), &mut want);
             assert!(want != c, "{what}: the pass changed nothing");
             assert_close(&gc, &want, 1.0 / 255.0, &what);
         }
@@ -602,7 +534,6 @@ fn raw_operators_match_the_cpu() {
 /// the end of a whole frame run through both backends by the one schedule.
 #[test]
 fn pixel_passes_match_the_cpu() {
-    use stipple_render::passes::pixel::PixelImages;
     let Some(ctx) = gpu(GpuOptions::default()) else {
         return;
     };
@@ -625,17 +556,11 @@ fn pixel_passes_match_the_cpu() {
         },
     ];
     for pass in passes {
-        let pp = pass.pixel().expect("a pixel pass");
         let (out, _, stat) = r.colour_pass(&v, &g.id, &g.depth, &colour, &pass).unwrap();
-        let mut want = vec![[0.0; 3]; v.pixels()];
-        let input = PixelImages {
-            id: &g.id,
-            depth: &g.depth,
-            colour: &colour,
-        };
-        let count = pp.cpu(&v, &input, &mut want);
+        let mut want = colour.clone();
+        let count = pass.run_cpu(&v, &g.id, &mut g.depth.clone(), &mut want);
         assert_eq!(stat.count, count, "{pass:?}: count");
-        assert_eq!(stat.pass, pp.id());
+        assert_eq!(stat.pass, pass.id());
         let changed = (0..v.pixels()).filter(|&k| want[k] != colour[k]).count();
         assert!(
             changed > v.pixels() / 4,

@@ -1,16 +1,14 @@
-//! The CPU backend: rayon implementations of every pass, the executable reference the GPU
-//! backend is compared against. One module per pass, named as the pass.
+//! The CPU backend: the steps of [`crate::schedule`] run by the passes' CPU kernels (rayon;
+//! the executable reference the GPU backend is compared against), over buffers kept between
+//! frames.
 
 use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
 use crate::passes::{
-    antialias::cpu as antialias, blend_layers::cpu as blend_layers, depiction::cpu as depiction,
-    edl::cpu as edl, fill_anisotropic::cpu as fill_anisotropic,
-    fill_background::cpu as fill_background, fill_occluded::cpu as fill_occluded,
-    project::cpu as project, shade::cpu as shade, shadow_texture::cpu as shadow_texture,
-    smooth::cpu as smooth, visibility::cpu as visibility,
+    blend_layers::cpu as blend_layers, project::cpu as project, shade::cpu as shade,
+    shadow_texture::cpu as shadow_texture,
 };
-use crate::pipeline::{ColourPass, GeometryPass, Iterations, Pipeline};
+use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
 use crate::stats::{PassId, PassStat};
 use crate::{Frame, PreparedCloud};
 use shade::ShadeInput;
@@ -49,27 +47,6 @@ fn timed<T>(stats: &mut Vec<PassStat>, pass: PassId, f: impl FnOnce() -> (T, u32
         count,
     });
     r
-}
-
-/// Runs an iterative G-buffer pass with ping-pong buffers; the result ends in `a`.
-fn iterate(
-    a: &mut GBuffer,
-    b: &mut GBuffer,
-    its: Iterations,
-    mut step: impl FnMut(&GBuffer, &mut GBuffer) -> u64,
-) -> (u32, u64) {
-    let mut done = 0;
-    let mut total = 0;
-    while done < its.max() {
-        let changed = step(a, b);
-        std::mem::swap(a, b);
-        done += 1;
-        total += changed;
-        if changed == 0 && matches!(its, Iterations::UntilStable { .. }) {
-            break;
-        }
-    }
-    (done, total)
 }
 
 impl CpuRenderer {
@@ -284,29 +261,9 @@ impl crate::schedule::PassExec for CpuExec<'_> {
     fn geometry(&mut self, pass: &GeometryPass, gap: f32) -> Result<(), Self::Error> {
         let v = self.v;
         let (ga, gb) = self.r.g.as_mut().expect("made by project");
-        timed(&mut self.stats, pass.id(), || {
-            let (its, changed) = match *pass {
-                GeometryPass::FillBackground { iterations, radius } => {
-                    iterate(ga, gb, iterations, |s, d| {
-                        fill_background::fill_background(s, d, radius)
-                    })
-                }
-                GeometryPass::FillOccluded {
-                    iterations,
-                    layer_gap,
-                    radius,
-                } => {
-                    let gap = layer_gap.unwrap_or(gap);
-                    iterate(ga, gb, iterations, |s, d| {
-                        fill_occluded::fill_occluded(s, d, gap, radius)
-                    })
-                }
-                GeometryPass::Visibility { kernel, threshold } => {
-                    iterate(ga, gb, Iterations::Fixed(1), |s, d| {
-                        visibility::visibility(v, s, d, kernel, threshold)
-                    })
-                }
-            };
+        let kernel = pass.kernel();
+        timed(&mut self.stats, kernel.id(), || {
+            let (its, changed) = kernel.cpu(v, ga, gb, gap);
             ((), its, changed)
         });
         Ok(())
@@ -342,81 +299,20 @@ impl crate::schedule::PassExec for CpuExec<'_> {
 
     fn colour(&mut self, pass: &ColourPass) -> Result<(), Self::Error> {
         let (r, v) = (&mut *self.r, self.v);
-        let (w, h) = (v.width as usize, v.height as usize);
         let ga = &r.g.as_ref().expect("made by project").0;
-        let (ca, cb) = (&mut r.colour.0, &mut r.colour.1);
-        let (sd, sd_b) = (&mut r.surface_depth, &mut r.depth_b);
-        let (scratch, shading) = (&mut r.scratch, &mut r.shading);
-        if let Some(pp) = pass.pixel() {
-            timed(&mut self.stats, pp.id(), || {
-                let input = crate::passes::pixel::PixelImages {
-                    id: &ga.id,
-                    depth: sd,
-                    colour: ca,
-                };
-                let k = pp.cpu(v, &input, cb);
-                std::mem::swap(ca, cb);
-                ((), 1, k)
-            });
-            return Ok(());
-        }
-        timed(&mut self.stats, pass.id(), || match *pass {
-            ColourPass::Smooth { kernel, iterations } => {
-                for _ in 0..iterations {
-                    smooth::smooth(w, h, &ga.id, kernel, ca, cb);
-                    std::mem::swap(ca, cb);
-                }
-                ((), iterations, 0)
-            }
-            ColourPass::Antialias {
-                threshold,
-                strength,
-            } => {
-                let k = antialias::antialias(
-                    w,
-                    h,
-                    sd,
-                    antialias::AaParams {
-                        far: v.far,
-                        threshold,
-                        strength,
-                    },
-                    ca,
-                    cb,
-                );
-                std::mem::swap(ca, cb);
-                ((), 1, k)
-            }
-            ColourPass::FillAnisotropic {
-                iterations,
-                delta,
-                all_empty,
-            } => {
-                let mut filled = 0;
-                for _ in 0..iterations {
-                    filled += fill_anisotropic::fill_anisotropic(
-                        v, &ga.id, delta, all_empty, sd, ca, sd_b, cb,
-                    );
-                    std::mem::swap(sd, sd_b);
-                    std::mem::swap(ca, cb);
-                }
-                ((), iterations, filled)
-            }
-            ColourPass::Depiction {
-                levels,
-                xi,
-                epsilon,
-            } => {
-                depiction::depiction(v, sd, levels, xi, epsilon, scratch, shading, ca, cb);
-                std::mem::swap(ca, cb);
-                ((), levels, 0)
-            }
-            ColourPass::Edl { strength, radius } => {
-                edl::edl(v, sd, strength, radius, ca, cb);
-                std::mem::swap(ca, cb);
-                ((), 1, 0)
-            }
-            ColourPass::DepthCue { .. } => unreachable!("a pixel pass, run above"),
+        let kernel = pass.kernel();
+        let img = crate::passes::ColourImages {
+            id: &ga.id,
+            depth: &mut r.surface_depth,
+            depth_b: &mut r.depth_b,
+            colour: &mut r.colour.0,
+            colour_b: &mut r.colour.1,
+            scratch: &mut r.scratch,
+            shading: &mut r.shading,
+        };
+        timed(&mut self.stats, kernel.id(), || {
+            let (its, count) = kernel.cpu(v, img);
+            ((), its, count)
         });
         Ok(())
     }

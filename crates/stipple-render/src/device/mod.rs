@@ -5,6 +5,8 @@
 
 pub mod cloud;
 pub mod context;
+pub(crate) mod frame;
 pub mod iterate;
+pub(crate) mod record;
 pub mod shaders;
 pub(crate) mod util;

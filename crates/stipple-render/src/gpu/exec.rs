@@ -1,16 +1,16 @@
 //! The GPU's side of [`crate::schedule`]: each step of the frame recorded into one command
 //! buffer, with the cursor of which ping-pong images hold the current G-buffer and colour.
 
-use super::record::{Cursor, Rec};
 use super::renderer::ProjectionPath;
-use super::resources::{FrameBuffers, Kit};
-use super::steps::*;
 use crate::device::cloud::GpuCloud;
-use crate::device::context::GpuError;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::frame::{Binder, Cursor, FrameBuffers, Shared};
+use crate::device::record::Rec;
 use crate::params::ViewParams;
-use crate::passes::shade::gpu::ShadeBlock;
+use crate::passes::shade::gpu::{MaterialTable, ShadeBlock};
 use crate::passes::shadow_texture::cpu::MarkParams;
 use crate::passes::splat::gpu::SplatGpu;
+use crate::passes::{blend_layers, output, project, shade, shadow_texture, splat};
 use crate::pipeline::{ColourPass, GeometryPass};
 use crate::schedule::PassExec;
 use crate::SplatSettings;
@@ -18,6 +18,7 @@ use crate::SplatSettings;
 /// What a camera frame shades with (a light view shades nothing).
 pub(crate) struct Shading {
     pub block: ShadeBlock,
+    pub materials: Box<MaterialTable>,
     /// Linear RGB.
     pub background: [f32; 3],
     /// The opacity of pixels that no point covers (see `blend_layers`).
@@ -27,8 +28,7 @@ pub(crate) struct Shading {
 /// One frame or light view being recorded.
 pub(crate) struct GpuExec<'a> {
     pub rec: Rec<'a>,
-    kit: &'a Kit,
-    f: &'a FrameBuffers,
+    b: Binder<'a>,
     cloud: &'a GpuCloud,
     v: &'a ViewParams,
     projection: ProjectionPath,
@@ -41,8 +41,7 @@ impl<'a> GpuExec<'a> {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         rec: Rec<'a>,
-        kit: &'a Kit,
-        f: &'a FrameBuffers,
+        (ctx, shared, f): (&'a GpuContext, &'a Shared, &'a FrameBuffers),
         cloud: &'a GpuCloud,
         v: &'a ViewParams,
         projection: ProjectionPath,
@@ -51,8 +50,7 @@ impl<'a> GpuExec<'a> {
     ) -> GpuExec<'a> {
         GpuExec {
             rec,
-            kit,
-            f,
+            b: Binder::new(ctx, shared, f),
             cloud,
             v,
             projection,
@@ -64,7 +62,7 @@ impl<'a> GpuExec<'a> {
 
     /// Bytes of one frame-sized image of 32-bit values.
     fn image_bytes(&self) -> u64 {
-        4 * self.f.width as u64 * self.f.height as u64
+        4 * self.b.f.pixels()
     }
 
     fn background(&self) -> [f32; 3] {
@@ -83,51 +81,45 @@ impl PassExec for GpuExec<'_> {
     ) -> Result<Option<u64>, GpuError> {
         // Each layer starts from image 0 of each ping-pong pair.
         self.cur = Cursor::default();
-        let (rec, kit, f, cloud) = (&mut self.rec, self.kit, self.f, self.cloud);
-        match (splat, self.projection, &f.targets) {
+        let (rec, b, cloud) = (&mut self.rec, self.b, self.cloud);
+        match (splat, self.projection, &b.f.targets) {
             (Some(sp), _, _) => {
                 let sg = self.splat.as_deref_mut().ok_or_else(|| {
                     GpuError::Wgpu("splats asked for where the splat pass is not set up".into())
                 })?;
-                record_splat(rec, sg, kit, &kit.view, f, cloud, *sp)?
+                splat::gpu::record_step(rec, b, sg, cloud, *sp)?
             }
-            (None, ProjectionPath::Hardware, Some((t, copy))) if peel.is_none() => {
-                record_project_hw(rec, kit, f, t, copy, cloud, cull)?
+            (None, ProjectionPath::Hardware, Some(t)) if peel.is_none() => {
+                project::gpu_hw::record(rec, b, t, cloud, cull)?
             }
-            _ => record_project(rec, kit, f, cloud, cull, peel)?,
+            _ => project::gpu::record(rec, b, cloud, cull, peel)?,
         }
         // Counted on the device: known once the frame has run.
         Ok(None)
     }
 
     fn geometry(&mut self, pass: &GeometryPass, gap: f32) -> Result<(), GpuError> {
-        record_geometry(&mut self.rec, self.kit, self.f, &mut self.cur, pass, gap)
+        pass.kernel()
+            .record(&mut self.rec, self.b, &mut self.cur, gap)
     }
 
     fn shade(&mut self) -> Result<(), GpuError> {
-        let block = self
+        let s = self
             .shading
             .as_ref()
-            .ok_or_else(|| GpuError::Wgpu("shade recorded in a light view".into()))?
-            .block;
+            .ok_or_else(|| GpuError::Wgpu("shade recorded in a light view".into()))?;
         let splat = self.splat.as_deref_mut();
-        record_shade(
-            &mut self.rec,
-            self.kit,
-            self.f,
-            &self.cur,
-            self.cloud,
-            block,
-            splat,
-        )
+        let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
+        shade::gpu::record(rec, b, cur, cloud, (s.block, &s.materials), splat)
     }
 
     fn colour(&mut self, pass: &ColourPass) -> Result<(), GpuError> {
-        record_colour(&mut self.rec, self.kit, self.f, &mut self.cur, pass, self.v)
+        pass.kernel()
+            .record(&mut self.rec, self.b, &mut self.cur, self.v)
     }
 
     fn keep_front(&mut self) -> Result<(), GpuError> {
-        let (n4, f) = (self.image_bytes(), self.f);
+        let (n4, f) = (self.image_bytes(), self.b.f);
         let enc = &mut self.rec.enc;
         enc.copy_buffer_to_buffer(&f.surface, 0, &f.read, n4, n4);
         enc.copy_buffer_to_buffer(&f.id[self.cur.g], 0, &f.read, 2 * n4, n4);
@@ -136,21 +128,22 @@ impl PassExec for GpuExec<'_> {
 
     fn begin_peel(&mut self) -> Result<(), GpuError> {
         let bg = self.background();
-        record_blend(&mut self.rec, self.kit, self.f, &self.cur, None, bg)
+        blend_layers::gpu::record_blend(&mut self.rec, self.b, &self.cur, None, bg)
     }
 
     fn blend_layer(&mut self) -> Result<(), GpuError> {
         let bg = self.background();
         let hole = self.shading.as_ref().map_or(1.0, |s| s.mean_alpha);
-        record_blend(&mut self.rec, self.kit, self.f, &self.cur, Some(hole), bg)
+        let (rec, b, cur) = (&mut self.rec, self.b, &self.cur);
+        blend_layers::gpu::record_blend(rec, b, cur, Some(hole), bg)
     }
 
     fn keep_layer(&mut self, k: u32) -> Result<(), GpuError> {
-        let (n4, f) = (self.image_bytes(), self.f);
+        let (n4, f) = (self.image_bytes(), self.b.f);
         let lr = f.layers_read.as_ref().ok_or_else(|| {
             GpuError::Wgpu("keep_layer: no layer readback buffer was made".into())
         })?;
-        record_output(&mut self.rec, self.kit, f, &self.cur)?;
+        output::gpu::record(&mut self.rec, self.b, &self.cur)?;
         self.rec
             .enc
             .copy_buffer_to_buffer(&f.rgba, 0, lr, n4 * k as u64, n4);
@@ -158,20 +151,20 @@ impl PassExec for GpuExec<'_> {
     }
 
     fn peel_behind(&mut self, gap: f32) -> Result<(), GpuError> {
-        let bound = crate::passes::project::cpu::PEEL_NEIGHBOUR_GAPS * gap;
-        record_peel_reference(&mut self.rec, self.kit, self.f, bound)
+        let bound = project::cpu::PEEL_NEIGHBOUR_GAPS * gap;
+        project::gpu::record_peel_reference(&mut self.rec, self.b, bound)
     }
 
     fn compose(&mut self) -> Result<(), GpuError> {
         let bg = self.background();
-        record_compose(&mut self.rec, self.kit, self.f, bg)?;
+        blend_layers::gpu::record_compose(&mut self.rec, self.b, bg)?;
         self.cur.colour = 0;
         Ok(())
     }
 
     fn output(&mut self) -> Result<(), GpuError> {
-        let (n4, f) = (self.image_bytes(), self.f);
-        record_output(&mut self.rec, self.kit, f, &self.cur)?;
+        let (n4, f) = (self.image_bytes(), self.b.f);
+        output::gpu::record(&mut self.rec, self.b, &self.cur)?;
         self.rec
             .enc
             .copy_buffer_to_buffer(&f.rgba, 0, &f.read, 0, n4);
@@ -179,13 +172,7 @@ impl PassExec for GpuExec<'_> {
     }
 
     fn mark(&mut self, params: &MarkParams) -> Result<(), GpuError> {
-        record_mark(
-            &mut self.rec,
-            self.kit,
-            self.f,
-            &self.cur,
-            self.cloud,
-            params,
-        )
+        let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
+        shadow_texture::gpu::record(rec, b, cur, cloud, params)
     }
 }

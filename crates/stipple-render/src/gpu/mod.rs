@@ -1,7 +1,9 @@
-//! The GPU backend (wgpu): scheduling and resources. The passes' pipelines and WGSL live in
-//! their folders under [`crate::passes`], checked against the CPU reference by the parity
-//! tests; this module makes the frame's buffers and bind groups (`resources`), records the
-//! steps of [`crate::schedule`] (`exec`, `steps`, `record`) and reads the frame back.
+//! The GPU backend (wgpu): scheduling only. The passes' pipelines, bind groups, recording
+//! functions and WGSL live in their folders under [`crate::passes`] (checked against the
+//! CPU reference by the parity tests) and build on [`crate::device`] (frame buffers, the
+//! recorder, shared buffers); this module keeps the renderer's buffers between frames,
+//! records the steps of [`crate::schedule`] through the passes (`exec`) and reads the frame
+//! back.
 //!
 //! ```text
 //! project (compute rasterizer | project_hw) → resolve → fill_background / fill_occluded
@@ -15,10 +17,7 @@
 //! `shadow_texture` over the points.
 
 pub(crate) mod exec;
-pub(crate) mod record;
 pub mod renderer;
-pub(crate) mod resources;
-pub(crate) mod steps;
 
 pub use crate::device::cloud::GpuCloud;
 pub use crate::device::context::{list_adapters, AdapterReport, GpuContext, GpuError, GpuOptions};

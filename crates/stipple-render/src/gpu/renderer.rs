@@ -3,23 +3,17 @@
 //! once and reused while the frame size stays the same.
 
 use super::exec::{GpuExec, Shading};
-use super::record::*;
-use super::resources::*;
-use super::steps::*;
 use crate::device::cloud::GpuCloud;
 use crate::device::context::{GpuContext, GpuError};
-use crate::device::iterate::IterateBlock;
-use crate::device::util::{self, Arena, Res};
+use crate::device::frame::{Binder, Cursor, FrameBuffers, Shared, Targets};
+use crate::device::record::*;
+use crate::device::util::Arena;
 use crate::gbuffer::GBuffer;
 use crate::params::ViewParams;
-use crate::passes::blend_layers::gpu::BlendLayers;
-use crate::passes::depiction::gpu::Depiction;
-use crate::passes::fill::gpu::window_cells;
-use crate::passes::project::gpu::{ChunkBlock, Project};
-use crate::passes::project::gpu_hw::{ProjectHw, Targets};
-use crate::passes::shade::cpu::{srgb_to_linear_table, SrgbEncoder};
-use crate::passes::shade::gpu::{Shade, ShadeBlock};
+use crate::passes::project::gpu_hw::ProjectHw;
+use crate::passes::shade::gpu::ShadeBlock;
 use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
+use crate::srgb::srgb_to_linear_table;
 use crate::stats::{PassId, PassStat};
 use crate::Frame;
 use std::sync::Arc;
@@ -44,7 +38,7 @@ pub type ColourPassResult = (Vec<[f32; 3]>, Vec<f32>, PassStat);
 /// The long-lived GPU renderer.
 pub struct GpuRenderer {
     ctx: Arc<GpuContext>,
-    kit: Kit,
+    shared: Shared,
     arena: Arena,
     frame: Option<FrameBuffers>,
     /// The light images' buffers (shadow textures), kept apart from the camera's.
@@ -58,112 +52,13 @@ pub struct GpuRenderer {
 
 impl GpuRenderer {
     pub fn new(ctx: Arc<GpuContext>) -> Result<GpuRenderer, GpuError> {
-        let d = &ctx.device;
-        let (cells, cell_ranges) = window_cells();
-        let table: Vec<u32> = SrgbEncoder::new()
-            .table()
-            .iter()
-            .map(|&b| b as u32)
-            .collect();
-        let timer = ctx.timestamps.then(|| Timer {
-            set: d.create_query_set(&wgpu::QuerySetDescriptor {
-                label: Some("timestamps"),
-                ty: wgpu::QueryType::Timestamp,
-                count: QUERIES,
-            }),
-            resolve: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps"),
-                size: QUERIES as u64 * 8,
-                usage: BufferUsages::QUERY_RESOLVE | BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            }),
-            read: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps read"),
-                size: QUERIES as u64 * 8,
-                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            period_ns: ctx.queue.get_timestamp_period() as f64,
-        });
-        let arena = Arena::new(d, ctx.limits.min_uniform_buffer_offset_alignment);
-        let view = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("view"),
-            size: std::mem::size_of::<ViewParams>() as u64,
-            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let counters = util::storage(d, "counters", SLOTS * 4);
-        let indirect = d.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("indirect"),
-            size: SLOTS * 12,
-            usage: BufferUsages::STORAGE | BufferUsages::INDIRECT,
-            mapped_at_creation: false,
-        });
-        let iterate = crate::device::iterate::new(&ctx);
-        let (vis_table, vis_ranges) = crate::passes::visibility::gpu::offset_table();
-        let kit = Kit {
-            arena: arena.buffer.clone(),
-            cells: util::storage_init(d, "window cells", bytemuck::cast_slice(&cells)),
-            cell_ranges,
-            to_linear: util::storage_init(
-                d,
-                "srgb to linear",
-                bytemuck::cast_slice(&srgb_to_linear_table()),
-            ),
-            encode_table: util::storage_init(d, "srgb encode", bytemuck::cast_slice(&table)),
-            counters_read: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("counters read"),
-                size: SLOTS * 4,
-                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            timer,
-            project: Project::new(&ctx),
-            fill_background: crate::passes::fill_background::gpu::new(&ctx),
-            fill_occluded: crate::passes::fill_occluded::gpu::new(&ctx),
-            iterate_group: iterate.bind(
-                d,
-                &[
-                    Res::Arena(&arena.buffer, block::<IterateBlock>()),
-                    Res::Buf(&counters),
-                    Res::Buf(&indirect),
-                ],
-            ),
-            iterate,
-            project_hw: None,
-            counters,
-            indirect,
-            view,
-            shade: Shade::new(&ctx),
-            smooth: crate::passes::smooth::gpu::new(&ctx),
-            antialias: crate::passes::antialias::gpu::new(&ctx),
-            output: crate::passes::output::gpu::new(&ctx),
-            visibility: crate::passes::visibility::gpu::new(&ctx),
-            vis_offsets: util::storage_init(
-                d,
-                "visibility offsets",
-                bytemuck::cast_slice(&vis_table),
-            ),
-            vis_ranges,
-            fill_anisotropic: crate::passes::fill_anisotropic::gpu::new(&ctx),
-            depiction: Depiction::new(&ctx),
-            edl: crate::passes::edl::gpu::new(&ctx),
-            materials: d.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("materials"),
-                size: std::mem::size_of::<crate::passes::shade::gpu::MaterialTable>() as u64,
-                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
-            blend: BlendLayers::new(&ctx),
-            mark: crate::passes::shadow_texture::gpu::new(&ctx),
-            peel_reference: crate::passes::project::gpu::peel_reference(&ctx),
-            pixel: Default::default(),
-        };
+        let arena = Arena::new(&ctx.device, ctx.limits.min_uniform_buffer_offset_alignment);
+        let shared = Shared::new(&ctx, &arena);
         let splat = crate::passes::splat::gpu::SplatGpu::new(&ctx);
         ctx.take_errors()?;
         Ok(GpuRenderer {
             ctx,
-            kit,
+            shared,
             arena,
             frame: None,
             shadow_frame: None,
@@ -176,7 +71,7 @@ impl GpuRenderer {
     /// Bind groups made over the current frame buffers so far (they are made when a step
     /// first needs them and reused by later frames of the same size).
     pub fn bind_groups_made(&self) -> usize {
-        self.frame.as_ref().map_or(0, |f| f.binds.len())
+        self.frame.as_ref().map_or(0, |f| f.groups_made())
     }
 
     pub fn context(&self) -> &Arc<GpuContext> {
@@ -222,45 +117,19 @@ impl GpuRenderer {
             _ => FrameBuffers::new(&self.ctx, v.width, v.height),
         };
         let f = self.frame.insert(f);
-        if self.projection == ProjectionPath::Hardware && self.kit.project_hw.is_none() {
+        if self.projection == ProjectionPath::Hardware && f.targets.is_none() {
             self.ctx.adapter.hardware_projection.clone().map_err(|e| {
                 GpuError::AdapterLacks(format!(
                     "--projection hardware ({e}); leave the flag out for the compute projection"
                 ))
             })?;
-            let hw = ProjectHw::new(&self.ctx);
-            let group = util::bind(
-                &self.ctx.device,
-                "project_hw",
-                &hw.bgl,
-                &[
-                    Res::Buf(&self.kit.view),
-                    Res::Arena(&self.arena.buffer, block::<ChunkBlock>()),
-                ],
-            );
-            self.kit.project_hw = Some((hw, group));
-        }
-        if self.projection == ProjectionPath::Hardware && f.targets.is_none() {
-            let t = Targets::new(&self.ctx, v.width, v.height);
-            let hw = &self.kit.project_hw.as_ref().expect("made above").0;
-            let copy = util::bind(
-                &self.ctx.device,
-                "project_hw copy",
-                &hw.copy_bgl,
-                &[
-                    Res::Buf(&self.kit.view),
-                    Res::Skip,
-                    Res::View(&t.id),
-                    Res::View(&t.depth),
-                    Res::Buf(&f.depth[0]),
-                    Res::Buf(&f.id[0]),
-                ],
-            );
-            f.targets = Some((t, copy));
+            // Made now, so a device that cannot make it fails here and not mid-frame.
+            self.shared.pass::<ProjectHw>(&self.ctx);
+            f.targets = Some(Targets::new(&self.ctx, v.width, v.height));
         }
         self.ctx
             .queue
-            .write_buffer(&self.kit.view, 0, bytemuck::bytes_of(v));
+            .write_buffer(&self.shared.view, 0, bytemuck::bytes_of(v));
         self.arena.clear();
         Ok(())
     }
@@ -280,9 +149,6 @@ impl GpuRenderer {
         self.prepare(v)?;
         let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
         let (shade_block, materials) = ShadeBlock::for_cloud(cloud, pipe);
-        self.ctx
-            .queue
-            .write_buffer(&self.kit.materials, 0, bytemuck::cast_slice(&materials[..]));
         let layers = pipe.layers.max(1);
         // Peeling runs on the compute rasterizer (the hardware path has no reference test).
         let projection = if layers > 1 {
@@ -291,8 +157,7 @@ impl GpuRenderer {
             self.projection
         };
         let mut f = self.frame.take().expect("prepared");
-        ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
-        ensure_pixel_passes(&self.ctx, &mut self.kit, &pipe.colour);
+        f.use_cloud(cloud);
         let n = v.width as u64 * v.height as u64;
         if layers > 1 && pipe.keep_layers {
             let bytes = 4 * n * layers as u64;
@@ -306,18 +171,18 @@ impl GpuRenderer {
             }
         }
         let result = (|| {
-            let kit = &self.kit;
-            let rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            let shared = &self.shared;
+            let rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
             let lut = srgb_to_linear_table();
             let shading = Shading {
                 block: shade_block,
+                materials,
                 background: pipe.background.map(|c| lut[c as usize]),
                 mean_alpha: cloud.mean_alpha,
             };
             let mut x = GpuExec::new(
                 rec,
-                kit,
-                &f,
+                (&self.ctx, shared, &f),
                 cloud,
                 v,
                 projection,
@@ -327,7 +192,7 @@ impl GpuRenderer {
             crate::schedule::frame(&mut x, pipe, gap)?;
             let rec = x.rec;
             let t_record = Instant::now();
-            let sections = finish(rec, kit)?;
+            let sections = finish(rec, shared)?;
             let t_wait = Instant::now();
             let nu = n as usize;
             let (rgba, depth, id) = read_back_with(&self.ctx, &f.read, 12 * n, |b| {
@@ -338,7 +203,7 @@ impl GpuRenderer {
                 )
             })?;
             let t_read = Instant::now();
-            let stats = stats(&self.ctx, kit, &sections)?;
+            let stats = stats(&self.ctx, shared, &sections)?;
             let peeled = stats
                 .iter()
                 .filter(|s| s.pass == PassId::Project)
@@ -399,15 +264,16 @@ impl GpuRenderer {
             for (v, mp) in marks {
                 self.prepare(v)?;
                 let mut f = self.frame.take().expect("prepared");
-                ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
+                f.use_cloud(cloud);
                 let r = (|| {
-                    let kit = &self.kit;
-                    let rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+                    let shared = &self.shared;
+                    let rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
                     let projection = ProjectionPath::Compute;
-                    let mut x = GpuExec::new(rec, kit, &f, cloud, v, projection, None, None);
+                    let frame = (&*self.ctx, shared, &f);
+                    let mut x = GpuExec::new(rec, frame, cloud, v, projection, None, None);
                     let light_pipe = settings.light_pipeline(mp.fill_gap);
                     crate::schedule::light_view(&mut x, &light_pipe, mp)?;
-                    finish(x.rec, kit)?;
+                    finish(x.rec, shared)?;
                     Ok(())
                 })();
                 self.frame = Some(f);
@@ -441,19 +307,19 @@ impl GpuRenderer {
     ) -> Result<(GBuffer, u64), GpuError> {
         self.prepare(v)?;
         let mut f = self.frame.take().expect("prepared");
-        ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
+        f.use_cloud(cloud);
         let r = (|| {
-            let kit = &self.kit;
-            let projection = self.projection;
-            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
-            match (projection, &f.targets) {
-                (ProjectionPath::Hardware, Some((t, copy))) => {
-                    record_project_hw(&mut rec, kit, &f, t, copy, cloud, cull)?
+            let shared = &self.shared;
+            let mut rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
+            let b = Binder::new(&self.ctx, shared, &f);
+            match (self.projection, &f.targets) {
+                (ProjectionPath::Hardware, Some(t)) => {
+                    crate::passes::project::gpu_hw::record(&mut rec, b, t, cloud, cull)?
                 }
-                _ => record_project(&mut rec, kit, &f, cloud, cull, None)?,
+                _ => crate::passes::project::gpu::record(&mut rec, b, cloud, cull, None)?,
             }
-            let sections = finish(rec, kit)?;
-            let stats = stats(&self.ctx, kit, &sections)?;
+            let sections = finish(rec, shared)?;
+            let stats = stats(&self.ctx, shared, &sections)?;
             let g = read_g(&self.ctx, &f, 0)?;
             Ok((g, stats[0].count))
         })();
@@ -472,18 +338,16 @@ impl GpuRenderer {
         self.prepare(v)?;
         let f = self.frame.take().expect("prepared");
         let r = (|| {
-            let kit = &self.kit;
-            self.ctx
-                .queue
-                .write_buffer(&f.depth[0], 0, bytemuck::cast_slice(&g.depth));
-            self.ctx
-                .queue
-                .write_buffer(&f.id[0], 0, bytemuck::cast_slice(&g.id));
-            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            let shared = &self.shared;
+            let q = &self.ctx.queue;
+            q.write_buffer(&f.depth[0], 0, bytemuck::cast_slice(&g.depth));
+            q.write_buffer(&f.id[0], 0, bytemuck::cast_slice(&g.id));
+            let mut rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
             let mut cur = Cursor::default();
-            record_geometry(&mut rec, kit, &f, &mut cur, pass, default_gap)?;
-            let sections = finish(rec, kit)?;
-            let stats = stats(&self.ctx, kit, &sections)?;
+            let b = Binder::new(&self.ctx, shared, &f);
+            pass.kernel().record(&mut rec, b, &mut cur, default_gap)?;
+            let sections = finish(rec, shared)?;
+            let stats = stats(&self.ctx, shared, &sections)?;
             Ok((read_g(&self.ctx, &f, cur.g)?, stats[0].clone()))
         })();
         self.frame = Some(f);
@@ -500,19 +364,19 @@ impl GpuRenderer {
     ) -> Result<(Vec<[f32; 3]>, Vec<f32>), GpuError> {
         self.prepare(v)?;
         let (block, materials) = ShadeBlock::for_cloud(cloud, pipe);
-        self.ctx
-            .queue
-            .write_buffer(&self.kit.materials, 0, bytemuck::cast_slice(&materials[..]));
         let mut f = self.frame.take().expect("prepared");
-        ensure_cloud(&self.ctx, &self.kit, &self.arena.buffer, &mut f, cloud);
+        f.use_cloud(cloud);
         let r = (|| {
-            let kit = &self.kit;
+            let shared = &self.shared;
             let q = &self.ctx.queue;
             q.write_buffer(&f.depth[0], 0, bytemuck::cast_slice(&g.depth));
             q.write_buffer(&f.id[0], 0, bytemuck::cast_slice(&g.id));
-            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
-            record_shade(&mut rec, kit, &f, &Cursor::default(), cloud, block, None)?;
-            finish(rec, kit)?;
+            let mut rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
+            let b = Binder::new(&self.ctx, shared, &f);
+            let cur = Cursor::default();
+            let shading = (block, &*materials);
+            crate::passes::shade::gpu::record(&mut rec, b, &cur, cloud, shading, None)?;
+            finish(rec, shared)?;
             let colour = read_colour(&self.ctx, &f.colour[0], v.pixels())?;
             let depth = read_f32(&self.ctx, &f.surface, v.pixels())?;
             Ok((colour, depth))
@@ -534,19 +398,19 @@ impl GpuRenderer {
     ) -> Result<ColourPassResult, GpuError> {
         self.prepare(v)?;
         let f = self.frame.take().expect("prepared");
-        ensure_pixel_passes(&self.ctx, &mut self.kit, std::slice::from_ref(pass));
         let r = (|| {
-            let kit = &self.kit;
+            let shared = &self.shared;
             let q = &self.ctx.queue;
             q.write_buffer(&f.id[0], 0, bytemuck::cast_slice(id));
             q.write_buffer(&f.surface, 0, bytemuck::cast_slice(depth));
             let c4: Vec<[f32; 4]> = colour.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
             q.write_buffer(&f.colour[0], 0, bytemuck::cast_slice(&c4));
-            let mut rec = recorder(&self.ctx, kit, &mut self.arena, self.sync_timing);
+            let mut rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
             let mut cur = Cursor::default();
-            record_colour(&mut rec, kit, &f, &mut cur, pass, v)?;
-            let sections = finish(rec, kit)?;
-            let stats = stats(&self.ctx, kit, &sections)?;
+            let b = Binder::new(&self.ctx, shared, &f);
+            pass.kernel().record(&mut rec, b, &mut cur, v)?;
+            let sections = finish(rec, shared)?;
+            let stats = stats(&self.ctx, shared, &sections)?;
             Ok((
                 read_colour(&self.ctx, &f.colour[cur.colour], v.pixels())?,
                 read_f32(&self.ctx, &f.surface, v.pixels())?,

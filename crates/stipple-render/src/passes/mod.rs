@@ -19,3 +19,118 @@ pub mod shadow_texture;
 pub mod smooth;
 pub mod splat;
 pub mod visibility;
+
+use crate::device::context::GpuError;
+use crate::device::frame::{Binder, Cursor};
+use crate::device::record::Rec;
+use crate::gbuffer::GBuffer;
+use crate::params::ViewParams;
+use crate::pipeline::Iterations;
+use crate::stats::PassId;
+
+/// A geometry pass (between project and shade: it edits the G-buffer of depths and point
+/// ids), as both backends run it. A [`crate::GeometryPass`] variant names its kernel in
+/// [`crate::GeometryPass::kernel`], its one registration line.
+pub(crate) trait GeometryKernel {
+    /// Its key in statistics.
+    fn id(&self) -> PassId;
+    /// The CPU reference on `a` (with `b` as the other ping-pong image; the result ends in
+    /// `a`), with the frame's layer gap `gap`: the iterations it ran and the pixels it changed.
+    fn cpu(&self, v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, gap: f32) -> (u32, u64);
+    /// Records the pass from the geometry image `cur.g`, moving `cur.g` to its result, and
+    /// ends its statistics section.
+    fn record(
+        &self,
+        rec: &mut Rec<'_>,
+        b: Binder<'_>,
+        cur: &mut Cursor,
+        gap: f32,
+    ) -> Result<(), GpuError>;
+}
+
+/// The images a colour pass reads and writes on the CPU (row-major, `width × height`): the
+/// pass leaves its result in `colour` (and `depth`, if it changes depth), using the `_b`
+/// images and the scratch as it needs.
+pub(crate) struct ColourImages<'a> {
+    pub id: &'a [u32],
+    /// Surface depth (+inf where nothing is).
+    pub depth: &'a mut Vec<f32>,
+    pub depth_b: &'a mut Vec<f32>,
+    /// Linear RGB.
+    pub colour: &'a mut Vec<[f32; 3]>,
+    pub colour_b: &'a mut Vec<[f32; 3]>,
+    pub scratch: &'a mut (Vec<f32>, Vec<f32>),
+    pub shading: &'a mut Vec<f32>,
+}
+
+/// A colour pass (after shade: it edits the linear colour image), as both backends run it.
+/// A [`crate::ColourPass`] variant names its kernel in [`crate::ColourPass::kernel`], its
+/// one registration line.
+pub(crate) trait ColourKernel {
+    /// Its key in statistics.
+    fn id(&self) -> PassId;
+    /// The CPU reference: the iterations it ran and what its statistics count.
+    fn cpu(&self, v: &ViewParams, img: ColourImages<'_>) -> (u32, u64);
+    /// Records the pass from the colour image `cur.colour` (and the geometry image `cur.g`),
+    /// moving the cursor to its result, and ends its statistics section.
+    fn record(
+        &self,
+        rec: &mut Rec<'_>,
+        b: Binder<'_>,
+        cur: &mut Cursor,
+        v: &ViewParams,
+    ) -> Result<(), GpuError>;
+}
+
+/// A pixel pass as a colour pass (see [`pixel`]): the CPU calls [`pixel::PixelPass::cpu`],
+/// the GPU dispatches its WGSL entry point over the shared pixel-pass bindings.
+pub(crate) struct Pixel<P>(pub P);
+
+impl<P: pixel::PixelPass> ColourKernel for Pixel<P> {
+    fn id(&self) -> PassId {
+        self.0.id()
+    }
+
+    fn cpu(&self, v: &ViewParams, img: ColourImages<'_>) -> (u32, u64) {
+        let input = pixel::PixelImages {
+            id: img.id,
+            depth: img.depth,
+            colour: img.colour,
+        };
+        let k = self.0.cpu(v, &input, img.colour_b);
+        std::mem::swap(img.colour, img.colour_b);
+        (1, k)
+    }
+
+    fn record(
+        &self,
+        rec: &mut Rec<'_>,
+        b: Binder<'_>,
+        cur: &mut Cursor,
+        v: &ViewParams,
+    ) -> Result<(), GpuError> {
+        pixel::record(&self.0, rec, b, cur, v)
+    }
+}
+
+/// Runs an iterative G-buffer step with ping-pong buffers (the result ends in `a`): the
+/// iterations run and the pixels changed in all.
+pub(crate) fn iterate(
+    a: &mut GBuffer,
+    b: &mut GBuffer,
+    its: Iterations,
+    mut step: impl FnMut(&GBuffer, &mut GBuffer) -> u64,
+) -> (u32, u64) {
+    let mut done = 0;
+    let mut total = 0;
+    while done < its.max() {
+        let changed = step(a, b);
+        std::mem::swap(a, b);
+        done += 1;
+        total += changed;
+        if changed == 0 && matches!(its, Iterations::UntilStable { .. }) {
+            break;
+        }
+    }
+    (done, total)
+}

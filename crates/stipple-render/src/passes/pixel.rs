@@ -1,7 +1,7 @@
 //! Pixel passes: colour passes that compute each pixel's new colour from the shaded image
 //! around it (its colour, surface depth and point id). Such a pass implements [`PixelPass`]
 //! in its own folder (CPU kernel, uniform block, WGSL entry point) and is registered by one
-//! match arm in [`crate::pipeline::ColourPass::pixel`]; both backends then run it without
+//! match arm in `ColourPass::kernel` (pipeline.rs); both backends then run it without
 //! any code of their own: the CPU calls [`PixelPass::cpu`], the GPU makes the pipeline and
 //! the bind groups over its ping-pong images when the pass is first used and dispatches one
 //! thread per pixel (8×8 workgroups).
@@ -37,4 +37,36 @@ pub trait PixelPass: Send + Sync {
     fn module(&self) -> &'static ShaderModule;
     /// The pass's uniform block (binding 1; at most 128 bytes).
     fn block(&self, v: &ViewParams) -> Vec<u8>;
+}
+
+/// Records a pixel pass: one dispatch of 8×8 workgroups over the frame, from colour image
+/// `cur.colour` into the other.
+pub(crate) fn record<P: PixelPass + ?Sized>(
+    pp: &P,
+    rec: &mut crate::device::record::Rec<'_>,
+    b: crate::device::frame::Binder<'_>,
+    cur: &mut crate::device::frame::Cursor,
+    v: &ViewParams,
+) -> Result<(), crate::device::context::GpuError> {
+    use crate::device::util::{Res, BLOCK};
+    let q = rec.section();
+    let grid = crate::device::record::grid_2d(b.ctx, b.f.width, b.f.height)?;
+    let off = rec.arena.push_bytes(&pp.block(v))?;
+    let pass = b.shared.pixel_pass(b.ctx, pp.name(), pp.module());
+    let (s, f) = (b.shared, b.f);
+    let group = b.bind(
+        pp.name(),
+        &pass.bgl,
+        &[
+            Res::Buf(&s.view),
+            Res::Arena(&s.arena, BLOCK),
+            Res::Buf(&f.id[cur.g]),
+            Res::Buf(&f.surface),
+            Res::Buf(&f.colour[cur.colour]),
+            Res::Buf(&f.colour[1 - cur.colour]),
+        ],
+    );
+    rec.image_pass(q, &pass.pipeline, &group, &[off], grid);
+    cur.colour = 1 - cur.colour;
+    rec.end(pp.id(), 1, vec![], q)
 }

@@ -2,7 +2,11 @@
 //! points over one layout: `begin` clears the accumulator, `blend` adds a layer, `compose`
 //! writes the composite over the background into the colour image.
 
-use crate::device::util::{self, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::frame::{Binder, Cursor, GpuPass, Shared};
+use crate::device::record::{grid_2d, Rec};
+use crate::device::util::{self, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::stats::PassId;
 use wgpu::ShaderStages;
 
 #[repr(C)]
@@ -16,16 +20,16 @@ pub(crate) struct BlendBlock {
 }
 
 pub(crate) struct BlendLayers {
-    pub bgl: wgpu::BindGroupLayout,
-    pub begin: wgpu::ComputePipeline,
-    pub blend: wgpu::ComputePipeline,
-    pub compose: wgpu::ComputePipeline,
+    bgl: wgpu::BindGroupLayout,
+    begin: wgpu::ComputePipeline,
+    blend: wgpu::ComputePipeline,
+    compose: wgpu::ComputePipeline,
 }
 
 const SLOTS: [Slot; 8] = [UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE];
 
-impl BlendLayers {
-    pub fn new(ctx: &crate::device::context::GpuContext) -> BlendLayers {
+impl GpuPass for BlendLayers {
+    fn new(ctx: &GpuContext, _: &Shared) -> BlendLayers {
         let d = &ctx.device;
         let bgl = util::layout(d, "blend_layers", &SLOTS, ShaderStages::COMPUTE);
         let m = util::module(d, &crate::device::shaders::BLEND_LAYERS_MODULE);
@@ -36,4 +40,77 @@ impl BlendLayers {
             bgl,
         }
     }
+}
+
+impl BlendLayers {
+    fn group(&self, b: Binder<'_>, g: usize, c: usize) -> wgpu::BindGroup {
+        let (f, s) = (b.f, b.shared);
+        let [view, block] = b.view_and::<BlendBlock>();
+        b.bind(
+            "blend_layers",
+            &self.bgl,
+            &[
+                view,
+                block,
+                Res::Buf(&f.id[g]),
+                Res::Buf(&f.surface),
+                Res::Buf(&f.attr_style),
+                Res::Buf(&f.colour[c]),
+                Res::Buf(&f.acc),
+                Res::Buf(&s.counters),
+            ],
+        )
+    }
+}
+
+/// `begin` (no `hole_alpha`: clears the accumulator) or `blend` of the current layer.
+pub(crate) fn record_blend(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cur: &Cursor,
+    hole_alpha: Option<f32>,
+    background: [f32; 3],
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let grid = grid_2d(b.ctx, b.f.width, b.f.height)?;
+    let slot = rec.slot()?;
+    let off = rec.arena.push(&BlendBlock {
+        hole_alpha: hole_alpha.unwrap_or(0.0),
+        slot,
+        pad: [0; 2],
+        background,
+        pad2: 0,
+    })?;
+    let pass = b.pass::<BlendLayers>();
+    let pipeline = match hole_alpha {
+        Some(_) => &pass.blend,
+        None => &pass.begin,
+    };
+    let group = pass.group(b, cur.g, cur.colour);
+    rec.image_pass(q, pipeline, &group, &[off], grid);
+    match hole_alpha {
+        Some(_) => rec.end(PassId::BlendLayers, 1, vec![slot], q),
+        None => rec.end(PassId::BlendBegin, 1, vec![], q),
+    }
+}
+
+/// The composite over the background into colour image 0.
+pub(crate) fn record_compose(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    background: [f32; 3],
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let grid = grid_2d(b.ctx, b.f.width, b.f.height)?;
+    let off = rec.arena.push(&BlendBlock {
+        hole_alpha: 0.0,
+        slot: 0,
+        pad: [0; 2],
+        background,
+        pad2: 0,
+    })?;
+    let pass = b.pass::<BlendLayers>();
+    let group = pass.group(b, 0, 0);
+    rec.image_pass(q, &pass.compose, &group, &[off], grid);
+    rec.end(PassId::Compose, 1, vec![], q)
 }

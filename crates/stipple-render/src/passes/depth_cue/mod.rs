@@ -8,7 +8,7 @@
 //!
 //! This pass is the worked example of `docs/architecture.md` ("how to add a pass"): all of
 //! it is this folder, its variant [`crate::ColourPass::DepthCue`], one registration line
-//! in [`crate::ColourPass::pixel`] and the CLI flag `--depth-cue`.
+//! in `ColourPass::kernel` and the CLI flag `--depth-cue`.
 
 use super::pixel::{PixelImages, PixelPass};
 use crate::device::shaders::{ShaderModule, PIXEL_PASS};

@@ -1,6 +1,10 @@
 //! # edl (GPU twin of `cpu.rs`): edl.wgsl.
 
-use crate::device::util::{Pass, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::frame::{Binder, Cursor, GpuPass, Shared};
+use crate::device::record::{grid_2d, Rec};
+use crate::device::util::{Pass, Res, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::stats::PassId;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -26,11 +30,43 @@ impl EdlBlock {
     }
 }
 
-pub(crate) fn new(ctx: &crate::device::context::GpuContext) -> Pass {
-    Pass::new(
-        &ctx.device,
-        &crate::device::shaders::EDL_MODULE,
+/// The pass's pipeline.
+pub(crate) struct Gpu(Pass);
+
+impl GpuPass for Gpu {
+    fn new(ctx: &GpuContext, _: &Shared) -> Gpu {
+        Gpu(Pass::new(
+            &ctx.device,
+            &crate::device::shaders::EDL_MODULE,
+            "edl",
+            &[UNIFORM, DYNAMIC, READ, READ, WRITE],
+        ))
+    }
+}
+
+pub(crate) fn record(
+    e: &super::Edl,
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cur: &mut Cursor,
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let grid = grid_2d(b.ctx, b.f.width, b.f.height)?;
+    let off = rec.arena.push(&EdlBlock::new(e.strength, e.radius))?;
+    let pass = b.pass::<Gpu>();
+    let [view, block] = b.view_and::<EdlBlock>();
+    let group = b.bind(
         "edl",
-        &[UNIFORM, DYNAMIC, READ, READ, WRITE],
-    )
+        &pass.0.bgl,
+        &[
+            view,
+            block,
+            Res::Buf(&b.f.surface),
+            Res::Buf(&b.f.colour[cur.colour]),
+            Res::Buf(&b.f.colour[1 - cur.colour]),
+        ],
+    );
+    rec.image_pass(q, &pass.0.pipeline, &group, &[off], grid);
+    cur.colour = 1 - cur.colour;
+    rec.end(PassId::Edl, 1, vec![], q)
 }

@@ -3,6 +3,17 @@
 //! fill_background.wgsl defines which pixels are candidates (background) and which
 //! neighbours are solid (covered); the step itself is fill.wgsl (see [`crate::passes::fill::gpu`]).
 
-pub(crate) fn new(ctx: &crate::device::context::GpuContext) -> crate::device::util::Pass {
-    crate::passes::fill::gpu::new(ctx, &crate::device::shaders::FILL_BACKGROUND_MODULE)
+use crate::device::context::GpuContext;
+use crate::device::frame::{GpuPass, Shared};
+
+/// The pass's pipeline.
+pub(crate) struct Gpu(pub crate::device::util::Pass);
+
+impl GpuPass for Gpu {
+    fn new(ctx: &GpuContext, _: &Shared) -> Gpu {
+        Gpu(crate::passes::fill::gpu::new(
+            ctx,
+            &crate::device::shaders::FILL_BACKGROUND_MODULE,
+        ))
+    }
 }

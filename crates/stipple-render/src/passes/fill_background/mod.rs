@@ -3,3 +3,42 @@
 
 pub mod cpu;
 pub mod gpu;
+
+use super::GeometryKernel;
+use crate::device::context::GpuError;
+use crate::device::frame::{Binder, Cursor};
+use crate::device::record::Rec;
+use crate::gbuffer::GBuffer;
+use crate::params::ViewParams;
+use crate::pipeline::Iterations;
+use crate::stats::PassId;
+
+/// Background filling (see [`crate::GeometryPass::FillBackground`]).
+pub(crate) struct FillBackground {
+    pub iterations: Iterations,
+    pub radius: u32,
+}
+
+impl GeometryKernel for FillBackground {
+    fn id(&self) -> PassId {
+        PassId::FillBackground
+    }
+
+    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, _gap: f32) -> (u32, u64) {
+        super::iterate(a, b, self.iterations, |s, d| {
+            cpu::fill_background(s, d, self.radius)
+        })
+    }
+
+    fn record(
+        &self,
+        rec: &mut Rec<'_>,
+        b: Binder<'_>,
+        cur: &mut Cursor,
+        _gap: f32,
+    ) -> Result<(), GpuError> {
+        let pass = b.pass::<gpu::Gpu>();
+        let (id, its) = (self.id(), self.iterations);
+        super::fill::gpu::record(rec, b, cur, &pass.0, id, its, self.radius, 0.0)
+    }
+}

@@ -3,3 +3,45 @@
 
 pub mod cpu;
 pub mod gpu;
+
+use super::GeometryKernel;
+use crate::device::context::GpuError;
+use crate::device::frame::{Binder, Cursor};
+use crate::device::record::Rec;
+use crate::gbuffer::GBuffer;
+use crate::params::ViewParams;
+use crate::pipeline::Iterations;
+use crate::stats::PassId;
+
+/// Occluded-pixel filling (see [`crate::GeometryPass::FillOccluded`]).
+pub(crate) struct FillOccluded {
+    pub iterations: Iterations,
+    /// None: the frame's layer gap.
+    pub layer_gap: Option<f32>,
+    pub radius: u32,
+}
+
+impl GeometryKernel for FillOccluded {
+    fn id(&self) -> PassId {
+        PassId::FillOccluded
+    }
+
+    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, gap: f32) -> (u32, u64) {
+        let gap = self.layer_gap.unwrap_or(gap);
+        super::iterate(a, b, self.iterations, |s, d| {
+            cpu::fill_occluded(s, d, gap, self.radius)
+        })
+    }
+
+    fn record(
+        &self,
+        rec: &mut Rec<'_>,
+        b: Binder<'_>,
+        cur: &mut Cursor,
+        gap: f32,
+    ) -> Result<(), GpuError> {
+        let pass = b.pass::<gpu::Gpu>();
+        let (id, its, gap) = (self.id(), self.iterations, self.layer_gap.unwrap_or(gap));
+        super::fill::gpu::record(rec, b, cur, &pass.0, id, its, self.radius, gap)
+    }
+}

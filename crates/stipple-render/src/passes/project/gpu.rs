@@ -7,8 +7,12 @@
 //! The cloud is projected chunk by chunk (one storage binding each) and dispatches beyond the
 //! per-dimension limit are split in 2-D. `resolve` then unpacks the keys into the G-buffer.
 
-use crate::device::context::GpuContext;
-use crate::device::util::{self, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::device::cloud::GpuCloud;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::frame::{Binder, GpuPass, Shared};
+use crate::device::record::{flat_groups, grid_2d, Rec};
+use crate::device::util::{self, Pass, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::stats::PassId;
 use wgpu::ShaderStages;
 
 /// Points one workgroup projects (project.wgsl WG × BATCH).
@@ -42,14 +46,39 @@ pub(crate) struct PeelReferenceBlock {
     pub pad: [u32; 3],
 }
 
-/// The peel reference pass (see `cpu::peel_reference`).
-pub(crate) fn peel_reference(ctx: &GpuContext) -> crate::device::util::Pass {
-    crate::device::util::Pass::new(
-        &ctx.device,
-        &crate::device::shaders::PEEL_REFERENCE_MODULE,
+/// The peel reference pass's pipeline (see `cpu::peel_reference`).
+pub(crate) struct PeelReference(Pass);
+
+impl GpuPass for PeelReference {
+    fn new(ctx: &GpuContext, _: &Shared) -> PeelReference {
+        PeelReference(Pass::new(
+            &ctx.device,
+            &crate::device::shaders::PEEL_REFERENCE_MODULE,
+            "peel_reference",
+            &[UNIFORM, DYNAMIC, READ, WRITE],
+        ))
+    }
+}
+
+/// The next peeled layer's reference depth from the current surface depth (see
+/// `cpu::peel_reference`); `bound` = 4 d̃.
+pub(crate) fn record_peel_reference(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    bound: f32,
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let grid = grid_2d(b.ctx, b.f.width, b.f.height)?;
+    let off = rec.arena.push(&PeelReferenceBlock { bound, pad: [0; 3] })?;
+    let pass = b.pass::<PeelReference>();
+    let [view, block] = b.view_and::<PeelReferenceBlock>();
+    let group = b.bind(
         "peel_reference",
-        &[UNIFORM, DYNAMIC, READ, WRITE],
-    )
+        &pass.0.bgl,
+        &[view, block, Res::Buf(&b.f.surface), Res::Buf(&b.f.peel_ref)],
+    );
+    rec.image_pass(q, &pass.0.pipeline, &group, &[off], grid);
+    rec.end(PassId::PeelReference, 1, vec![], q)
 }
 
 pub(crate) struct Project {
@@ -63,8 +92,8 @@ pub(crate) struct Project {
 
 const BASE: [Slot; 6] = [UNIFORM, DYNAMIC, READ, READ, WRITE, READ];
 
-impl Project {
-    pub fn new(ctx: &GpuContext) -> Project {
+impl GpuPass for Project {
+    fn new(ctx: &GpuContext, _: &Shared) -> Project {
         let d = &ctx.device;
         let c = ShaderStages::COMPUTE;
         let wide = ctx.int64_atomics.then(|| {
@@ -98,7 +127,9 @@ impl Project {
             resolve,
         }
     }
+}
 
+impl Project {
     /// The layout of the projection in use: view, chunk block (arena), positions, normals,
     /// counters, the peeling reference depth, then the visibility buffer(s).
     pub fn bgl(&self) -> &wgpu::BindGroupLayout {
@@ -107,4 +138,85 @@ impl Project {
             None => &self.narrow_bgl,
         }
     }
+}
+
+/// Projects every chunk of `cloud` into the visibility buffer (culling back faces where
+/// `cull` and the cloud has normals; behind the reference depth by `peel` = d̃ when
+/// peeling), then resolves it into geometry image 0.
+pub(crate) fn record(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cloud: &GpuCloud,
+    cull: bool,
+    peel: Option<f32>,
+) -> Result<(), GpuError> {
+    let (ctx, f, s) = (b.ctx, b.f, b.shared);
+    let q = rec.section();
+    rec.enc.clear_buffer(&f.vis, 0, None);
+    rec.enc.clear_buffer(&f.vis_id, 0, None);
+    let slot = rec.slot()?;
+    let cull = cull && cloud.has_normals;
+    let proj = b.pass::<Project>();
+    let mut chunks = Vec::new();
+    for c in &cloud.chunks {
+        let off = rec.arena.push(&ChunkBlock {
+            base: c.base,
+            count: c.count,
+            cull: cull as u32,
+            slot,
+            peel: peel.is_some() as u32,
+            gap: peel.unwrap_or(0.0),
+            pad: [0; 2],
+        })?;
+        let [view, block] = b.view_and::<ChunkBlock>();
+        let mut res = vec![
+            view,
+            block,
+            Res::Buf(&c.positions),
+            Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
+            Res::Buf(&s.counters),
+            Res::Buf(&f.peel_ref),
+            Res::Buf(&f.vis),
+        ];
+        if proj.wide.is_none() {
+            res.push(Res::Buf(&f.vis_id));
+        }
+        let group = b.bind_chunk("project", proj.bgl(), &res);
+        chunks.push((group, off, ctx.grid(c.count.div_ceil(POINTS_PER_GROUP))));
+    }
+    let roff = rec.arena.push(&ResolveBlock {
+        wide: proj.wide.is_some() as u32,
+        pad: [0; 3],
+    })?;
+    let [view, block] = b.view_and::<ResolveBlock>();
+    let resolve = b.bind(
+        "resolve",
+        &proj.resolve_bgl,
+        &[
+            view,
+            block,
+            Res::Buf(&f.vis),
+            Res::Buf(&f.vis_id),
+            Res::Buf(&f.depth[0]),
+            Res::Buf(&f.id[0]),
+        ],
+    );
+    let mut pass = rec.timed_pass(q);
+    let stages: Vec<&wgpu::ComputePipeline> = match &proj.wide {
+        Some((_, p)) => vec![p],
+        None => vec![&proj.narrow_depth, &proj.narrow_index],
+    };
+    for p in stages {
+        pass.set_pipeline(p);
+        for (bg, off, (gx, gy)) in &chunks {
+            pass.set_bind_group(0, bg, &[*off]);
+            pass.dispatch_workgroups(*gx, *gy, 1);
+        }
+    }
+    pass.set_pipeline(&proj.resolve);
+    pass.set_bind_group(0, &resolve, &[roff]);
+    let (gx, gy) = flat_groups(ctx, f.pixels());
+    pass.dispatch_workgroups(gx, gy, 1);
+    drop(pass);
+    rec.end(PassId::Project, 1, vec![slot], q)
 }

@@ -4,9 +4,13 @@
 //! point (position, normal, albedo, object and opacity, shadow counts) into per-pixel buffers; `shade` (shade.wgsl) then
 //! lights every pixel and computes its surface depth, as the CPU does.
 
-use crate::device::context::GpuContext;
-use crate::device::util::{Pass, DYNAMIC, READ, UNIFORM, WRITE};
+use crate::device::cloud::GpuCloud;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::frame::{Binder, Cursor, GpuPass, Shared};
+use crate::device::record::{flat_groups, grid_2d, Rec};
+use crate::device::util::{Pass, Res, DYNAMIC, READ, UNIFORM, WRITE};
 use crate::passes::shade::cpu::{LocalLight, ShadeParams};
+use crate::stats::PassId;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -110,13 +114,15 @@ pub(crate) fn material_table(p: &ShadeParams) -> Box<MaterialTable> {
     t
 }
 
+/// The pass's pipelines and its material table (a uniform array, written per frame).
 pub(crate) struct Shade {
-    pub gather: Pass,
-    pub shade: Pass,
+    gather: Pass,
+    shade: Pass,
+    materials: wgpu::Buffer,
 }
 
-impl Shade {
-    pub fn new(ctx: &GpuContext) -> Shade {
+impl GpuPass for Shade {
+    fn new(ctx: &GpuContext, _: &Shared) -> Shade {
         let d = &ctx.device;
         Shade {
             gather: Pass::new(
@@ -135,6 +141,98 @@ impl Shade {
                     UNIFORM, DYNAMIC, READ, READ, READ, READ, READ, WRITE, WRITE, READ, UNIFORM,
                 ],
             ),
+            materials: d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("materials"),
+                size: std::mem::size_of::<MaterialTable>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
         }
     }
+}
+
+/// Records shade from geometry image `cur.g`: gather per chunk (or, after blended splats,
+/// the splat pass's resolve), then shade into colour image 0 and the surface depth.
+pub(crate) fn record(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cur: &Cursor,
+    cloud: &GpuCloud,
+    (block, materials): (ShadeBlock, &MaterialTable),
+    splat: Option<&mut crate::passes::splat::gpu::SplatGpu>,
+) -> Result<(), GpuError> {
+    let (ctx, f, s) = (b.ctx, b.f, b.shared);
+    let q = rec.section();
+    let pass = b.pass::<Shade>();
+    ctx.queue
+        .write_buffer(&pass.materials, 0, bytemuck::cast_slice(&materials[..]));
+    let mut gathers = Vec::new();
+    for c in &cloud.chunks {
+        let off = rec.arena.push(&GatherBlock {
+            base: c.base,
+            count: c.count,
+            has_normals: c.normals.is_some() as u32,
+            has_albedo: c.albedo.is_some() as u32,
+            has_style: c.style.is_some() as u32,
+            has_lit: c.lit.is_some() as u32,
+            pad: [0; 2],
+        })?;
+        let [view, gblock] = b.view_and::<GatherBlock>();
+        let or_dummy = |x: &Option<wgpu::Buffer>| x.as_ref().unwrap_or(&cloud.dummy).clone();
+        let (normals, albedo) = (or_dummy(&c.normals), or_dummy(&c.albedo));
+        let (style, lit) = (or_dummy(&c.style), or_dummy(&c.lit));
+        let group = b.bind_chunk(
+            "gather",
+            &pass.gather.bgl,
+            &[
+                view,
+                gblock,
+                Res::Buf(&f.id[cur.g]),
+                Res::Buf(&c.positions),
+                Res::Buf(&normals),
+                Res::Buf(&albedo),
+                Res::Buf(&f.attr_pos),
+                Res::Buf(&f.attr_normal),
+                Res::Buf(&style),
+                Res::Buf(&lit),
+                Res::Buf(&f.attr_style),
+            ],
+        );
+        gathers.push((group, off));
+    }
+    let soff = rec.arena.push(&block)?;
+    let [view, sblock] = b.view_and::<ShadeBlock>();
+    let shade = b.bind(
+        "shade",
+        &pass.shade.bgl,
+        &[
+            view,
+            sblock,
+            Res::Buf(&f.depth[cur.g]),
+            Res::Buf(&f.id[cur.g]),
+            Res::Buf(&f.attr_pos),
+            Res::Buf(&f.attr_normal),
+            Res::Buf(&s.to_linear),
+            Res::Buf(&f.colour[0]),
+            Res::Buf(&f.surface),
+            Res::Buf(&f.attr_style),
+            Res::Buf(&pass.materials),
+        ],
+    );
+    let (fx, fy) = flat_groups(ctx, f.pixels());
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let mut p = rec.timed_pass(q);
+    p.set_pipeline(&pass.gather.pipeline);
+    for (bg, off) in &gathers {
+        p.set_bind_group(0, bg, &[*off]);
+        p.dispatch_workgroups(fx, fy, 1);
+    }
+    if let Some(sg) = splat {
+        sg.record_resolve(&mut p);
+    }
+    p.set_pipeline(&pass.shade.pipeline);
+    p.set_bind_group(0, &shade, &[soff]);
+    p.dispatch_workgroups(gx, gy, 1);
+    drop(p);
+    rec.end(PassId::Shade, 1, vec![], q)
 }

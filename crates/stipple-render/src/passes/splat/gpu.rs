@@ -544,3 +544,50 @@ impl SplatGpu {
 
 /// Blend sums per pixel.
 const ACC_WORDS: u64 = 8;
+
+/// Records the splat pass of a frame into geometry image 0 (and, blending, into shade's
+/// per-pixel position and normal buffers), timed as one section.
+pub(crate) fn record_step(
+    rec: &mut crate::device::record::Rec<'_>,
+    b: crate::device::frame::Binder<'_>,
+    splat: &mut SplatGpu,
+    cloud: &GpuCloud,
+    s: crate::SplatSettings,
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let timer = rec.timer;
+    let mut begin = |enc: &mut wgpu::CommandEncoder| {
+        let timestamp_writes = match (timer, q) {
+            (Some(t), Some((b, e))) => Some(wgpu::ComputePassTimestampWrites {
+                query_set: &t.set,
+                beginning_of_pass_write_index: Some(b),
+                end_of_pass_write_index: Some(e),
+            }),
+            _ => None,
+        };
+        enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("splat"),
+            timestamp_writes,
+        })
+        .forget_lifetime()
+    };
+    let f = b.f;
+    splat.record(
+        b.ctx,
+        &mut rec.enc,
+        rec.arena,
+        &b.shared.view,
+        cloud,
+        (f.width, f.height),
+        (s.epsilon.unwrap_or(0.0), s.scale),
+        (&f.depth[0], &f.id[0]),
+        (s.mode, s.quant()),
+        (s.mode != crate::SplatMode::Voronoi).then_some(BlendTargets {
+            attr_pos: &f.attr_pos,
+            attr_normal: &f.attr_normal,
+            to_linear: &b.shared.to_linear,
+        }),
+        &mut begin,
+    )?;
+    rec.end(crate::stats::PassId::Splat, 1, vec![], q)
+}

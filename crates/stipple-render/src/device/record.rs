@@ -1,7 +1,7 @@
 //! Recording a frame: the command encoder with its counter slots and timestamp queries,
 //! submission, statistics and readback.
 
-use super::resources::*;
+use super::frame::*;
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::util::Arena;
 use crate::gbuffer::GBuffer;
@@ -79,6 +79,18 @@ impl<'a> Rec<'a> {
 
     /// One compute pass of a single dispatch of `grid` workgroups (the shape of most image
     /// passes), timed with the section's queries `q`.
+    /// Opens the section of a step: its clock starts, and its timestamp queries (when the
+    /// device has them) are taken.
+    pub(crate) fn section(&mut self) -> Option<(u32, u32)> {
+        self.start();
+        self.queries()
+    }
+
+    /// A compute pass timed with the section's queries `q` (begin and end).
+    pub(crate) fn timed_pass(&mut self, q: Option<(u32, u32)>) -> wgpu::ComputePass<'static> {
+        self.cpass(q.map(|q| q.0), q.map(|q| q.1))
+    }
+
     pub(crate) fn image_pass(
         &mut self,
         q: Option<(u32, u32)>,
@@ -195,26 +207,19 @@ pub(crate) fn grid_2d(ctx: &GpuContext, w: u32, h: u32) -> Result<(u32, u32), Gp
     Ok((gx, gy))
 }
 
-/// Where the geometry and colour images are after the passes recorded so far.
-#[derive(Clone, Copy, Default)]
-pub(crate) struct Cursor {
-    pub(crate) g: usize,
-    pub(crate) colour: usize,
-}
-
 pub(crate) fn recorder<'a>(
     ctx: &'a GpuContext,
-    kit: &'a Kit,
+    shared: &'a Shared,
     arena: &'a mut Arena,
     sync: bool,
 ) -> Rec<'a> {
     let mut enc = ctx.device.create_command_encoder(&Default::default());
-    enc.clear_buffer(&kit.counters, 0, None);
+    enc.clear_buffer(&shared.counters, 0, None);
     Rec {
         ctx,
         enc,
-        timer: kit.timer.as_ref(),
-        sync: sync && kit.timer.is_none(),
+        timer: shared.timer.as_ref(),
+        sync: sync && shared.timer.is_none(),
         arena,
         sections: Vec::new(),
         next_query: 0,
@@ -264,9 +269,9 @@ pub(crate) fn copy_out(ctx: &GpuContext, buf: &Buffer, bytes: u64) -> Result<Vec
 }
 
 /// Submits the recorded frame (with the counter and timestamp readbacks).
-pub(crate) fn finish(mut rec: Rec<'_>, kit: &Kit) -> Result<Vec<Section>, GpuError> {
+pub(crate) fn finish(mut rec: Rec<'_>, shared: &Shared) -> Result<Vec<Section>, GpuError> {
     rec.enc
-        .copy_buffer_to_buffer(&kit.counters, 0, &kit.counters_read, 0, SLOTS * 4);
+        .copy_buffer_to_buffer(&shared.counters, 0, &shared.counters_read, 0, SLOTS * 4);
     if let (Some(t), true) = (rec.timer, rec.next_query > 0) {
         rec.enc
             .resolve_query_set(&t.set, 0..rec.next_query, &t.resolve, 0);
@@ -279,12 +284,12 @@ pub(crate) fn finish(mut rec: Rec<'_>, kit: &Kit) -> Result<Vec<Section>, GpuErr
 
 pub(crate) fn stats(
     ctx: &GpuContext,
-    kit: &Kit,
+    shared: &Shared,
     sections: &[Section],
 ) -> Result<Vec<PassStat>, GpuError> {
     let counters: Vec<u32> =
-        bytemuck::cast_slice(&read_back(ctx, &kit.counters_read, SLOTS * 4)?).to_vec();
-    let stamps: Option<(Vec<u64>, f64)> = match &kit.timer {
+        bytemuck::cast_slice(&read_back(ctx, &shared.counters_read, SLOTS * 4)?).to_vec();
+    let stamps: Option<(Vec<u64>, f64)> = match &shared.timer {
         Some(t) if sections.iter().any(|s| s.queries.is_some()) => Some((
             bytemuck::cast_slice(&read_back(ctx, &t.read, QUERIES as u64 * 8)?).to_vec(),
             t.period_ns,
