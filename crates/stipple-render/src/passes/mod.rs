@@ -14,6 +14,7 @@ pub mod fill_occluded;
 pub mod output;
 pub mod pixel;
 pub mod project;
+mod registry;
 pub mod shade;
 pub mod shadow_texture;
 pub mod smooth;

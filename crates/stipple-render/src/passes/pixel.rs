@@ -1,7 +1,7 @@
 //! Pixel passes: colour passes that compute each pixel's new colour from the shaded image
 //! around it (its colour, surface depth and point id). Such a pass implements [`PixelPass`]
 //! in its own folder (CPU kernel, uniform block, WGSL entry point) and is registered by one
-//! match arm in `ColourPass::kernel` (pipeline.rs); both backends then run it without
+//! match arm in `ColourPass::kernel` (passes/registry.rs); both backends then run it without
 //! any code of their own: the CPU calls [`PixelPass::cpu`], the GPU makes the pipeline and
 //! the bind groups over its ping-pong images when the pass is first used and dispatches one
 //! thread per pixel (8×8 workgroups).
