@@ -108,9 +108,15 @@ impl PassExec for GpuExec<'_> {
             .shading
             .as_ref()
             .ok_or_else(|| GpuError::Wgpu("shade recorded in a light view".into()))?;
-        let splat = self.splat.as_deref_mut();
+        let mut resolve = self
+            .splat
+            .as_deref_mut()
+            .map(|sg| move |p: &mut wgpu::ComputePass<'static>| sg.record_resolve(p));
+        let before = resolve
+            .as_mut()
+            .map(|f| f as &mut dyn FnMut(&mut wgpu::ComputePass<'static>));
         let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
-        shade::gpu::record(rec, b, cur, cloud, (s.block, &s.materials), splat)
+        shade::gpu::record(rec, b, cur, cloud, (s.block, &s.materials), before)
     }
 
     fn colour(&mut self, pass: &ColourPass) -> Result<(), GpuError> {

@@ -151,15 +151,16 @@ impl GpuPass for Shade {
     }
 }
 
-/// Records shade from geometry image `cur.g`: gather per chunk (or, after blended splats,
-/// the splat pass's resolve), then shade into colour image 0 and the surface depth.
+/// Records shade from geometry image `cur.g`: gather per chunk, then `before_shade` (after
+/// blended splats, the splat pass's resolve of its per-pixel sums, in the same compute pass),
+/// then shade into colour image 0 and the surface depth.
 pub(crate) fn record(
     rec: &mut Rec<'_>,
     b: Binder<'_>,
     cur: &Cursor,
     cloud: &GpuCloud,
     (block, materials): (ShadeBlock, &MaterialTable),
-    splat: Option<&mut crate::passes::splat::gpu::SplatGpu>,
+    before_shade: Option<&mut dyn FnMut(&mut wgpu::ComputePass<'static>)>,
 ) -> Result<(), GpuError> {
     let (ctx, f, s) = (b.ctx, b.f, b.shared);
     let q = rec.section();
@@ -227,8 +228,8 @@ pub(crate) fn record(
         p.set_bind_group(0, bg, &[*off]);
         p.dispatch_workgroups(fx, fy, 1);
     }
-    if let Some(sg) = splat {
-        sg.record_resolve(&mut p);
+    if let Some(f) = before_shade {
+        f(&mut p);
     }
     p.set_pipeline(&pass.shade.pipeline);
     p.set_bind_group(0, &shade, &[soff]);
