@@ -886,6 +886,10 @@ fn share_boundaries(
     nb: &Neighbours,
     shaped: Vec<Shaped>,
 ) -> Vec<SplatShape> {
+    let rims: Vec<bool> = shaped.iter().map(|s| s.1).collect();
+    if !rims.contains(&true) {
+        return shaped.into_iter().map(|s| s.0).collect();
+    }
     (0..shaped.len())
         .into_par_iter()
         .map(|i| {
@@ -897,10 +901,11 @@ fn share_boundaries(
             let (mut found, mut rim) = (Vec::new(), 0);
             for &j in nb.of(i) {
                 let j = j as usize;
-                let (other, is_boundary) = shaped[j];
-                if !is_boundary || normals[j].dot(n) <= 0.0 {
+                // The flags first: a byte per point stays in cache, the shapes do not.
+                if !rims[j] || normals[j].dot(n) <= 0.0 {
                     continue;
                 }
+                let other = shaped[j].0;
                 let d = positions[j] - p;
                 if d.dot(n).abs() > 0.5 * d.length() {
                     continue;
