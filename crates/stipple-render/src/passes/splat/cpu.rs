@@ -149,7 +149,7 @@ pub fn splat(
     };
     let outs: Vec<TileOut> = (0..(tw * th) as usize)
         .into_par_iter()
-        .map(|t| {
+        .map_init(Vec::new, |frags, t| {
             let mut ids: Vec<u32> = list[start[t]..start[t + 1]]
                 .iter()
                 .map(|a| a.load(Ordering::Relaxed))
@@ -163,7 +163,8 @@ pub fn splat(
             // Every fragment in the tile, computed once: (local pixel, splat in `discs`,
             // fragment), in splat index order.
             let discs: Vec<Disc> = ids.iter().map(|&sid| disc(sid as usize)).collect();
-            let mut frags: Vec<(u32, u32, super::Frag)> = Vec::new();
+            // Reused from the thread's previous tile (no growth by doubling per tile).
+            frags.clear();
             for (li, &sid) in ids.iter().enumerate() {
                 let fp = feet[sid as usize].expect("listed splats have footprints");
                 let r = Raster::new(v, &discs[li]);
@@ -178,7 +179,7 @@ pub fn splat(
             }
             // Calls `f(local pixel, fragment, splat, point index)` for every fragment.
             let each = |f: &mut dyn FnMut(usize, super::Frag, &Disc, usize)| {
-                for &(k, li, fr) in &frags {
+                for &(k, li, fr) in frags.iter() {
                     f(
                         k as usize,
                         fr,
