@@ -328,3 +328,49 @@ fn a_sparse_rotated_ellipsoid_renders_whole_at_default_settings() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Degenerate sparse clouds draw something, never a blank image: five points (splats as
+/// large as the cloud, reaching in front of the near plane), and a lattice whose every
+/// point is repeated 40 times (the copies are no neighbours of each other).
+#[test]
+fn degenerate_sparse_clouds_are_not_blank() {
+    let dir = tempdir("fidelity-degenerate");
+    let mut r = Rng::new(3);
+    let five: String = (0..5)
+        .map(|_| format!("{} {} {}\n", r.f32(), r.f32(), r.f32()))
+        .collect();
+    std::fs::write(dir.join("five.xyz"), five).unwrap();
+    let lattice: String = (0..4000)
+        .map(|i| {
+            format!(
+                "{} {} {}\n",
+                (i / 40) % 10,
+                (i / 400) % 10,
+                0.1 * (i / 40 % 7) as f32
+            )
+        })
+        .collect();
+    std::fs::write(dir.join("lattice.xyz"), lattice).unwrap();
+    for f in ["five.xyz", "lattice.xyz"] {
+        let o = stipple(
+            &dir,
+            &[
+                "render",
+                f,
+                "--size",
+                "128",
+                "--backend",
+                "cpu",
+                "--depth-out",
+                "d.npy",
+                "-o",
+                "x.png",
+            ],
+        );
+        assert!(o.status.success(), "{f}: {}", text(&o));
+        let (_, _, d) = stipple_io::image::read_npy(&dir.join("d.npy")).unwrap();
+        let covered = d.iter().filter(|x| x.is_finite()).count();
+        assert!(covered > 500, "{f}: {covered} pixels covered\n{}", text(&o));
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -270,7 +270,13 @@ impl Grid {
                                     let id = self.ids[t];
                                     let d2 = (self.pts[t] - q).length_squared();
                                     let key = ((d2.to_bits() as u64) << 32) | id as u64;
-                                    if id == self_id || (len == k && key >= best[k - 1]) {
+                                    // Duplicates of the query (distance 0) are no
+                                    // neighbours: they add nothing to a normal, and a
+                                    // point repeated k times would get radius 0.
+                                    if id == self_id
+                                        || d2 == 0.0
+                                        || (len == k && key >= best[k - 1])
+                                    {
                                         continue;
                                     }
                                     // Insertion from the end.
@@ -317,8 +323,54 @@ fn check(positions: &[Vec3], k: usize) -> Result<usize, NormalError> {
     Ok(k.min(positions.len() - 1))
 }
 
-/// The k nearest neighbours of every point (k is reduced to n − 1 for tiny clouds).
+/// The k nearest neighbours of every point (k is reduced to n − 1 for tiny clouds), other
+/// than its exact duplicates.
 pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalError> {
+    check(positions, k)?;
+    // Exact duplicates (merged scans, a file written twice): the search runs over the
+    // distinct positions, and every copy takes its position's neighbours; otherwise a point
+    // repeated k times has only its copies as neighbours (radius 0, no normal) and one
+    // repeated a few times fills its neighbours' lists with copies of itself.
+    let mut order: Vec<u32> = (0..positions.len() as u32).collect();
+    let bits = |i: u32| {
+        let p = positions[i as usize];
+        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
+    };
+    order.par_sort_unstable_by_key(|&i| (bits(i), i));
+    let mut rep: Vec<u32> = Vec::new();
+    let mut uid = vec![0u32; positions.len()];
+    for (t, &i) in order.iter().enumerate() {
+        if t == 0 || bits(i) != bits(order[t - 1]) {
+            rep.push(i);
+        }
+        uid[i as usize] = rep.len() as u32 - 1;
+    }
+    if rep.len() == positions.len() || rep.len() < 4 {
+        return neighbours_distinct(positions, k);
+    }
+    let distinct: Vec<Vec3> = rep.iter().map(|&i| positions[i as usize]).collect();
+    let nb = neighbours_distinct(&distinct, k)?;
+    let k = nb.k;
+    let mut index = vec![0u32; positions.len() * k];
+    index
+        .par_chunks_mut(k)
+        .zip(uid.par_iter())
+        .for_each(|(row, &u)| {
+            let u = u as usize;
+            for (dst, &j) in row.iter_mut().zip(&nb.index[u * k..(u + 1) * k]) {
+                *dst = rep[j as usize];
+            }
+        });
+    Ok(Neighbours {
+        k,
+        index,
+        kth: uid.iter().map(|&u| nb.kth[u as usize]).collect(),
+        found: uid.iter().map(|&u| nb.found[u as usize]).collect(),
+    })
+}
+
+/// [`neighbours`] of points without exact duplicates.
+fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalError> {
     let k = check(positions, k)?;
     let cloud = crate::PointCloud::from_positions(positions.to_vec());
     let mut spacing = cloud.estimate_spacing();
@@ -1699,6 +1751,27 @@ mod tests {
         let line: Vec<Vec3> = (0..100).map(|i| Vec3::X * i as f32).collect();
         let e = estimate(&line, None, 16, 1.0).unwrap();
         assert!(e.normals.iter().all(|n| n.x.abs() < 1e-4));
+    }
+
+    /// Every point of a plane repeated 40 times (merged scans, a file written twice): the
+    /// copies are no neighbours, so normals and radii are those of the distinct points, not
+    /// radius 0 (nothing drawn) and an arbitrary normal.
+    #[test]
+    fn duplicated_points_keep_their_neighbourhoods() {
+        let mut r = Rng::new(4);
+        let base: Vec<Vec3> = (0..200).map(|_| Vec3::new(r.f32(), r.f32(), 0.0)).collect();
+        let pts: Vec<Vec3> = base.iter().flat_map(|&p| [p; 40]).collect();
+        let nb = neighbours(&pts, 16).unwrap();
+        for i in (0..pts.len()).step_by(37) {
+            assert!(
+                nb.of(i).iter().all(|&j| pts[j as usize] != pts[i]),
+                "point {i}"
+            );
+        }
+        let e = estimate(&pts, None, 16, 1.0).unwrap();
+        let spacing = (1.0f32 / 200.0).sqrt();
+        assert!(e.radii.iter().all(|&x| x > 0.5 * spacing), "radii");
+        assert!(e.normals.iter().all(|n| n.z.abs() > 0.99), "normals");
     }
 }
 

@@ -169,7 +169,7 @@ pub fn epsilon(median_radius: f32) -> f32 {
 }
 
 /// The pixel rectangle (x0, y0, x1, y1), inclusive, that may hold fragments of splat `s`;
-/// None when it is off screen or not in front of the near plane. The splat lies in the box
+/// None when it is off screen or wholly behind the near plane. The splat lies in the box
 /// about its point with half-extent r·√(1 − (n·a)²) + h·|n·a| along each camera axis a
 /// (a disc of radius r about n, bent at most h = ½κ_max·r² off its plane), whose
 /// perspective image is bounded by dividing each side by the nearest or farthest depth:
@@ -190,10 +190,14 @@ pub fn footprint(v: &ViewParams, s: &Disc) -> Option<[u32; 4]> {
     let (w, hgt) = (v.width as f32, v.height as f32);
     let (x0, x1, y0, y1, cx, cy);
     if v.perspective == 1 {
-        let (zn, zf) = (z - ez, z + ez);
-        if zn <= v.near {
+        // A splat reaching in front of the near plane is bounded by its visible part
+        // (fragments nearer than the plane are dropped per pixel): large splats of sparse
+        // clouds seen close must not vanish whole.
+        let (zn, zf) = ((z - ez).max(v.near), z + ez);
+        if zf <= v.near {
             return None;
         }
+        let z = z.max(zn);
         // The extreme of (x ± e)/z over z in [zn, zf].
         let lo = |c: f32| if c >= 0.0 { c / zf } else { c / zn };
         let hi = |c: f32| if c >= 0.0 { c / zn } else { c / zf };
@@ -451,6 +455,26 @@ pub fn weight(q: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A splat reaching in front of the near plane keeps the footprint of its visible part
+    /// (large splats of a sparse cloud seen close used to vanish whole).
+    #[test]
+    fn a_splat_across_the_near_plane_keeps_its_visible_part() {
+        let v = ViewParams::axis_aligned(64, 64, true, 1.0);
+        // Near is 0.1: a disc at depth 0.5 tilted 60° with radius 1 reaches depth −0.37.
+        let n = Vec3::new(0.0, (60f32).to_radians().sin(), -(60f32).to_radians().cos());
+        let d = Disc::new(&v, Vec3::new(0.0, 0.0, 0.5), Some(n), 1.0, None);
+        let f = footprint(&v, &d).expect("the visible part has a footprint");
+        let r = Raster::new(&v, &d);
+        let hits = (f[1]..=f[3])
+            .flat_map(|y| (f[0]..=f[2]).map(move |x| (x, y)))
+            .filter_map(|(x, y)| r.eval(x, y))
+            .count();
+        assert!(hits > 100, "{hits} fragments in {f:?}");
+        // Wholly behind the near plane: nothing.
+        let behind = Disc::new(&v, Vec3::new(0.0, 0.0, -1.0), Some(-Vec3::Z), 0.5, None);
+        assert_eq!(footprint(&v, &behind), None);
+    }
 
     /// A splat bent like the unit sphere it sits on meets pixel rays where the sphere does
     /// (to fourth order), a flat one does not; its clip plane cuts it.

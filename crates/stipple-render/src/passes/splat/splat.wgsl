@@ -189,17 +189,18 @@ fn load_splat(local: u32) -> Splat {
     var cx: f32;
     var cy: f32;
     if (view.perspective == 1u) {
-        let zn = z - ez;
+        let zn = max(z - ez, view.near);
         let zf = z + ez;
-        if (zn <= view.near) {
+        if (zf <= view.near) {
             return s;
         }
+        let zc = max(z, zn);
         x0 = (ext_lo(x - ex, zn, zf) * view.sx + 1.0) * 0.5 * w - 0.5;
         x1 = (ext_hi(x + ex, zn, zf) * view.sx + 1.0) * 0.5 * w - 0.5;
         y0 = (1.0 - ext_hi(y + ey, zn, zf) * view.sy) * 0.5 * h - 0.5;
         y1 = (1.0 - ext_lo(y - ey, zn, zf) * view.sy) * 0.5 * h - 0.5;
-        cx = (x * view.sx / z + 1.0) * 0.5 * w - 0.5;
-        cy = (1.0 - y * view.sy / z) * 0.5 * h - 0.5;
+        cx = (x * view.sx / zc + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * view.sy / zc) * 0.5 * h - 0.5;
     } else {
         if (z + ez <= view.near) {
             return s;
