@@ -902,3 +902,84 @@ pub fn parse_scene(s: &str) -> std::result::Result<stipple_core::demo::DemoScene
         format!("unknown scene `{s}` (one of: {})", names.join(", "))
     })
 }
+
+/// Colour by attribute (`render` and `bench`).
+#[derive(clap::Args, Clone, Default)]
+#[command(next_help_heading = "Colour by attribute (Gunjee et al. §3)")]
+pub struct ColourArgs {
+    /// Colour the points by an attribute instead of the file's colours: elevation (Z for
+    /// LiDAR and clouds flat in Z, else Y), intensity, classification (the ASPRS class
+    /// palette: ground brown, vegetation greens, buildings orange, water blue, …), or a
+    /// world coordinate x, y, z.
+    #[arg(long, visible_alias = "color-by", value_name = "ATTR")]
+    pub colour_by: Option<stipple_core::colour_map::Attribute>,
+    /// Colour map for --colour-by: viridis (perceptually uniform, colour-blind safe),
+    /// turbo (rainbow, for detail), grey, inferno.
+    #[arg(
+        long,
+        visible_alias = "colormap",
+        default_value = "viridis",
+        value_name = "NAME"
+    )]
+    pub colour_map: stipple_core::colour_map::ColourMap,
+    /// Values mapped to the two ends of the colour map, LO,HI (default: the 2nd and 98th
+    /// percentiles of the attribute, so outliers do not flatten the rest).
+    #[arg(long, value_parser = parse_range, value_name = "LO,HI", requires = "colour_by", allow_hyphen_values = true)]
+    pub range: Option<(f64, f64)>,
+}
+
+fn parse_range(s: &str) -> std::result::Result<(f64, f64), String> {
+    let v: Vec<&str> = s.split(',').collect();
+    let bad = || format!("`{s}`: expected LO,HI with LO < HI, e.g. 10,250");
+    if v.len() != 2 {
+        return Err(bad());
+    }
+    let lo: f64 = v[0].trim().parse().map_err(|_| bad())?;
+    let hi: f64 = v[1].trim().parse().map_err(|_| bad())?;
+    if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+        return Err(bad());
+    }
+    Ok((lo, hi))
+}
+
+impl ColourArgs {
+    /// Replaces the cloud's colours as asked; the line to print, if any. `what` names the
+    /// input in errors.
+    pub fn apply(
+        &self,
+        cloud: &mut stipple_render::PreparedCloud,
+        what: &str,
+    ) -> anyhow::Result<Option<String>> {
+        use stipple_core::colour_map::{colour_by, elevation_is_z, Attribute};
+        let Some(attr) = self.colour_by else {
+            return Ok(None);
+        };
+        let (colours, (lo, hi)) = colour_by(&cloud.cloud, attr, self.colour_map, self.range)
+            .map_err(|e| anyhow!("{what}: --colour-by: {e}"))?;
+        cloud.cloud.colors = Some(colours);
+        use clap::ValueEnum;
+        let value_name = |v: Option<clap::builder::PossibleValue>| {
+            v.map_or(String::new(), |v| v.get_name().to_string())
+        };
+        let name = match attr {
+            Attribute::Elevation if elevation_is_z(&cloud.cloud) => "elevation (z)".to_string(),
+            Attribute::Elevation => "elevation (y)".to_string(),
+            a => value_name(a.to_possible_value()),
+        };
+        Ok(Some(if attr == Attribute::Classification {
+            "colouring by classification (ASPRS class palette)".to_string()
+        } else {
+            // Three significant digits of the range's width.
+            let decimals = (3.0 - (hi - lo).log10().floor()).clamp(0.0, 9.0) as usize;
+            format!(
+                "colouring by {name}: {lo:.decimals$} … {hi:.decimals$} over the {} colour map{}",
+                value_name(self.colour_map.to_possible_value()),
+                if self.range.is_none() {
+                    " (2nd to 98th percentile; --range LO,HI sets it)"
+                } else {
+                    ""
+                }
+            )
+        }))
+    }
+}

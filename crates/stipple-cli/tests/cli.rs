@@ -724,3 +724,78 @@ fn raw_pipeline_honours_points_only_and_zero_fill_iterations() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--colour-by x --colour-map grey` paints a plane from black on the left to white on the
+/// right (the range given), through every pipeline's shading; a missing attribute is an
+/// error naming the file; `--range` needs `--colour-by`.
+#[test]
+fn colour_by_attribute_maps_values_through_the_colour_map() {
+    let dir = tempdir("colour-by");
+    let mut s = String::new();
+    for j in 0..120 {
+        for i in 0..120 {
+            s.push_str(&format!(
+                "{} {} 0\n",
+                i as f32 / 119.0 * 2.0 - 1.0,
+                j as f32 / 119.0 * 2.0 - 1.0
+            ));
+        }
+    }
+    std::fs::write(dir.join("plane.xyz"), s).unwrap();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "plane.xyz",
+            "--size",
+            "64",
+            "--backend",
+            "cpu",
+            "--eye",
+            "0,0,3",
+            "--target",
+            "0,0,0",
+            "--up",
+            "0,1,0",
+            "--no-lighting",
+            "--colour-by",
+            "x",
+            "--colour-map",
+            "grey",
+            "--range",
+            "-1,1",
+            "-o",
+            "g.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("colouring by x: -1.000 … 1.000 over the grey colour map"),
+        "{}",
+        text(&o)
+    );
+    let (w, _, rgba) = stipple_io::image::read_png(&dir.join("g.png")).unwrap();
+    let px = |x: usize, y: usize| rgba[4 * (y * w as usize + x)];
+    // Left darker than the middle, the middle darker than the right, along a row.
+    let row = 32;
+    let (l, m, r) = (px(16, row), px(32, row), px(48, row));
+    assert!(l + 40 < m && m + 40 < r, "{l} {m} {r}");
+    for (bad, want) in [
+        (
+            vec!["--colour-by", "classification"],
+            "plane.xyz: --colour-by: the cloud has no classification values",
+        ),
+        (vec!["--colour-by", "intensity"], "no intensity values"),
+        (vec!["--range", "0,1"], "--colour-by"),
+        (vec!["--colour-by", "z", "--range", "3,1"], "LO < HI"),
+        (vec!["--colour-by", "z", "--colour-map", "jet"], "viridis"),
+    ] {
+        let mut a = vec!["render", "plane.xyz", "--size", "32", "-o", "bad.png"];
+        a.extend(bad.iter());
+        let o = stipple(&dir, &a);
+        assert!(!o.status.success(), "{bad:?} accepted");
+        assert!(text(&o).contains(want), "{bad:?}: {}", text(&o));
+        assert!(!dir.join("bad.png").exists());
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod cloud;
+pub mod colour_map;
 pub mod demo;
 pub mod grouping;
 pub mod normals;

@@ -41,6 +41,8 @@ pub struct RenderArgs {
     pub backend: BackendArgs,
     #[command(flatten)]
     pub look: LookArgs,
+    #[command(flatten)]
+    pub colour: crate::args::ColourArgs,
     /// With --layers: also write each peeled layer's own image, PREFIX-1.png (nearest),
     /// PREFIX-2.png, ...
     #[arg(long, value_name = "PREFIX")]
@@ -192,6 +194,9 @@ pub fn render(a: RenderArgs) -> Result<()> {
                 d.display()
             ));
         }
+    }
+    if let Some(line) = a.colour.apply(&mut cloud, &label)? {
+        eprintln!("stipple: {line}");
     }
     let peeled = crate::look::layers(&a.look, scene.as_ref()) > 1;
     let (mut pipe, notes) = a

@@ -1,0 +1,306 @@
+//! Colour by attribute (Gunjee et al. §3, rendering-oriented attributes; and what LiDAR
+//! tools call "colour by"): a per-point value (elevation, intensity, a coordinate) mapped
+//! through a named colour map over a range, or a classification code through the ASPRS
+//! class palette. The result is an sRGB colour per point, which every pipeline and backend
+//! then shades like a file's own colours.
+//!
+//! Colour maps are piecewise linear between key colours in sRGB (each key is the map's
+//! published colour at that fraction): `viridis` (perceptually uniform, colour-blind safe;
+//! the default), `turbo` (a rainbow with a smooth lightness profile, for detail), `grey`
+//! (black to white) and `inferno` (black through red to yellow). Values below or above the
+//! range take the end colours.
+
+use crate::PointCloud;
+
+/// A per-point quantity to colour by.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum Attribute {
+    /// Height: world Z for Z-up sources (LAS/LAZ/COPC, clouds flat in Z), else world Y.
+    Elevation,
+    /// LiDAR return intensity.
+    Intensity,
+    /// LiDAR classification code, through the ASPRS class palette (the colour map is not
+    /// used).
+    Classification,
+    /// World X.
+    X,
+    /// World Y.
+    Y,
+    /// World Z.
+    Z,
+}
+
+/// A named colour map.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum ColourMap {
+    #[default]
+    Viridis,
+    Turbo,
+    #[cfg_attr(feature = "clap", value(alias = "gray"))]
+    Grey,
+    Inferno,
+}
+
+/// Why a cloud cannot be coloured as asked.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ColourError {
+    #[error("the cloud has no {0} values to colour by")]
+    Missing(&'static str),
+    #[error("colour range {0}..{1}: it must be finite with the low end below the high end")]
+    Range(f64, f64),
+    #[error("the cloud has no points")]
+    Empty,
+}
+
+const VIRIDIS: &[u32] = &[
+    0x440154, 0x482878, 0x3e4989, 0x31688e, 0x26828e, 0x1f9e89, 0x35b779, 0x6ece58, 0xb5de2b,
+    0xfde725,
+];
+const TURBO: &[u32] = &[
+    0x30123b, 0x4145ab, 0x4675ed, 0x39a2fc, 0x1bcfd4, 0x24eca6, 0x61fc6c, 0xa4fc3b, 0xd1e834,
+    0xf3c63a, 0xfe9b2d, 0xf36315, 0xd93806, 0xb11901, 0x7a0402,
+];
+const INFERNO: &[u32] = &[
+    0x000004, 0x1b0c41, 0x4a0c6b, 0x781c6d, 0xa52c60, 0xcf4446, 0xed6925, 0xfb9b06, 0xf7d13d,
+    0xfcffa4,
+];
+const GREY: &[u32] = &[0x000000, 0xffffff];
+
+impl ColourMap {
+    fn keys(self) -> &'static [u32] {
+        match self {
+            ColourMap::Viridis => VIRIDIS,
+            ColourMap::Turbo => TURBO,
+            ColourMap::Grey => GREY,
+            ColourMap::Inferno => INFERNO,
+        }
+    }
+
+    /// The sRGB colour at fraction `t` of the map (clamped to [0, 1]; NaN: the low end).
+    pub fn at(self, t: f32) -> [u8; 3] {
+        let keys = self.keys();
+        let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
+        let x = t * (keys.len() - 1) as f32;
+        let k = (x.floor() as usize).min(keys.len() - 2);
+        let f = x - k as f32;
+        let rgb = |c: u32| [(c >> 16) as u8, (c >> 8) as u8, c as u8];
+        let (a, b) = (rgb(keys[k]), rgb(keys[k + 1]));
+        std::array::from_fn(|i| (a[i] as f32 + (b[i] as f32 - a[i] as f32) * f).round() as u8)
+    }
+}
+
+/// The colour of an ASPRS classification code (LAS 1.4 table 17 names; colours as LiDAR
+/// viewers commonly draw them): 0–1 unclassified grey, 2 ground brown, 3–5 low, medium and
+/// high vegetation in lighter to darker greens, 6 building orange, 7 low noise magenta,
+/// 8 model key point, 9 water blue, 10 rail, 11 road surface dark grey, 12 overlap, 13–14
+/// wires yellow, 15 transmission tower, 16 wire connector, 17 bridge deck, 18 high noise
+/// magenta; other codes a colour of their own from a fixed hash.
+pub fn class_colour(code: u8) -> [u8; 3] {
+    match code {
+        0 | 1 => [170, 170, 170],
+        2 => [150, 105, 60],
+        3 => [170, 220, 110],
+        4 => [80, 180, 60],
+        5 => [30, 110, 40],
+        6 => [235, 120, 50],
+        7 | 18 => [230, 40, 200],
+        8 => [255, 255, 255],
+        9 => [40, 110, 230],
+        10 => [120, 80, 140],
+        11 => [90, 90, 95],
+        12 => [200, 200, 120],
+        13 | 14 => [250, 220, 40],
+        15 => [200, 60, 60],
+        16 => [250, 160, 40],
+        17 => [160, 160, 200],
+        c => {
+            let h = (c as u32).wrapping_mul(0x9E37_79B9);
+            [
+                (h >> 24) as u8 | 64,
+                (h >> 16) as u8 | 64,
+                (h >> 8) as u8 | 64,
+            ]
+        }
+    }
+}
+
+/// The attribute's value per point (world units for coordinates), or why there is none.
+pub fn values(cloud: &PointCloud, attr: Attribute) -> Result<Vec<f64>, ColourError> {
+    if cloud.positions.is_empty() {
+        return Err(ColourError::Empty);
+    }
+    let axis = |a: usize| -> Vec<f64> {
+        let o = cloud.origin.to_array()[a];
+        cloud
+            .positions
+            .iter()
+            .map(|p| o + p.to_array()[a] as f64)
+            .collect()
+    };
+    Ok(match attr {
+        Attribute::Elevation => axis(if elevation_is_z(cloud) { 2 } else { 1 }),
+        Attribute::X => axis(0),
+        Attribute::Y => axis(1),
+        Attribute::Z => axis(2),
+        Attribute::Intensity => cloud
+            .intensity
+            .as_ref()
+            .ok_or(ColourError::Missing("intensity"))?
+            .iter()
+            .map(|&v| v as f64)
+            .collect(),
+        Attribute::Classification => cloud
+            .classification
+            .as_ref()
+            .ok_or(ColourError::Missing("classification"))?
+            .iter()
+            .map(|&v| v as f64)
+            .collect(),
+    })
+}
+
+/// Whether "elevation" is world Z for this cloud: the source says Z is up, or the cloud is
+/// flat in Z (a tile seen from above), as the default framing decides.
+pub fn elevation_is_z(cloud: &PointCloud) -> bool {
+    let e = crate::Bounds::from_points(&cloud.positions).extent();
+    cloud.z_up || e.z < 0.35 * e.x.min(e.y)
+}
+
+/// The range a colour map spans by default: the 2nd to the 98th percentile of the values
+/// (a few outliers, such as birds and low points in LiDAR, do not squash the rest into one
+/// colour); the whole range when that is empty.
+pub fn robust_range(values: &[f64]) -> (f64, f64) {
+    let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return (0.0, 1.0);
+    }
+    v.sort_unstable_by(f64::total_cmp);
+    let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+    let (lo, hi) = (at(0.02), at(0.98));
+    if hi > lo {
+        (lo, hi)
+    } else if v[v.len() - 1] > v[0] {
+        (v[0], v[v.len() - 1])
+    } else {
+        (v[0] - 0.5, v[0] + 0.5)
+    }
+}
+
+/// sRGB colours per point, and the value range the colour map spans.
+pub type Coloured = (Vec<[u8; 3]>, (f64, f64));
+
+/// sRGB colours of every point by `attr` through `map` over `range` (None: [`robust_range`]),
+/// and the range used.
+pub fn colour_by(
+    cloud: &PointCloud,
+    attr: Attribute,
+    map: ColourMap,
+    range: Option<(f64, f64)>,
+) -> Result<Coloured, ColourError> {
+    let v = values(cloud, attr)?;
+    if attr == Attribute::Classification {
+        let range = range.unwrap_or((0.0, 255.0));
+        return Ok((v.iter().map(|&c| class_colour(c as u8)).collect(), range));
+    }
+    let (lo, hi) = match range {
+        Some((lo, hi)) if lo.is_finite() && hi.is_finite() && lo < hi => (lo, hi),
+        Some((lo, hi)) => return Err(ColourError::Range(lo, hi)),
+        None => robust_range(&v),
+    };
+    let inv = 1.0 / (hi - lo);
+    Ok((
+        v.iter().map(|&x| map.at(((x - lo) * inv) as f32)).collect(),
+        (lo, hi),
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::DVec3;
+
+    #[test]
+    fn maps_start_and_end_at_their_key_colours_and_clamp() {
+        assert_eq!(ColourMap::Viridis.at(0.0), [0x44, 0x01, 0x54]);
+        assert_eq!(ColourMap::Viridis.at(1.0), [0xfd, 0xe7, 0x25]);
+        assert_eq!(ColourMap::Viridis.at(-3.0), ColourMap::Viridis.at(0.0));
+        assert_eq!(ColourMap::Viridis.at(7.0), ColourMap::Viridis.at(1.0));
+        assert_eq!(ColourMap::Grey.at(0.5), [128, 128, 128]);
+        assert_eq!(ColourMap::Turbo.at(f32::NAN), ColourMap::Turbo.at(0.0));
+        // Viridis and grey grow lighter along the map.
+        for map in [ColourMap::Viridis, ColourMap::Grey, ColourMap::Inferno] {
+            let luma = |c: [u8; 3]| 0.3 * c[0] as f32 + 0.59 * c[1] as f32 + 0.11 * c[2] as f32;
+            let l: Vec<f32> = (0..=20).map(|k| luma(map.at(k as f32 / 20.0))).collect();
+            assert!(l.windows(2).all(|w| w[1] >= w[0] - 1.0), "{map:?}: {l:?}");
+        }
+    }
+
+    #[test]
+    fn elevation_follows_the_up_axis_and_the_range_ignores_outliers() {
+        // A tile from a LAS file (Z up) with one bird far above it.
+        let mut pts: Vec<DVec3> = (0..1000)
+            .map(|i| {
+                DVec3::new(
+                    (i % 40) as f64,
+                    (i / 40) as f64,
+                    100.0 + 0.01 * (i % 40) as f64,
+                )
+            })
+            .collect();
+        pts.push(DVec3::new(5.0, 5.0, 500.0));
+        let mut c = PointCloud::from_world(&pts);
+        assert!(!elevation_is_z(&c), "the bird makes it tall");
+        c.z_up = true;
+        assert!(elevation_is_z(&c));
+        let (colours, (lo, hi)) =
+            colour_by(&c, Attribute::Elevation, ColourMap::Viridis, None).unwrap();
+        assert!(
+            (lo - 100.0).abs() < 0.02 && (hi - 100.39).abs() < 0.02,
+            "{lo} {hi}"
+        );
+        assert_eq!(colours[0], ColourMap::Viridis.at(0.0));
+        assert_eq!(colours[39], ColourMap::Viridis.at(1.0));
+        assert_eq!(colours[1000], ColourMap::Viridis.at(1.0), "the bird clamps");
+        // A given range is used as is; a bad one is an error.
+        let (_, r) = colour_by(&c, Attribute::X, ColourMap::Grey, Some((0.0, 39.0))).unwrap();
+        assert_eq!(r, (0.0, 39.0));
+        for bad in [(1.0, 1.0), (2.0, 1.0), (f64::NAN, 1.0)] {
+            assert!(matches!(
+                colour_by(&c, Attribute::X, ColourMap::Grey, Some(bad)),
+                Err(ColourError::Range(..))
+            ));
+        }
+    }
+
+    #[test]
+    fn classification_uses_the_class_palette_and_missing_attributes_are_errors() {
+        let mut c = PointCloud::from_world(&[DVec3::ZERO, DVec3::X, DVec3::Y]);
+        assert_eq!(
+            colour_by(&c, Attribute::Classification, ColourMap::Viridis, None).err(),
+            Some(ColourError::Missing("classification"))
+        );
+        assert_eq!(
+            colour_by(&c, Attribute::Intensity, ColourMap::Viridis, None).err(),
+            Some(ColourError::Missing("intensity"))
+        );
+        c.classification = Some(vec![2, 6, 200]);
+        let (col, _) = colour_by(&c, Attribute::Classification, ColourMap::Turbo, None).unwrap();
+        assert_eq!(col[0], class_colour(2));
+        assert_eq!(col[1], class_colour(6));
+        assert_ne!(col[0], col[1]);
+        assert_eq!(col[2], class_colour(200));
+        // Every code has a colour, and the common classes differ from each other.
+        let common: Vec<[u8; 3]> = [1, 2, 3, 4, 5, 6, 7, 9, 11].map(class_colour).to_vec();
+        for (i, a) in common.iter().enumerate() {
+            for b in &common[i + 1..] {
+                assert_ne!(a, b);
+            }
+        }
+        assert_eq!(
+            colour_by(&PointCloud::default(), Attribute::X, ColourMap::Grey, None).err(),
+            Some(ColourError::Empty)
+        );
+    }
+}
