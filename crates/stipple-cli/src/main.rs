@@ -104,6 +104,9 @@ pub enum Cmd {
     /// Render a mesh's vertices as a raw cloud and compare the depth with the mesh's own
     /// (Pintus Fig. 4): error image and the share of pixels off by more than 0.5%.
     Eval(cmd::eval::EvalArgs),
+    /// Sample a mesh's faces to points by area (normals and colours interpolated from the
+    /// vertices) and write a cloud file (Gunjee et al. §3).
+    Convert(cmd::convert::ConvertArgs),
 }
 
 fn main() -> ExitCode {
@@ -119,6 +122,7 @@ fn main() -> ExitCode {
         Some(Cmd::Render(a)) => a.source.memory,
         Some(Cmd::Bench(a)) => a.source.memory,
         Some(Cmd::Gen(a)) => a.memory,
+        Some(Cmd::Convert(a)) => a.memory,
         _ => None,
     };
     if let Some(m) = memory {
@@ -134,6 +138,7 @@ fn main() -> ExitCode {
         Some(Cmd::Devices) => cmd::devices::devices(),
         Some(Cmd::Eval(a)) => cmd::eval::run(a),
         Some(Cmd::Normals(a)) => cmd::normals::normals(a),
+        Some(Cmd::Convert(a)) => cmd::convert::convert(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

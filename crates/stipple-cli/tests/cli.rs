@@ -799,3 +799,100 @@ fn colour_by_attribute_maps_values_through_the_colour_map() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `stipple convert` samples a mesh's faces to points: a cube's surface at the spacing
+/// asked for, every point on a face with its outward normal; the input is only read, and
+/// clouds without faces, existing outputs and impossible spacings are clear errors.
+#[test]
+fn convert_samples_a_mesh_to_points_on_its_faces() {
+    let dir = tempdir("convert");
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
+         property float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for k in 0..8 {
+        ply.push_str(&format!("{} {} {}\n", k & 1, k >> 1 & 1, k >> 2 & 1));
+    }
+    for f in [
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+        [1, 7, 5],
+    ] {
+        ply.push_str(&format!("3 {} {} {}\n", f[0], f[1], f[2]));
+    }
+    std::fs::write(dir.join("cube.ply"), &ply).unwrap();
+    let o = stipple(
+        &dir,
+        &["convert", "cube.ply", "-o", "pts.ply", "--spacing", "0.05"],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert_eq!(std::fs::read_to_string(dir.join("cube.ply")).unwrap(), ply);
+    let c = stipple_io::read_cloud(&dir.join("pts.ply")).unwrap();
+    // 6 / 0.05² = 2 400 expected.
+    assert!(
+        (c.len() as f64 - 2400.0).abs() < 150.0,
+        "{} points",
+        c.len()
+    );
+    assert!(c.faces.is_empty());
+    let n = c.normals.as_ref().expect("normals written");
+    for i in 0..c.len() {
+        let p = c.world(i);
+        let on_face = (0..3).any(|a| p[a].abs() < 1e-6 || (p[a] - 1.0).abs() < 1e-6);
+        assert!(
+            on_face && p.min_element() > -1e-6 && p.max_element() < 1.0 + 1e-6,
+            "{p}"
+        );
+        assert!(
+            n[i].as_dvec3().dot(p - glam::DVec3::splat(0.5)) > 0.0,
+            "normal {i} inward"
+        );
+    }
+    for (bad, want) in [
+        (
+            vec!["convert", "pts.ply", "-o", "again.ply"],
+            "has no faces",
+        ),
+        (
+            vec!["convert", "cube.ply", "-o", "pts.ply"],
+            "already exists",
+        ),
+        (
+            vec!["convert", "cube.ply", "-o", "cube.ply", "--force"],
+            "cube.ply",
+        ),
+        (
+            vec!["convert", "cube.ply", "-o", "x.ply", "--spacing", "0"],
+            "positive",
+        ),
+        (
+            vec![
+                "convert",
+                "cube.ply",
+                "-o",
+                "x.ply",
+                "--spacing",
+                "1e-9",
+                "--memory",
+                "1G",
+            ],
+            "--memory",
+        ),
+        (vec!["convert", "cube.ply", "-o", "x.png"], ".ply, .las"),
+    ] {
+        let o = stipple(&dir, &bad);
+        assert!(!o.status.success(), "{bad:?} accepted");
+        assert!(text(&o).contains(want), "{bad:?}: {}", text(&o));
+        assert!(!dir.join("x.ply").exists() && !dir.join("again.ply").exists());
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

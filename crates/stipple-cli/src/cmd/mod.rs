@@ -3,6 +3,7 @@
 
 pub mod bench;
 pub mod build_lod;
+pub mod convert;
 pub mod devices;
 pub mod eval;
 pub mod gen;
