@@ -10,7 +10,7 @@ set -u
 cd "$(dirname "$0")"
 RUNS=${RUNS:-10000000}
 mkdir -p logs
-for t in ${*:-ply xyz stlod cloud_file scene stshadow}; do
+for t in ${*:-ply xyz stlod cloud_file scene stshadow mesh}; do
     mkdir -p "corpus/$t"
     start=$(date +%s)
     cargo +nightly fuzz run -O -a "$t" "corpus/$t" "seeds/$t" -- -runs="$RUNS" -max_len=8192 \

@@ -16,7 +16,8 @@ use stipple_render::{SplatMode, SplatSettings};
 
 #[derive(clap::Args, Clone)]
 pub struct SourceArgs {
-    /// Cloud file (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv), scene file
+    /// Cloud file (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv; meshes .obj, .stl
+    /// draw their vertices, `stipple convert` samples their faces), scene file
     /// (.toml, .json: see docs/scenes.md) or, for render and bench, a .stlod tree. Without
     /// one, a demo scene is rendered.
     pub input: Option<PathBuf>,

@@ -82,7 +82,8 @@ pub enum Cmd {
     Render(RenderArgs),
     /// Print point count, bounds, attributes and point spacing of cloud files.
     Info {
-        /// Files to inspect (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .stlod).
+        /// Files to inspect (.ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .obj, .stl,
+        /// .stlod).
         #[arg(required = true)]
         files: Vec<PathBuf>,
         /// For a .stlod tree: read every node and check its checksum.

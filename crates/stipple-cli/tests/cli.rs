@@ -896,3 +896,61 @@ fn convert_samples_a_mesh_to_points_on_its_faces() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// OBJ and STL meshes render (their vertices) and convert (their faces) like PLY meshes.
+#[test]
+fn obj_and_stl_meshes_render_and_convert() {
+    let dir = tempdir("obj-stl");
+    // A square pyramid: OBJ with quads for the base, STL binary with its 6 triangles.
+    let obj = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 0.5 1\n\
+               f 4 3 2 1\nf 1 2 5\nf 2 3 5\nf 3 4 5\nf 4 1 5\n";
+    std::fs::write(dir.join("pyramid.obj"), obj).unwrap();
+    let c = stipple_io::read_cloud(&dir.join("pyramid.obj")).unwrap();
+    let mut stl = vec![0u8; 80];
+    stl.extend_from_slice(&(c.faces.len() as u32).to_le_bytes());
+    for f in &c.faces {
+        stl.extend_from_slice(&[0u8; 12]);
+        for &v in f {
+            for x in c.world(v as usize).to_array() {
+                stl.extend_from_slice(&(x as f32).to_le_bytes());
+            }
+        }
+        stl.extend_from_slice(&[0u8; 2]);
+    }
+    std::fs::write(dir.join("pyramid.stl"), stl).unwrap();
+    for f in ["pyramid.obj", "pyramid.stl"] {
+        let out = format!("{f}.ply");
+        let o = stipple(&dir, &["convert", f, "-o", &out, "--spacing", "0.05"]);
+        assert!(o.status.success(), "{f}: {}", text(&o));
+        let pts = stipple_io::read_cloud(&dir.join(&out)).unwrap();
+        // Base 1 + four sides of √1.25 / 2 each: about 3.24 / 0.05² = 1 300 points.
+        assert!(
+            (pts.len() as f64 - 1300.0).abs() < 120.0,
+            "{f}: {}",
+            pts.len()
+        );
+        let o = stipple(
+            &dir,
+            &[
+                "render",
+                f,
+                "--size",
+                "64",
+                "--backend",
+                "cpu",
+                "-o",
+                "r.png",
+            ],
+        );
+        assert!(o.status.success(), "{f}: {}", text(&o));
+    }
+    std::fs::write(dir.join("bad.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
+    let o = stipple(&dir, &["render", "bad.obj", "-o", "r.png"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("bad.obj") && text(&o).contains("line 2"),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -8,6 +8,7 @@
 
 pub mod image;
 pub mod las_io;
+pub mod mesh_io;
 pub mod ply;
 pub mod xyz;
 
@@ -107,22 +108,24 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
         let ext = extension(path);
         match ext.as_str() {
             "xyz" | "txt" | "csv" | "pts" | "asc" => xyz::read_xyz(path)?,
+            "obj" => mesh_io::read_obj(path)?,
+            "stl" => mesh_io::read_stl(path)?,
             "ply" => return Err(IoError::invalid(path, "not a PLY file: the magic `ply` is missing")),
             "las" | "laz" => {
                 return Err(IoError::invalid(path, "not a LAS/LAZ file: the signature `LASF` is missing"))
             }
-            "e57" | "pcd" | "obj" | "nrrd" | "nii" | "raw" => {
+            "e57" | "pcd" | "nrrd" | "nii" | "raw" => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
                     message: format!(
-                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv)"
+                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, and meshes .obj, .stl)"
                     ),
                 })
             }
             _ => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
-                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv)"
+                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, and meshes .obj, .stl)"
                         .into(),
                 })
             }

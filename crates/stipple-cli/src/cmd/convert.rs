@@ -10,7 +10,7 @@ use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct ConvertArgs {
-    /// The mesh (a PLY with faces, .ply or .ply.gz). It is only read.
+    /// The mesh (.obj, .stl, or a PLY with faces: .ply, .ply.gz). It is only read.
     pub input: PathBuf,
     /// The cloud to write (.ply, .las, .laz, .xyz): positions, normals (interpolated from
     /// the vertices', or the faces'), and colours where the vertices have them.
