@@ -1,9 +1,10 @@
-//! OBJ text and STL bytes through the mesh parsers: errors are fine, panics and allocations
-//! beyond the input's size are not.
+//! OBJ text, STL and PCD bytes through their parsers: errors are fine, panics and
+//! allocations beyond the input's size are not.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let _ = stipple_io::mesh_io::parse_stl(data);
+    let _ = stipple_io::pcd::parse_pcd(data);
     let _ = stipple_io::mesh_io::parse_obj(&String::from_utf8_lossy(data));
 });

@@ -26,6 +26,9 @@ const FILES: &[&str] = &[
     "lidar/lone-star.laz",
     "lidar/autzen_full_10.6M_rgb.laz",
     "colored/lion_takanawa.copc.laz",
+    "colored/milk_color.pcd",
+    "colored/office1.pcd",
+    "colored/region_growing_rgb_tutorial.pcd",
 ];
 
 #[test]
@@ -35,7 +38,7 @@ fn every_covered_data_file_renders() {
         eprintln!("skipped: {} is absent", dir.display());
         return;
     }
-    // Every PLY/LAS/LAZ/XYZ in the data folder is in the list.
+    // Every PLY/LAS/LAZ/XYZ/PCD/OBJ/STL in the data folder is in the list.
     let mut found = Vec::new();
     let mut stack = vec![dir.clone()];
     while let Some(d) = stack.pop() {
@@ -45,7 +48,7 @@ fn every_covered_data_file_renders() {
                 stack.push(p);
             } else if matches!(
                 stipple_io::extension(&p).as_str(),
-                "ply" | "las" | "laz" | "xyz"
+                "ply" | "las" | "laz" | "xyz" | "pcd" | "obj" | "stl"
             ) {
                 found.push(p.strip_prefix(&dir).unwrap().to_string_lossy().into_owned());
             }

@@ -9,6 +9,7 @@
 pub mod image;
 pub mod las_io;
 pub mod mesh_io;
+pub mod pcd;
 pub mod ply;
 pub mod xyz;
 
@@ -110,22 +111,23 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
             "xyz" | "txt" | "csv" | "pts" | "asc" => xyz::read_xyz(path)?,
             "obj" => mesh_io::read_obj(path)?,
             "stl" => mesh_io::read_stl(path)?,
+            "pcd" => pcd::read_pcd(path)?,
             "ply" => return Err(IoError::invalid(path, "not a PLY file: the magic `ply` is missing")),
             "las" | "laz" => {
                 return Err(IoError::invalid(path, "not a LAS/LAZ file: the signature `LASF` is missing"))
             }
-            "e57" | "pcd" | "nrrd" | "nii" | "raw" => {
+            "e57" | "nrrd" | "nii" | "raw" => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
                     message: format!(
-                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, and meshes .obj, .stl)"
+                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, and meshes .obj, .stl)"
                     ),
                 })
             }
             _ => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
-                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, and meshes .obj, .stl)"
+                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, and meshes .obj, .stl)"
                         .into(),
                 })
             }
