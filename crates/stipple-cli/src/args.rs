@@ -121,7 +121,8 @@ pub struct CameraArgs {
     /// camera size].
     #[arg(long, value_parser = parse_size, value_name = "WxH")]
     pub size: Option<(u32, u32)>,
-    /// Eye position x,y,z (world coordinates). Default: framing the whole cloud.
+    /// Eye position x,y,z (world coordinates). Default: framing the whole cloud (or, for a
+    /// file that records its sensor's pose, such as a PCD's VIEWPOINT, the sensor's view).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub eye: Option<DVec3>,
     /// Point looked at, x,y,z. Default: the centre of the cloud's bounds.
@@ -144,6 +145,74 @@ impl CameraArgs {
     /// come from the cloud's bounds.
     pub fn build(&self, cloud: &PointCloud) -> Result<Camera> {
         let (lo, hi) = cloud.world_bounds();
+        if let (Some(s), None, None, None, None) =
+            (cloud.sensor, self.eye, self.target, self.up, self.ortho)
+        {
+            // The cloud as its sensor saw it (a depth camera's frame): from its position,
+            // along its view, with a field of view that holds every point in front of it.
+            // Writers disagree on whether the pose turns the sensor or the cloud (PCL's
+            // Kinect frames carry a half turn about x with the points still in front along
+            // +z): the view is the one of ±forward with most points in front.
+            let step = (cloud.len() / 20_000).max(1);
+            let ahead = (0..cloud.len())
+                .step_by(step)
+                .filter(|&i| (cloud.world(i) - s.position).dot(s.forward) > 0.0)
+                .count();
+            let s = if 2 * ahead < cloud.len().div_ceil(step) {
+                stipple_core::cloud::Sensor {
+                    forward: -s.forward,
+                    up: -s.up,
+                    ..s
+                }
+            } else {
+                s
+            };
+            // Aimed at the points' centre (a cropped object off the sensor's axis is seen
+            // in the middle of the image), the image up kept as near the sensor's as can be.
+            let mut centre = glam::DVec3::ZERO;
+            let mut seen = 0usize;
+            for i in (0..cloud.len()).step_by(step) {
+                let d = cloud.world(i) - s.position;
+                if d.dot(s.forward) > 0.0 {
+                    centre += d;
+                    seen += 1;
+                }
+            }
+            let forward = (centre / seen.max(1) as f64).normalize_or(s.forward);
+            let up = (s.up - forward * s.up.dot(forward)).normalize_or(s.up);
+            let s = stipple_core::cloud::Sensor { forward, up, ..s };
+            let right = s.forward.cross(s.up).normalize();
+            let (w, h) = self.size.unwrap_or(stipple_scene::file::DEFAULT_SIZE);
+            let aspect = w as f64 / h.max(1) as f64;
+            let mut tan = 0.0f64;
+            for i in (0..cloud.len()).step_by(step) {
+                let d = cloud.world(i) - s.position;
+                let z = d.dot(s.forward);
+                if z > 1e-9 {
+                    tan = tan
+                        .max(d.dot(s.up).abs() / z)
+                        .max(d.dot(right).abs() / z / aspect);
+                }
+            }
+            let fov = self
+                .fov
+                .unwrap_or_else(|| (2.0 * (tan * 1.03).atan().to_degrees()).clamp(10.0, 120.0));
+            let mut cam = Camera {
+                eye: s.position,
+                target: s.position + s.forward,
+                up: s.up,
+                projection: stipple_core::Projection::Perspective { fov_deg: fov },
+                width: w,
+                height: h,
+                near: 0.0,
+                far: 0.0,
+            };
+            if tan > 0.0 {
+                cam.validate().map_err(|e| anyhow!("camera: {e}"))?;
+                cam.fit_clip(lo, hi);
+                return Ok(cam);
+            }
+        }
         self.build_framed(lo, hi, cloud.z_up)
     }
 
@@ -649,23 +718,25 @@ impl PipelineArgs {
                 self.splat.normal_k
             );
         }
-        let report = match cloud.prepare_surface_from(
-            self.splat.normal_k as usize,
-            estimate,
-            self.splat.viewpoint,
-        ) {
-            Err(stipple_core::normals::NormalError::TooFew(n))
-                if choice == PipelineChoice::Auto =>
-            {
-                notes.push(format!(
-                    "{n} point{}: too few to estimate normals or splat sizes (3 are needed); \
+        // Normals face the sensor where the file says where it stood.
+        let viewpoint = self
+            .splat
+            .viewpoint
+            .or(cloud.cloud.sensor.map(|s| s.position));
+        let report =
+            match cloud.prepare_surface_from(self.splat.normal_k as usize, estimate, viewpoint) {
+                Err(stipple_core::normals::NormalError::TooFew(n))
+                    if choice == PipelineChoice::Auto =>
+                {
+                    notes.push(format!(
+                        "{n} point{}: too few to estimate normals or splat sizes (3 are needed); \
                      drawn as single unlit points",
-                    if n == 1 { "" } else { "s" }
-                ));
-                return Ok((raw, notes));
-            }
-            r => r.map_err(|e| anyhow!("normal estimation: {e}"))?,
-        };
+                        if n == 1 { "" } else { "s" }
+                    ));
+                    return Ok((raw, notes));
+                }
+                r => r.map_err(|e| anyhow!("normal estimation: {e}"))?,
+            };
         if report.estimated {
             notes.push(format!(
                 "estimated normals for {n} points (k = {}, oriented {}) in {:.2} s",

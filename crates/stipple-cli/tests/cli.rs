@@ -954,3 +954,81 @@ fn obj_and_stl_meshes_render_and_convert() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A PCD that records its sensor (VIEWPOINT) is seen from the sensor by default, aimed at
+/// its points, whichever way round the writer stored the pose (PCL's Kinect frames carry a
+/// half turn about x with the points in front along +z); estimated normals face the sensor.
+#[test]
+fn a_pcd_is_seen_from_its_sensor() {
+    let dir = tempdir("pcd-sensor");
+    for (name, viewpoint) in [("a.pcd", "1 2 3 1 0 0 0"), ("b.pcd", "1 2 3 0 1 0 0")] {
+        let mut s = format!(
+            "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 400\nHEIGHT 1\n\
+             VIEWPOINT {viewpoint}\nPOINTS 400\nDATA ascii\n"
+        );
+        // A wall 4 units in front of the sensor along +z.
+        for k in 0..400 {
+            s.push_str(&format!(
+                "{} {} 7\n",
+                1.0 + (k % 20) as f32 * 0.05,
+                2.0 + (k / 20) as f32 * 0.05
+            ));
+        }
+        std::fs::write(dir.join(name), s).unwrap();
+        let o = stipple(
+            &dir,
+            &[
+                "render",
+                name,
+                "--size",
+                "64",
+                "--backend",
+                "cpu",
+                "--camera-out",
+                "c.json",
+                "-o",
+                "x.png",
+            ],
+        );
+        assert!(o.status.success(), "{name}: {}", text(&o));
+        let cam: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join("c.json")).unwrap()).unwrap();
+        let eye: Vec<f64> = cam["eye"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect();
+        assert!(
+            (eye[0] - 1.0).abs() < 1e-9
+                && (eye[1] - 2.0).abs() < 1e-9
+                && (eye[2] - 3.0).abs() < 1e-9,
+            "{name}: {eye:?}"
+        );
+        let (_, _, d) = {
+            let o = stipple(
+                &dir,
+                &[
+                    "render",
+                    name,
+                    "--size",
+                    "64",
+                    "--backend",
+                    "cpu",
+                    "--depth-out",
+                    "d.npy",
+                    "-o",
+                    "x.png",
+                ],
+            );
+            assert!(o.status.success());
+            stipple_io::image::read_npy(&dir.join("d.npy")).unwrap()
+        };
+        // The wall fills most of the image, about 4 units away (the view is aimed at its
+        // centre, a little off the sensor axis).
+        let covered: Vec<f32> = d.iter().copied().filter(|x| x.is_finite()).collect();
+        assert!(covered.len() > 64 * 64 / 3, "{name}: {} px", covered.len());
+        assert!(covered.iter().all(|&z| z > 3.8 && z < 4.2), "{name}");
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

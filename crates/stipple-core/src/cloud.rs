@@ -142,6 +142,18 @@ pub struct PointCloud {
     /// The source says +Z is up (LAS/LAZ/COPC: georeferenced, Z is elevation); the default
     /// framing then looks at the cloud Z-up. Other sources are framed Y-up unless flat in Z.
     pub z_up: bool,
+    /// Where the sensor stood and how it looked, when the file says (a PCD's `VIEWPOINT`):
+    /// the default camera then sees the cloud as captured, and estimated normals face the
+    /// sensor.
+    pub sensor: Option<Sensor>,
+}
+
+/// A sensor's pose in world coordinates: its position, viewing direction and image up.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensor {
+    pub position: DVec3,
+    pub forward: DVec3,
+    pub up: DVec3,
 }
 
 impl PointCloud {

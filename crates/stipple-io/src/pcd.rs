@@ -73,6 +73,7 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud, String> {
     let mut fields: Vec<String> = Vec::new();
     let (mut sizes, mut types, mut counts) = (Vec::new(), Vec::new(), Vec::new());
     let (mut width, mut height, mut points) = (None::<u64>, None::<u64>, None::<u64>);
+    let mut viewpoint: Option<Vec<f64>> = None;
     let data;
     loop {
         if at >= bytes.len() {
@@ -104,7 +105,14 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud, String> {
             })
         };
         match key.as_str() {
-            "VERSION" | "VIEWPOINT" => {}
+            "VERSION" => {}
+            "VIEWPOINT" => {
+                let v: Vec<f64> = rest.iter().filter_map(|s| s.parse().ok()).collect();
+                if v.len() != 7 || v.iter().any(|x| !x.is_finite()) {
+                    return Err("VIEWPOINT: expected tx ty tz qw qx qy qz".into());
+                }
+                viewpoint = Some(v);
+            }
             "FIELDS" | "COLUMNS" => fields = rest.iter().map(|s| s.to_string()).collect(),
             "SIZE" => sizes = rest.iter().map(|s| num(s)).collect::<Result<_, _>>()?,
             "TYPE" => {
@@ -193,7 +201,9 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud, String> {
     let aos: bool;
     match data.as_str() {
         "ascii" => {
-            return parse_ascii(body, &fields, n, [ix, iy, iz]);
+            let mut c = parse_ascii(body, &fields, n, [ix, iy, iz])?;
+            c.sensor = sensor(viewpoint.as_deref());
+            return Ok(c);
         }
         "binary" => {
             let need = n
@@ -260,8 +270,28 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud, String> {
         &table[start..start + fields[f].bytes()]
     };
     let value = |f: usize, i: usize| fields[f].value(slot(f, i));
-    collect(n, &fields, [ix, iy, iz], value, |f, i| {
+    let mut c = collect(n, &fields, [ix, iy, iz], value, |f, i| {
         fields[f].bits(slot(f, i))
+    })?;
+    c.sensor = sensor(viewpoint.as_deref());
+    Ok(c)
+}
+
+/// The sensor of a `VIEWPOINT tx ty tz qw qx qy qz` (PCL's default, `0 0 0 1 0 0 0`, is a
+/// sensor at the origin): it looks along its +Z with image up along its −Y (the camera
+/// convention of depth sensors such as the Kinect). Absent: none.
+fn sensor(v: Option<&[f64]>) -> Option<stipple_core::cloud::Sensor> {
+    let v = v?;
+    let q = glam::DQuat::from_xyzw(v[4], v[5], v[6], v[3]);
+    let q = if q.length() > 0.0 {
+        q.normalize()
+    } else {
+        glam::DQuat::IDENTITY
+    };
+    Some(stipple_core::cloud::Sensor {
+        position: DVec3::new(v[0], v[1], v[2]),
+        forward: q * DVec3::Z,
+        up: q * -DVec3::Y,
     })
 }
 

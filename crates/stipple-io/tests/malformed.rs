@@ -56,7 +56,10 @@ const CASES: &[(&str, &str)] = &[
     ("two_columns.xyz", "expected at least 3 numbers"),
     ("binary.xyz", "not a text file"),
     ("no_data_line.pcd", "the header ends without a DATA line"),
-    ("truncated_binary.pcd", "POINTS 1000 × 12 bytes is more than the 100 bytes"),
+    (
+        "truncated_binary.pcd",
+        "POINTS 1000 × 12 bytes is more than the 100 bytes",
+    ),
     ("huge_compressed.pcd", "cannot hold 1200000000 bytes"),
     ("bad_index.obj", "line 4: vertex 4 does not exist"),
     ("truncated.stl", "binary STL header says 1000 triangles"),
