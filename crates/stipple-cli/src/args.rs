@@ -35,13 +35,21 @@ pub struct SourceArgs {
     /// `ulimit -v`).
     #[arg(long, value_parser = stipple_lod::mem::parse_size, value_name = "SIZE")]
     pub memory: Option<u64>,
+    /// For a volume (.nrrd, .nii, .nii.gz, .raw): the value whose iso-surface is drawn as
+    /// points (default: Otsu's threshold, which splits the values into object and
+    /// background).
+    #[arg(long, value_parser = finite_f64, allow_hyphen_values = true, value_name = "VALUE")]
+    pub iso: Option<f64>,
 }
 
 impl SourceArgs {
     /// Loads (or generates) the cloud and prepares it; returns a label for messages.
     pub fn load(&self) -> Result<(PreparedCloud, String)> {
         let (cloud, label) = match &self.input {
-            Some(p) => (read_with_progress(p)?, p.display().to_string()),
+            Some(p) => (
+                read_with_options(p, &stipple_io::ReadOptions { iso: self.iso })?,
+                p.display().to_string(),
+            ),
             None => {
                 let n = self.points.unwrap_or(self.demo.default_points());
                 if n == 0 {
@@ -64,11 +72,16 @@ impl SourceArgs {
 
 /// Reads a cloud, with a spinner on a terminal for reads that take a while.
 pub fn read_with_progress(path: &Path) -> Result<PointCloud> {
+    read_with_options(path, &stipple_io::ReadOptions::default())
+}
+
+/// [`read_with_progress`] with the options for volumes.
+pub fn read_with_options(path: &Path, opt: &stipple_io::ReadOptions) -> Result<PointCloud> {
     let bar = indicatif::ProgressBar::new_spinner();
     bar.set_message(format!("reading {}", path.display()));
     bar.enable_steady_tick(Duration::from_millis(120));
     let t0 = Instant::now();
-    let r = stipple_io::read_cloud(path);
+    let r = stipple_io::read_cloud_with(path, opt);
     bar.finish_and_clear();
     if let Ok(c) = &r {
         let s = t0.elapsed().as_secs_f64();

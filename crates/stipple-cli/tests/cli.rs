@@ -1032,3 +1032,60 @@ fn a_pcd_is_seen_from_its_sensor() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A volume renders as the points of an iso-surface: a ball in an NRRD, at the iso-value
+/// given or at Otsu's threshold by default; an iso-value that nothing crosses is a clear
+/// error naming the volume's range.
+#[test]
+fn volumes_render_their_iso_surface() {
+    let dir = tempdir("volume");
+    let n = 40usize;
+    let mut b = format!(
+        "NRRD0004\ntype: float\ndimension: 3\nsizes: {n} {n} {n}\nencoding: raw\nendian: little\n\
+         spacings: 0.05 0.05 0.05\n\n"
+    )
+    .into_bytes();
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let p = [x, y, z].map(|c| (c as f32 - 19.5) * 0.05);
+                let r = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+                b.extend_from_slice(&(if r < 0.7 { 1000.0f32 } else { 0.0 }).to_le_bytes());
+            }
+        }
+    }
+    std::fs::write(dir.join("ball.nrrd"), b).unwrap();
+    for extra in [vec![], vec!["--iso", "500"]] {
+        let mut a = vec![
+            "render",
+            "ball.nrrd",
+            "--size",
+            "96",
+            "--backend",
+            "cpu",
+            "--depth-out",
+            "d.npy",
+            "--camera-out",
+            "c.json",
+            "-o",
+            "ball.png",
+        ];
+        a.extend(extra.iter());
+        let o = stipple(&dir, &a);
+        assert!(o.status.success(), "{extra:?}: {}", text(&o));
+        let (_, _, d) = stipple_io::image::read_npy(&dir.join("d.npy")).unwrap();
+        let covered = d.iter().filter(|x| x.is_finite()).count();
+        assert!(covered > 96 * 96 / 8, "{extra:?}: {covered} px");
+    }
+    let o = stipple(
+        &dir,
+        &["render", "ball.nrrd", "--iso", "5000", "-o", "x.png"],
+    );
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("ball.nrrd") && text(&o).contains("0..1000"),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

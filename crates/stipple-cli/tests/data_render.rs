@@ -29,6 +29,9 @@ const FILES: &[&str] = &[
     "colored/milk_color.pcd",
     "colored/office1.pcd",
     "colored/region_growing_rgb_tutorial.pcd",
+    "volume/stent.nrrd",
+    "volume/ch2.nii.gz",
+    "volume/tooth_103x94x161_uint8.raw",
 ];
 
 #[test]
@@ -38,7 +41,7 @@ fn every_covered_data_file_renders() {
         eprintln!("skipped: {} is absent", dir.display());
         return;
     }
-    // Every PLY/LAS/LAZ/XYZ/PCD/OBJ/STL in the data folder is in the list.
+    // Every cloud, mesh and volume file in the data folder is in the list.
     let mut found = Vec::new();
     let mut stack = vec![dir.clone()];
     while let Some(d) = stack.pop() {
@@ -48,7 +51,7 @@ fn every_covered_data_file_renders() {
                 stack.push(p);
             } else if matches!(
                 stipple_io::extension(&p).as_str(),
-                "ply" | "las" | "laz" | "xyz" | "pcd" | "obj" | "stl"
+                "ply" | "las" | "laz" | "xyz" | "pcd" | "obj" | "stl" | "nrrd" | "nii" | "raw"
             ) {
                 found.push(p.strip_prefix(&dir).unwrap().to_string_lossy().into_owned());
             }

@@ -10,6 +10,7 @@ pub mod mesh;
 pub mod normals;
 pub mod rng;
 pub mod sys;
+pub mod volume;
 
 pub use camera::{Camera, Projection};
 pub use cloud::{Bounds, PointCloud};

@@ -11,6 +11,7 @@ pub mod las_io;
 pub mod mesh_io;
 pub mod pcd;
 pub mod ply;
+pub mod volume_io;
 pub mod xyz;
 
 use std::io::Read;
@@ -71,6 +72,22 @@ pub enum Format {
 /// gzip) and, for headerless text, from its extension. The cloud is validated before it is
 /// returned.
 pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
+    read_cloud_with(path, &ReadOptions::default())
+}
+
+/// How [`read_cloud_with`] turns sources that are not point clouds into points.
+#[derive(Clone, Debug, Default)]
+pub struct ReadOptions {
+    /// Volumes (.nrrd, .nii, .nii.gz, .raw): the iso-value whose surface becomes points
+    /// (None: Otsu's threshold of the volume, see `stipple_core::volume`).
+    pub iso: Option<f64>,
+}
+
+/// The most points an iso-surface may have.
+pub const MAX_ISO_POINTS: usize = 1 << 28;
+
+/// [`read_cloud`] with options for volumes.
+pub fn read_cloud_with(path: &Path, opt: &ReadOptions) -> Result<PointCloud, IoError> {
     let meta = std::fs::metadata(path).map_err(|e| IoError::io(path, e))?;
     if !meta.is_file() {
         return Err(IoError::invalid(
@@ -101,7 +118,12 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
     };
     let head = &head[..n];
     let gz = head.starts_with(&[0x1f, 0x8b]);
-    let cloud = if head.starts_with(b"ply") || (gz && gz_holds_ply(path)?) {
+    let cloud = if volume_io::is_volume(path) && !head.starts_with(b"ply") {
+        let v = volume_io::read_volume(path)?;
+        let iso = opt.iso.unwrap_or_else(|| stipple_core::volume::otsu(&v));
+        stipple_core::volume::iso_points(&v, iso, MAX_ISO_POINTS)
+            .map_err(|e| IoError::invalid(path, e.to_string()))?
+    } else if head.starts_with(b"ply") || (gz && gz_holds_ply(path)?) {
         ply::read_ply(path)?
     } else if head.starts_with(b"LASF") {
         las_io::read_las(path)?
@@ -116,18 +138,18 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, IoError> {
             "las" | "laz" => {
                 return Err(IoError::invalid(path, "not a LAS/LAZ file: the signature `LASF` is missing"))
             }
-            "e57" | "nrrd" | "nii" | "raw" => {
+            "e57" => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
                     message: format!(
-                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, and meshes .obj, .stl)"
+                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, meshes .obj, .stl, volumes .nrrd, .nii, .nii.gz, .raw)"
                     ),
                 })
             }
             _ => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
-                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, and meshes .obj, .stl)"
+                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, meshes .obj, .stl, volumes .nrrd, .nii, .nii.gz, .raw)"
                         .into(),
                 })
             }

@@ -90,13 +90,12 @@ fn lidar_keeps_millimetre_precision() {
 #[test]
 fn unsupported_data_files_say_so() {
     let Some(dir) = data_dir() else { return };
-    for name in ["stanford/bunny_e57/bunnyDouble.e57", "volume/ch2.nii.gz"] {
-        let e = stipple_io::read_cloud(&dir.join(name))
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains(name.rsplit('/').next().unwrap()) && e.contains("not supported"),
-            "{e}"
-        );
-    }
+    let name = "stanford/bunny_e57/bunnyDouble.e57";
+    let e = stipple_io::read_cloud(&dir.join(name))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bunnyDouble.e57") && e.contains("not supported"),
+        "{e}"
+    );
 }

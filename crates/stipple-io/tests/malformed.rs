@@ -34,8 +34,8 @@ const CASES: &[(&str, &str)] = &[
         "missing_value.ply",
         "line 9: too few values for a `vertex` record (x y z)",
     ),
-    // A gzip-compressed file that is not PLY inside is named by its extension.
-    ("volume.nii.gz", ".nii files are not supported yet"),
+    // A gzip-compressed file that is not PLY inside is read by its extension.
+    ("volume.nii.gz", "shorter than a NIfTI-1 header"),
     // An offending token is shown escaped and cut at 32 characters.
     (
         "long_token.xyz",
@@ -63,6 +63,8 @@ const CASES: &[(&str, &str)] = &[
     ("huge_compressed.pcd", "cannot hold 1200000000 bytes"),
     ("bad_index.obj", "line 4: vertex 4 does not exist"),
     ("truncated.stl", "binary STL header says 1000 triangles"),
+    ("huge_sizes.nrrd", "more than the file can hold (64)"),
+    ("short_2x2x2_uint16.raw", "more than the file can hold (10)"),
     // A finite 1e300 is out of range, not "non-finite".
     (
         "huge_coordinate.ply",
