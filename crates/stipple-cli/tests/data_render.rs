@@ -29,6 +29,7 @@ const FILES: &[&str] = &[
     "colored/milk_color.pcd",
     "colored/office1.pcd",
     "colored/region_growing_rgb_tutorial.pcd",
+    "stanford/bunny_e57/bunnyDouble.e57",
     "volume/stent.nrrd",
     "volume/ch2.nii.gz",
     "volume/tooth_103x94x161_uint8.raw",
@@ -51,7 +52,17 @@ fn every_covered_data_file_renders() {
                 stack.push(p);
             } else if matches!(
                 stipple_io::extension(&p).as_str(),
-                "ply" | "las" | "laz" | "xyz" | "pcd" | "obj" | "stl" | "nrrd" | "nii" | "raw"
+                "ply"
+                    | "las"
+                    | "laz"
+                    | "xyz"
+                    | "pcd"
+                    | "e57"
+                    | "obj"
+                    | "stl"
+                    | "nrrd"
+                    | "nii"
+                    | "raw"
             ) {
                 found.push(p.strip_prefix(&dir).unwrap().to_string_lossy().into_owned());
             }

@@ -6,6 +6,7 @@
 //! names the file and the problem. No allocation is sized from a header count before the
 //! count was checked against the bytes that are actually there.
 
+pub mod e57_io;
 pub mod image;
 pub mod las_io;
 pub mod mesh_io;
@@ -138,18 +139,11 @@ pub fn read_cloud_with(path: &Path, opt: &ReadOptions) -> Result<PointCloud, IoE
             "las" | "laz" => {
                 return Err(IoError::invalid(path, "not a LAS/LAZ file: the signature `LASF` is missing"))
             }
-            "e57" => {
-                return Err(IoError::Unsupported {
-                    path: path.to_owned(),
-                    message: format!(
-                        ".{ext} files are not supported yet (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, meshes .obj, .stl, volumes .nrrd, .nii, .nii.gz, .raw)"
-                    ),
-                })
-            }
+            "e57" => e57_io::read_e57(path)?,
             _ => {
                 return Err(IoError::Unsupported {
                     path: path.to_owned(),
-                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, meshes .obj, .stl, volumes .nrrd, .nii, .nii.gz, .raw)"
+                    message: "unrecognised format (supported: .ply, .ply.gz, .las, .laz, .copc.laz, .xyz, .txt, .csv, .pcd, .e57, meshes .obj, .stl, volumes .nrrd, .nii, .nii.gz, .raw)"
                         .into(),
                 })
             }

@@ -87,15 +87,19 @@ fn lidar_keeps_millimetre_precision() {
     assert!(c.origin.x.abs() > 1e5, "LiDAR origin kept in f64");
 }
 
+/// The E57 bunny (two scans placed by their poses) covers what the PLY bunny does.
 #[test]
-fn unsupported_data_files_say_so() {
+fn the_e57_bunny_matches_the_ply_bunny() {
     let Some(dir) = data_dir() else { return };
-    let name = "stanford/bunny_e57/bunnyDouble.e57";
-    let e = stipple_io::read_cloud(&dir.join(name))
-        .unwrap_err()
-        .to_string();
+    let e57 = stipple_io::read_cloud(&dir.join("stanford/bunny_e57/bunnyDouble.e57")).unwrap();
+    let ply = stipple_io::read_cloud(&dir.join("stanford/bunny/bun_zipper.ply")).unwrap();
+    let ((a0, a1), (b0, b1)) = (e57.world_bounds(), ply.world_bounds());
+    let extent = (b1 - b0).max_element();
+    let off = (a0 - b0).abs().max((a1 - b1).abs()).max_element();
+    eprintln!("e57 {} points, bounds {a0} {a1}; ply {b0} {b1}", e57.len());
     assert!(
-        e.contains("bunnyDouble.e57") && e.contains("not supported"),
-        "{e}"
+        off < 0.05 * extent,
+        "bounds differ by {off} (extent {extent})"
     );
+    assert!(e57.len() > 10_000);
 }

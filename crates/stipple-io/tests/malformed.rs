@@ -64,6 +64,8 @@ const CASES: &[(&str, &str)] = &[
     ("bad_index.obj", "line 4: vertex 4 does not exist"),
     ("truncated.stl", "binary STL header says 1000 triangles"),
     ("huge_sizes.nrrd", "more than the file can hold (64)"),
+    ("truncated.e57", "E57"),
+    ("garbage.e57", "E57"),
     ("short_2x2x2_uint16.raw", "more than the file can hold (10)"),
     // A finite 1e300 is out of range, not "non-finite".
     (
