@@ -184,8 +184,9 @@ impl stipple_scene::Host for CliHost {
     fn read(
         &mut self,
         path: &std::path::Path,
+        opt: &stipple_io::ReadOptions,
     ) -> std::result::Result<stipple_core::PointCloud, String> {
-        crate::args::read_with_progress(path).map_err(|e| format!("{e:#}"))
+        crate::args::read_with_options(path, opt).map_err(|e| format!("{e:#}"))
     }
 
     fn check_points(&mut self, what: &str, n: u64) -> std::result::Result<(), String> {

@@ -288,3 +288,95 @@ fn the_example_scenes_load() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// One scene mixes a point cloud, a mesh sampled over its faces and a volume's iso-surface
+/// (Gunjee et al. §3).
+#[test]
+fn a_scene_mixes_clouds_meshes_and_volumes() {
+    let dir = tempdir("scene-mixed");
+    // A unit cube mesh (12 triangles, 8 vertices).
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
+         property float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for k in 0..8 {
+        ply.push_str(&format!("{} {} {}\n", k & 1, k >> 1 & 1, k >> 2 & 1));
+    }
+    for f in [
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+        [1, 7, 5],
+    ] {
+        ply.push_str(&format!("3 {} {} {}\n", f[0], f[1], f[2]));
+    }
+    std::fs::write(dir.join("cube.ply"), ply).unwrap();
+    // A ball in a 24³ volume.
+    let mut nrrd =
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 24 24 24\nencoding: raw\n\n".to_vec();
+    for z in 0..24 {
+        for y in 0..24 {
+            for x in 0..24 {
+                let d = [x, y, z].map(|c| c as f32 - 11.5);
+                let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                nrrd.push(if r < 9.0 { 200 } else { 10 });
+            }
+        }
+    }
+    std::fs::write(dir.join("ball.nrrd"), nrrd).unwrap();
+    std::fs::write(
+        dir.join("mixed.toml"),
+        "[camera]\nsize = [128, 96]\n\n\
+         [[cloud]]\nfile = \"cube.ply\"\nsample = 0.02\ntranslate = [-2.0, 0.0, 0.0]\n\n\
+         [[cloud]]\nfile = \"ball.nrrd\"\niso = 100\nscale = 0.05\ntranslate = [1.0, 0.0, 0.0]\n\n\
+         [[cloud]]\ndemo = \"sphere\"\npoints = 3000\ntranslate = [0.0, 2.0, 0.0]\n",
+    )
+    .unwrap();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "mixed.toml",
+            "--backend",
+            "cpu",
+            "--depth-out",
+            "d.npy",
+            "-o",
+            "m.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    // The cube's 6 / 0.02² = 15 000 samples, not its 8 vertices, are in the scene.
+    let t = text(&o);
+    let n: usize = t
+        .split(" from ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0);
+    assert!(n > 15_000, "{n} points: {t}");
+    let (_, _, d) = stipple_io::image::read_npy(&dir.join("d.npy")).unwrap();
+    assert!(d.iter().filter(|x| x.is_finite()).count() > 128 * 96 / 10);
+    // A bad sample spacing names the file and the field.
+    std::fs::write(
+        dir.join("bad.toml"),
+        "[[cloud]]\nfile = \"cube.ply\"\nsample = -1.0\n",
+    )
+    .unwrap();
+    let o = stipple(&dir, &["render", "bad.toml", "-o", "b.png"]);
+    assert!(!o.status.success());
+    assert!(
+        text(&o).contains("cube.ply") && text(&o).contains("sample"),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

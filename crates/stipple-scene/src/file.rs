@@ -30,6 +30,8 @@ pub struct SceneFile {
 pub const DEFAULT_SIZE: (u32, u32) = (1024, 1024);
 /// The vertical field of view (degrees) when neither the caller nor the scene gives one.
 pub const DEFAULT_FOV: f64 = 45.0;
+/// The most points a mesh of a scene is sampled to.
+const MAX_SAMPLED: usize = 1 << 30;
 
 #[derive(Deserialize, Debug, Default, Clone)]
 #[serde(deny_unknown_fields)]
@@ -75,6 +77,12 @@ pub struct CloudSpec {
     pub opacity: Option<f32>,
     #[serde(default)]
     pub material: MaterialSpec,
+    /// A volume file (.nrrd, .nii, .nii.gz, .raw): the value whose iso-surface becomes
+    /// points (default: Otsu's threshold).
+    pub iso: Option<f64>,
+    /// A mesh file (a PLY with faces, .obj, .stl): sample its faces at this spacing (in the
+    /// file's units) instead of taking its vertices.
+    pub sample: Option<f64>,
 }
 
 #[derive(Deserialize, Debug, Default, Clone)]
@@ -307,7 +315,20 @@ fn source(
             } else {
                 dir.join(f)
             };
-            Ok((host.read(&p)?, p.display().to_string()))
+            let opt = stipple_io::ReadOptions { iso: c.iso };
+            let mut cloud = host.read(&p, &opt)?;
+            if let Some(spacing) = c.sample {
+                let name = p.display();
+                host.check_points(
+                    &format!("sample = {spacing}"),
+                    (stipple_core::mesh::area(&cloud) / (spacing * spacing)).min(1e18) as u64,
+                )?;
+                cloud =
+                    stipple_core::mesh::sample(&cloud, spacing, MAX_SAMPLED, c.seed.unwrap_or(1))
+                        .map_err(|e| format!("{name}: sample = {spacing}: {e}"))?
+                        .cloud;
+            }
+            Ok((cloud, p.display().to_string()))
         }
         (None, Some(d)) => {
             let n = c.points.unwrap_or(200_000);
@@ -771,6 +792,8 @@ samples = 8
             colour: None,
             opacity: Some(0.5),
             material: MaterialSpec::default(),
+            iso: None,
+            sample: None,
         };
         let spec = SceneFile {
             clouds: vec![cloud("sphere", -2.0), cloud("torus", 2.0)],

@@ -44,8 +44,8 @@ pub enum SceneError {
 /// may allocate, and tell the user things. [`Plain`] reads with `stipple_io`, allows any
 /// size and prints notes on stderr.
 pub trait Host {
-    /// Reads a cloud file; the error is a message naming it.
-    fn read(&mut self, path: &Path) -> Result<PointCloud, String>;
+    /// Reads a cloud file (volumes as `opt` says); the error is a message naming it.
+    fn read(&mut self, path: &Path, opt: &stipple_io::ReadOptions) -> Result<PointCloud, String>;
     /// Whether `n` generated points (asked for as `what`) may be made.
     fn check_points(&mut self, what: &str, n: u64) -> Result<(), String>;
     /// Something the user should know (a fallback taken, a setting ignored).
@@ -56,8 +56,8 @@ pub trait Host {
 pub struct Plain;
 
 impl Host for Plain {
-    fn read(&mut self, path: &Path) -> Result<PointCloud, String> {
-        stipple_io::read_cloud(path).map_err(|e| e.to_string())
+    fn read(&mut self, path: &Path, opt: &stipple_io::ReadOptions) -> Result<PointCloud, String> {
+        stipple_io::read_cloud_with(path, opt).map_err(|e| e.to_string())
     }
 
     fn check_points(&mut self, _what: &str, _n: u64) -> Result<(), String> {
@@ -89,7 +89,7 @@ pub mod fuzzing {
     struct Sandbox(u64);
 
     impl Host for Sandbox {
-        fn read(&mut self, path: &Path) -> Result<PointCloud, String> {
+        fn read(&mut self, path: &Path, _: &stipple_io::ReadOptions) -> Result<PointCloud, String> {
             Err(format!(
                 "{}: files are not read while fuzzing",
                 path.display()
