@@ -1,4 +1,4 @@
-//! Replays the fuzzing corpora (`fuzz/corpus/{ply,xyz,cloud_file}`, minimised by
+//! Replays the fuzzing corpora (`fuzz/corpus/{ply,xyz,cloud_file,mesh}`, minimised by
 //! `fuzz/run.sh`) and the inputs that once failed (`fuzz/regressions/<target>/`) through the
 //! same entry points as the fuzz targets: every input must come back as a value or an error,
 //! never a panic. CI runs this on stable; the fuzzing itself needs nightly (fuzz/run.sh).
@@ -58,4 +58,21 @@ fn cloud_file_corpus_replays_without_panics() {
         let _ = std::fs::remove_file(&path);
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// As `fuzz/fuzz_targets/mesh.rs`: OBJ, STL, PCD, E57 and the volume parsers on every input.
+#[test]
+fn mesh_corpus_replays_without_panics() {
+    let files = inputs("mesh");
+    assert!(!files.is_empty(), "no mesh corpus under fuzz/");
+    for f in files {
+        let data = std::fs::read(&f).unwrap();
+        let _ = stipple_io::mesh_io::parse_stl(&data);
+        let _ = stipple_io::mesh_io::parse_obj(&String::from_utf8_lossy(&data));
+        let _ = stipple_io::pcd::parse_pcd(&data);
+        let _ = stipple_io::e57_io::parse_e57(std::io::Cursor::new(&data[..]), data.len() as u64);
+        let _ = stipple_io::volume_io::parse_nrrd(&data);
+        let _ = stipple_io::volume_io::parse_nifti(&data);
+        let _ = stipple_io::volume_io::parse_raw("v_4x4x4_uint16.raw", &data);
+    }
 }
