@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{stipple, tempdir, text};
+use common::{camera_vec3, cube_ply, stipple, tempdir, text};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -532,14 +532,7 @@ fn lidar_formats_are_framed_z_up() {
             ],
         );
         assert!(o.status.success(), "{}", text(&o));
-        let cam: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(dir.join("c.json")).unwrap()).unwrap();
-        let got: Vec<f64> = cam["up"]
-            .as_array()
-            .unwrap_or_else(|| panic!("no `up` in {cam}"))
-            .iter()
-            .map(|v| v.as_f64().unwrap())
-            .collect();
+        let got = camera_vec3(&dir.join("c.json"), "up");
         assert_eq!(got, up, "{file}");
     }
     std::fs::remove_dir_all(dir).ok();
@@ -806,29 +799,7 @@ fn colour_by_attribute_maps_values_through_the_colour_map() {
 #[test]
 fn convert_samples_a_mesh_to_points_on_its_faces() {
     let dir = tempdir("convert");
-    let mut ply = String::from(
-        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
-         property float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
-    );
-    for k in 0..8 {
-        ply.push_str(&format!("{} {} {}\n", k & 1, k >> 1 & 1, k >> 2 & 1));
-    }
-    for f in [
-        [0, 2, 3],
-        [0, 3, 1],
-        [4, 5, 7],
-        [4, 7, 6],
-        [0, 1, 5],
-        [0, 5, 4],
-        [2, 6, 7],
-        [2, 7, 3],
-        [0, 4, 6],
-        [0, 6, 2],
-        [1, 3, 7],
-        [1, 7, 5],
-    ] {
-        ply.push_str(&format!("3 {} {} {}\n", f[0], f[1], f[2]));
-    }
+    let ply = cube_ply();
     std::fs::write(dir.join("cube.ply"), &ply).unwrap();
     let o = stipple(
         &dir,
@@ -991,14 +962,7 @@ fn a_pcd_is_seen_from_its_sensor() {
             ],
         );
         assert!(o.status.success(), "{name}: {}", text(&o));
-        let cam: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(dir.join("c.json")).unwrap()).unwrap();
-        let eye: Vec<f64> = cam["eye"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|v| v.as_f64().unwrap())
-            .collect();
+        let eye = camera_vec3(&dir.join("c.json"), "eye");
         assert!(
             (eye[0] - 1.0).abs() < 1e-9
                 && (eye[1] - 2.0).abs() < 1e-9

@@ -1,7 +1,7 @@
 //! Scene files, depth peeling, transparency and shadow caches through the `stipple` binary.
 
 mod common;
-use common::{ok, stipple, tempdir, text};
+use common::{cube_ply, ok, stipple, tempdir, text};
 use std::path::Path;
 
 const SCENE: &str = r#"
@@ -295,29 +295,7 @@ fn the_example_scenes_load() {
 fn a_scene_mixes_clouds_meshes_and_volumes() {
     let dir = tempdir("scene-mixed");
     // A unit cube mesh (12 triangles, 8 vertices).
-    let mut ply = String::from(
-        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
-         property float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
-    );
-    for k in 0..8 {
-        ply.push_str(&format!("{} {} {}\n", k & 1, k >> 1 & 1, k >> 2 & 1));
-    }
-    for f in [
-        [0, 2, 3],
-        [0, 3, 1],
-        [4, 5, 7],
-        [4, 7, 6],
-        [0, 1, 5],
-        [0, 5, 4],
-        [2, 6, 7],
-        [2, 7, 3],
-        [0, 4, 6],
-        [0, 6, 2],
-        [1, 3, 7],
-        [1, 7, 5],
-    ] {
-        ply.push_str(&format!("3 {} {} {}\n", f[0], f[1], f[2]));
-    }
+    let ply = cube_ply();
     std::fs::write(dir.join("cube.ply"), ply).unwrap();
     // A ball in a 24³ volume.
     let mut nrrd =

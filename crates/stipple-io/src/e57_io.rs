@@ -21,19 +21,18 @@ pub fn parse_e57<R: std::io::Read + std::io::Seek>(
     reader: R,
     size: u64,
 ) -> Result<PointCloud, String> {
-    let bad = |e: String| e;
-    let mut r = e57::E57Reader::new(reader).map_err(|e| bad(format!("E57: {e}")))?;
+    let mut r = e57::E57Reader::new(reader).map_err(|e| format!("E57: {e}"))?;
     let scans = r.pointclouds();
     if scans.is_empty() {
-        return Err(bad("the E57 file holds no point clouds".into()));
+        return Err("the E57 file holds no point clouds".into());
     }
     // Declared counts checked against the file: a record takes at least a bit or so, so
     // more records than 8 × the file's bytes cannot be real.
     let declared: u64 = scans.iter().map(|s| s.records).sum();
     if declared > MAX_POINTS || declared > size.saturating_mul(8) {
-        return Err(bad(format!(
+        return Err(format!(
             "the E57 scans declare {declared} points, more than a {size}-byte file can hold"
-        )));
+        ));
     }
     let colour = scans.iter().all(|s| s.has_color());
     let intensity = scans.iter().all(|s| s.has_intensity());
@@ -43,10 +42,10 @@ pub fn parse_e57<R: std::io::Read + std::io::Seek>(
     for pc in &scans {
         let mut it = r
             .pointcloud_simple(pc)
-            .map_err(|e| bad(format!("E57 scan: {e}")))?;
+            .map_err(|e| format!("E57 scan: {e}"))?;
         it.intensity_to_color(false);
         for p in it {
-            let p = p.map_err(|e| bad(format!("E57 point: {e}")))?;
+            let p = p.map_err(|e| format!("E57 point: {e}"))?;
             let e57::CartesianCoordinate::Valid { x, y, z } = p.cartesian else {
                 continue;
             };
@@ -55,7 +54,7 @@ pub fn parse_e57<R: std::io::Read + std::io::Seek>(
                 continue;
             }
             if let Some(why) = stipple_core::cloud::coordinate_problem(q) {
-                return Err(bad(why));
+                return Err(why);
             }
             world.push(q);
             if colour {
@@ -69,7 +68,7 @@ pub fn parse_e57<R: std::io::Read + std::io::Seek>(
         }
     }
     if world.is_empty() {
-        return Err(bad("the E57 scans hold no valid points".into()));
+        return Err("the E57 scans hold no valid points".into());
     }
     let mut cloud = PointCloud::from_world(&world);
     cloud.colors = colour.then_some(colours);

@@ -56,3 +56,43 @@ pub fn gpu_available() -> bool {
         }
     }
 }
+
+/// A unit cube as an ASCII PLY mesh: its 8 corners and 12 outward-wound triangles.
+pub fn cube_ply() -> String {
+    let mut ply = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 8\nproperty float x\nproperty float y\n\
+         property float z\nelement face 12\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for k in 0..8 {
+        ply.push_str(&format!("{} {} {}\n", k & 1, k >> 1 & 1, k >> 2 & 1));
+    }
+    for f in [
+        [0, 2, 3],
+        [0, 3, 1],
+        [4, 5, 7],
+        [4, 7, 6],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 6, 7],
+        [2, 7, 3],
+        [0, 4, 6],
+        [0, 6, 2],
+        [1, 3, 7],
+        [1, 7, 5],
+    ] {
+        ply.push_str(&format!("3 {} {} {}\n", f[0], f[1], f[2]));
+    }
+    ply
+}
+
+/// A three-number field (`eye`, `up`, …) of a camera JSON written by `--camera-out`.
+pub fn camera_vec3(path: &Path, key: &str) -> Vec<f64> {
+    let cam: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path).expect("camera JSON")).expect("valid JSON");
+    cam[key]
+        .as_array()
+        .unwrap_or_else(|| panic!("no `{key}` in {cam}"))
+        .iter()
+        .map(|v| v.as_f64().expect("a number"))
+        .collect()
+}
