@@ -18,7 +18,8 @@ use crate::SplatSettings;
 /// What a camera frame shades with (a light view shades nothing).
 pub(crate) struct Shading {
     pub block: ShadeBlock,
-    pub materials: Box<MaterialTable>,
+    /// Written by the frame's first shade (taken then).
+    pub materials: Option<Box<MaterialTable>>,
     /// Linear RGB.
     pub background: [f32; 3],
     /// The opacity of pixels that no point covers (see `blend_layers`).
@@ -106,8 +107,9 @@ impl PassExec for GpuExec<'_> {
     fn shade(&mut self) -> Result<(), GpuError> {
         let s = self
             .shading
-            .as_ref()
+            .as_mut()
             .ok_or_else(|| GpuError::Wgpu("shade recorded in a light view".into()))?;
+        let (block, materials) = (s.block, s.materials.take());
         let mut resolve = self
             .splat
             .as_deref_mut()
@@ -116,7 +118,7 @@ impl PassExec for GpuExec<'_> {
             .as_mut()
             .map(|f| f as &mut dyn FnMut(&mut wgpu::ComputePass<'static>));
         let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
-        shade::gpu::record(rec, b, cur, cloud, (s.block, &s.materials), before)
+        shade::gpu::record(rec, b, cur, cloud, (block, materials.as_deref()), before)
     }
 
     fn colour(&mut self, pass: &ColourPass) -> Result<(), GpuError> {

@@ -176,7 +176,7 @@ impl GpuRenderer {
             let lut = srgb_to_linear_table();
             let shading = Shading {
                 block: shade_block,
-                materials,
+                materials: Some(materials),
                 background: pipe.background.map(|c| lut[c as usize]),
                 mean_alpha: cloud.mean_alpha,
             };
@@ -374,7 +374,7 @@ impl GpuRenderer {
             let mut rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
             let b = Binder::new(&self.ctx, shared, &f);
             let cur = Cursor::default();
-            let shading = (block, &*materials);
+            let shading = (block, Some(&*materials));
             crate::passes::shade::gpu::record(&mut rec, b, &cur, cloud, shading, None)?;
             finish(rec, shared)?;
             let colour = read_colour(&self.ctx, &f.colour[0], v.pixels())?;

@@ -151,7 +151,7 @@ impl GpuPass for Shade {
     }
 }
 
-/// Records shade from geometry image `cur.g`: gather per chunk, then `before_shade` (after
+/// Records shade from geometry image `cur.g` (writing `materials` first when given): gather per chunk, then `before_shade` (after
 /// blended splats, the splat pass's resolve of its per-pixel sums, in the same compute pass),
 /// then shade into colour image 0 and the surface depth.
 pub(crate) fn record(
@@ -159,14 +159,17 @@ pub(crate) fn record(
     b: Binder<'_>,
     cur: &Cursor,
     cloud: &GpuCloud,
-    (block, materials): (ShadeBlock, &MaterialTable),
+    (block, materials): (ShadeBlock, Option<&MaterialTable>),
     before_shade: Option<&mut dyn FnMut(&mut wgpu::ComputePass<'static>)>,
 ) -> Result<(), GpuError> {
     let (ctx, f, s) = (b.ctx, b.f, b.shared);
     let q = rec.section();
     let pass = b.pass::<Shade>();
-    ctx.queue
-        .write_buffer(&pass.materials, 0, bytemuck::cast_slice(&materials[..]));
+    // The frame's material table (once per frame: peeled layers share it).
+    if let Some(m) = materials {
+        ctx.queue
+            .write_buffer(&pass.materials, 0, bytemuck::cast_slice(&m[..]));
+    }
     let mut gathers = Vec::new();
     for c in &cloud.chunks {
         let off = rec.arena.push(&GatherBlock {
