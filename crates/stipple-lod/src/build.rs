@@ -74,6 +74,17 @@ pub struct BuildOptions {
     /// build finishes (another build to the same output finished first) is kept and this
     /// build fails: the finished file is linked into place, never renamed over another.
     pub replace: bool,
+    /// Set to stop the build (an interrupt in the Python package): it ends with
+    /// [`LodError::Interrupted`] at the next batch of input or node written, and removes what it
+    /// wrote.
+    pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+}
+
+fn check_cancel(c: &Option<std::sync::Arc<std::sync::atomic::AtomicBool>>) -> Result<(), LodError> {
+    match c {
+        Some(c) if c.load(std::sync::atomic::Ordering::Relaxed) => Err(LodError::Interrupted),
+        _ => Ok(()),
+    }
 }
 
 impl Default for BuildOptions {
@@ -85,6 +96,7 @@ impl Default for BuildOptions {
             progress: None,
             abort_after_chunks: None,
             replace: false,
+            cancel: None,
         }
     }
 }
@@ -166,6 +178,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         path: output.to_owned(),
         chunks: 0,
         abort_after: o.abort_after_chunks,
+        cancel: o.cancel.clone(),
     };
     out.write(&[0u8; HEADER_SIZE as usize])?;
     let mut report = BuildReport {
@@ -188,7 +201,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
             i.read(origin, batch, &mut |b| {
                 recs.extend_from_slice(b);
                 progress(Phase::Reading, recs.len() as u64);
-                Ok(())
+                check_cancel(&o.cancel)
             })?;
         }
         let bounds = bounds_of(&recs);
@@ -239,6 +252,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
                     i.read(origin, batch, &mut |b| {
                         seen += b.len() as u64;
                         progress(Phase::Reading, seen);
+                        check_cancel(&o.cancel)?;
                         f(b)
                     })?;
                 }
@@ -322,6 +336,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         .and_then(|_| file.sync_all())
         .map_err(|e| LodError::io(output, e))?;
     drop(file);
+    check_cancel(&o.cancel)?;
     if o.replace {
         std::fs::rename(&tmp, output).map_err(|e| LodError::io(output, e))?;
     } else {
@@ -441,10 +456,12 @@ struct Out {
     path: PathBuf,
     chunks: usize,
     abort_after: Option<usize>,
+    cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl Out {
     fn write(&mut self, b: &[u8]) -> Result<(), LodError> {
+        check_cancel(&self.cancel)?;
         self.w
             .write_all(b)
             .map_err(|e| LodError::io(&self.path, e))?;

@@ -46,6 +46,9 @@ pub enum LodError {
     Budget(String),
     #[error("{0}")]
     Invalid(String),
+    /// The build was cancelled ([`BuildOptions::cancel`]); nothing was written.
+    #[error("interrupted: the build stopped and left no tree")]
+    Interrupted,
 }
 
 impl LodError {

@@ -486,3 +486,39 @@ fn a_finished_build_never_replaces_an_existing_tree_unless_asked() {
     assert!(LodTree::open(&out).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_cancelled_build_stops_and_leaves_nothing() {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let dir = scratch("cancel");
+    let a = write_las(&dir, "a.las", &terrain(420_000, 5_000, 3));
+    for memory in [64 << 20, 16 << 20] {
+        // In memory, then out of core; cancelled once the build is under way (a progress
+        // callback sets the flag, as the Python package's interrupt does).
+        let cancel = Arc::new(AtomicBool::new(false));
+        let c = cancel.clone();
+        let o = BuildOptions {
+            max_node_points: 1024,
+            memory,
+            progress: Some(Arc::new(move |_, done, _| {
+                if done > 100_000 {
+                    c.store(true, Ordering::Relaxed)
+                }
+            })),
+            cancel: Some(cancel),
+            ..Default::default()
+        };
+        let out = dir.join("t.stlod");
+        let e = build(std::slice::from_ref(&a), &out, &o).unwrap_err();
+        assert!(matches!(e, stipple_lod::LodError::Interrupted), "{e}");
+        assert!(!out.exists(), "a cancelled build left its output");
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect();
+        assert!(left.is_empty(), "left behind: {left:?}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -49,6 +49,15 @@ pub struct BuildLodArgs {
 }
 
 pub fn build_lod(a: BuildLodArgs) -> Result<()> {
+    build_lod_with(a, None)
+}
+
+/// [`build_lod`] that stops, leaving nothing, when `cancel` is set (the Python package sets it
+/// on an interrupt).
+pub fn build_lod_with(
+    a: BuildLodArgs,
+    cancel: Option<Arc<std::sync::atomic::AtomicBool>>,
+) -> Result<()> {
     let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
     crate::output::check_output(&a.output, &inputs)?;
     if stipple_io::extension(&a.output) != "stlod" {
@@ -94,6 +103,7 @@ pub fn build_lod(a: BuildLodArgs) -> Result<()> {
         progress: Some(Arc::new(progress)),
         abort_after_chunks: std::env::var(ABORT_ENV).ok().and_then(|v| v.parse().ok()),
         replace: a.force,
+        cancel,
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
