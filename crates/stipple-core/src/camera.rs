@@ -329,9 +329,86 @@ impl Camera {
     }
 }
 
+impl Camera {
+    /// Reads the camera JSON that [`Camera::to_json`] writes (`stipple render --camera-out`):
+    /// eye, target, up, size, `fov` or `ortho_height`, near and far (the matrices are
+    /// derived, so they are not read). The camera is validated.
+    pub fn from_json(text: &str) -> Result<Camera, String> {
+        let v: serde_json::Value =
+            serde_json::from_str(text).map_err(|e| format!("not JSON: {e}"))?;
+        let num = |k: &str| -> Result<Option<f64>, String> {
+            match v.get(k) {
+                None | Some(serde_json::Value::Null) => Ok(None),
+                Some(x) => x
+                    .as_f64()
+                    .map(Some)
+                    .ok_or_else(|| format!("`{k}` must be a number")),
+            }
+        };
+        let vec3 = |k: &str| -> Result<DVec3, String> {
+            let a = v
+                .get(k)
+                .and_then(|x| x.as_array())
+                .filter(|a| a.len() == 3)
+                .ok_or_else(|| format!("`{k}` must be an array of three numbers"))?;
+            let c: Option<Vec<f64>> = a.iter().map(|x| x.as_f64()).collect();
+            let c = c.ok_or_else(|| format!("`{k}` must be an array of three numbers"))?;
+            Ok(DVec3::new(c[0], c[1], c[2]))
+        };
+        let size = v
+            .get("size")
+            .and_then(|x| x.as_array())
+            .filter(|a| a.len() == 2)
+            .and_then(|a| Some((a[0].as_u64()?, a[1].as_u64()?)))
+            .ok_or("`size` must be [width, height] in pixels")?;
+        let side = |x: u64| u32::try_from(x).unwrap_or(u32::MAX);
+        let projection = match (num("fov")?, num("ortho_height")?) {
+            (Some(f), None) => Projection::Perspective { fov_deg: f },
+            (None, Some(h)) => Projection::Orthographic { height: h },
+            _ => return Err("give exactly one of `fov` and `ortho_height`".into()),
+        };
+        let cam = Camera {
+            eye: vec3("eye")?,
+            target: vec3("target")?,
+            up: vec3("up")?,
+            projection,
+            width: side(size.0),
+            height: side(size.1),
+            near: num("near")?.ok_or("`near` is missing")?,
+            far: num("far")?.ok_or("`far` is missing")?,
+        };
+        cam.validate().map_err(|e| e.to_string())?;
+        if !(cam.near.is_finite() && cam.far.is_finite() && cam.far > cam.near) {
+            return Err(format!(
+                "near {} and far {} must be finite with far > near",
+                cam.near, cam.far
+            ));
+        }
+        Ok(cam)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn json_round_trips_and_bad_json_is_refused() {
+        for c in [
+            cam(),
+            Camera {
+                projection: Projection::Orthographic { height: 3.0 },
+                ..cam()
+            },
+        ] {
+            assert_eq!(Camera::from_json(&c.to_json()).unwrap(), c);
+        }
+        assert!(Camera::from_json("{").is_err());
+        let no_size = cam().to_json().replace("\"size\"", "\"sighs\"");
+        assert!(Camera::from_json(&no_size).unwrap_err().contains("size"));
+        let bad = cam().to_json().replace("\"far\": 10.0", "\"far\": 0.01");
+        assert!(Camera::from_json(&bad).unwrap_err().contains("far"));
+    }
 
     fn cam() -> Camera {
         Camera {
