@@ -2,6 +2,7 @@
 //! backend, and the built-in demo scenes.
 
 pub mod camera;
+pub mod cancel;
 pub mod cloud;
 pub mod colour_map;
 pub mod demo;

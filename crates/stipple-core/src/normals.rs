@@ -72,6 +72,18 @@ pub enum NormalError {
     BadK(usize),
     #[error("c = {0}: the overlap relaxation must lie in (0, 1]")]
     BadC(f32),
+    /// Stopped by [`crate::cancel`].
+    #[error("interrupted")]
+    Interrupted,
+}
+
+/// Stops between steps when the work was cancelled ([`crate::cancel`]).
+fn go_on() -> Result<(), NormalError> {
+    if crate::cancel::cancelled() {
+        Err(NormalError::Interrupted)
+    } else {
+        Ok(())
+    }
 }
 
 /// The k nearest neighbours of every point (itself excluded), in a flat array of n × k
@@ -407,9 +419,13 @@ fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, Norma
     // Queries run in the grid's cell order (neighbouring queries touch the same cells, which
     // stay in cache) and are scattered back to the points' order.
     const BLOCK: usize = 1024;
+    let stop = crate::cancel::token();
     let rows: Vec<(Vec<u32>, Vec<f32>, Vec<u8>)> = (0..n.div_ceil(BLOCK))
         .into_par_iter()
         .map(|b| {
+            if crate::cancel::is_set(&stop) {
+                return Default::default();
+            }
             let mut buf = Vec::with_capacity(k + 1);
             let mut cache = CellCache::new();
             let range = b * BLOCK..((b + 1) * BLOCK).min(n);
@@ -435,6 +451,7 @@ fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, Norma
             (idx, kd, fd)
         })
         .collect();
+    go_on()?;
     let mut index = vec![0u32; n * k];
     let mut kth = vec![f32::INFINITY; n];
     let mut found = vec![0u8; n];
@@ -1362,6 +1379,7 @@ pub fn estimate_from(
     viewpoint: Option<Vec3>,
 ) -> Result<Estimated, NormalError> {
     let nb = neighbours(positions, k)?;
+    go_on()?;
     let radii = splat_radii(&nb, radius_scale);
     if let Some(vp) = viewpoint.filter(|v| v.is_finite()) {
         let mut normals: Vec<Vec3> = match given {
@@ -1371,7 +1389,9 @@ pub fn estimate_from(
                 .collect(),
             None => pca_normals(positions, &nb),
         };
+        go_on()?;
         let flipped = orient_towards(positions, &mut normals, vp);
+        go_on()?;
         let shapes = if given.is_some() {
             shapes(positions, &normals, &radii, &nb)
         } else {
@@ -1402,6 +1422,7 @@ pub fn estimate_from(
                     }
                 }
             }
+            go_on()?;
             let bad = inconsistency(positions, &normals, &nb);
             let mut oriented = normals.clone();
             let differ = orient_given(positions, &mut oriented, &nb);
@@ -1414,6 +1435,7 @@ pub fn estimate_from(
             } else {
                 0
             };
+            go_on()?;
             let shapes = shapes(positions, &normals, &radii, &nb);
             Ok(Estimated {
                 normals,
@@ -1426,9 +1448,13 @@ pub fn estimate_from(
         }
         None => {
             let mut normals = pca_normals(positions, &nb);
+            go_on()?;
             let flipped = orient(positions, &mut normals, &nb);
+            go_on()?;
             robust_normals(positions, &mut normals, &nb);
+            go_on()?;
             let shapes = refine_and_shape(positions, &mut normals, &radii, &nb);
+            go_on()?;
             Ok(Estimated {
                 normals,
                 radii,
