@@ -750,7 +750,7 @@ impl PipelineArgs {
                 }
                 r => r.map_err(|e| anyhow!("normal estimation: {e}"))?,
             };
-        if report.estimated {
+        if report.estimated && !report.repeated {
             notes.push(format!(
                 "estimated normals for {n} points (k = {}, oriented {}) in {:.2} s",
                 self.splat.normal_k,
@@ -762,7 +762,9 @@ impl PipelineArgs {
                 report.seconds
             ));
         }
-        if report.reoriented > 0 && self.splat.viewpoint.is_some() {
+        if report.repeated {
+            // Told when it was done.
+        } else if report.reoriented > 0 && self.splat.viewpoint.is_some() {
             notes.push(format!(
                 "turned {} of {n} given normals to face the viewpoint",
                 report.reoriented

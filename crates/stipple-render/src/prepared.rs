@@ -64,6 +64,10 @@ pub struct PreparedCloud {
     bounds: std::sync::Mutex<Option<(u64, stipple_core::Bounds)>>,
     /// The shadow texture in use (see [`PreparedCloud::set_lit`]).
     lit: Option<LitTexture>,
+    /// What [`PreparedCloud::prepare_surface`] did, whether the cloud had normals after it,
+    /// and the k and viewpoint it used: a later call with nothing new to do repeats the report instead of the work. Whoever
+    /// replaces the positions or normals afterwards clears it (`forget_surface`).
+    surface: Option<(SurfaceReport, bool, usize, Option<glam::DVec3>)>,
     /// Unique per preparation: the GPU backend re-uploads when it changes.
     pub key: u64,
     /// Changes whenever the shadow texture does (the GPU backend re-uploads it alone).
@@ -107,6 +111,35 @@ impl PreparedCloud {
             groups: Default::default(),
             bounds: Default::default(),
             lit: None,
+            surface: None,
+            key: next_key(),
+            lit_key: next_key(),
+        }
+    }
+
+    /// After the positions or normals were replaced: the next `prepare_surface` works again.
+    pub fn forget_surface(&mut self) {
+        self.surface = None;
+        self.shapes = None;
+    }
+
+    /// A copy to change for one frame (colours, opacity, shadows) while this one stays as it
+    /// is: it has keys of its own, so the GPU backend uploads it rather than reusing this
+    /// cloud's buffers.
+    pub fn duplicate(&self) -> PreparedCloud {
+        PreparedCloud {
+            cloud: self.cloud.clone(),
+            spacing: self.spacing,
+            intensity_scale: self.intensity_scale,
+            alpha: self.alpha.clone(),
+            mean_alpha: self.mean_alpha,
+            objects: self.objects.clone(),
+            shapes: self.shapes.clone(),
+            // Both are kept per key: made again for the new one on first use.
+            groups: Default::default(),
+            bounds: Default::default(),
+            lit: self.lit.clone(),
+            surface: self.surface.clone(),
             key: next_key(),
             lit_key: next_key(),
         }
@@ -267,6 +300,22 @@ impl PreparedCloud {
         estimate: bool,
         viewpoint: Option<glam::DVec3>,
     ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        if let Some((r, had_normals, k0, vp0)) = &self.surface {
+            let c = &self.cloud;
+            if c.normals.is_some() == *had_normals
+                && (*k0, *vp0) == (k, viewpoint)
+                && (*had_normals || !estimate)
+                && c.radius.is_some()
+            {
+                // Done before (the Python package renders a cloud many times): the same
+                // outcome, without the neighbour search.
+                return Ok(SurfaceReport {
+                    repeated: true,
+                    seconds: 0.0,
+                    ..r.clone()
+                });
+            }
+        }
         let vp = viewpoint.map(|v| (v - self.cloud.origin).as_vec3());
         let c = &mut self.cloud;
         let need_normals = c.normals.is_none() && estimate;
@@ -295,6 +344,7 @@ impl PreparedCloud {
         }
         report.seconds = t0.elapsed().as_secs_f64();
         self.key = next_key();
+        self.surface = Some((report.clone(), self.cloud.normals.is_some(), k, viewpoint));
         Ok(report)
     }
 }
@@ -376,6 +426,8 @@ pub struct SurfaceReport {
     /// Splat radii were computed.
     pub radii: bool,
     pub seconds: f64,
+    /// Nothing was done: this repeats the report of an earlier call on the same cloud.
+    pub repeated: bool,
 }
 
 #[cfg(test)]
