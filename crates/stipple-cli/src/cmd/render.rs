@@ -7,7 +7,6 @@ use crate::{lod, look, memory, Cmd};
 use anyhow::anyhow;
 use clap::Parser;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -79,27 +78,13 @@ pub fn render(a: RenderArgs) -> Result<()> {
         // Before reading anything: an image too large for memory fails at once.
         memory::check_frame(w, h, a.look.layers.unwrap_or(1))?;
     }
-    let tree = a.source.input.as_deref().filter(|p| lod::is_tree(p));
-    let scene_file = a
-        .source
-        .input
-        .as_deref()
-        .filter(|p| stipple_scene::is_scene(p));
-    let (mut cloud, label, camera, scene) = match (tree, scene_file) {
-        (Some(p), _) => {
-            let (cloud, label, camera) = lod::load_cut(p, &a.camera, &a.lod)?;
-            (cloud, label, camera, None)
-        }
-        (None, Some(p)) => {
-            let (cloud, s, camera) = look::load_scene(p, &a.camera)?;
-            (cloud, s.label.clone(), camera, Some(s))
-        }
-        (None, None) => {
-            let (cloud, label) = a.source.load()?;
-            let camera = a.camera.build(&cloud.cloud)?;
-            (cloud, label, camera, None)
-        }
-    };
+    let crate::api::Loaded {
+        mut cloud,
+        label,
+        camera,
+        scene,
+        tree,
+    } = crate::api::load(&a)?;
     memory::check_frame(
         camera.width,
         camera.height,
@@ -182,7 +167,7 @@ pub fn render(a: RenderArgs) -> Result<()> {
                 d.display()
             ));
         }
-        if tree.is_some() || scene.is_some() || a.source.input.is_none() {
+        if tree || scene.is_some() || a.source.input.is_none() {
             return Err(anyhow!(
                 "--save-normals saves a single cloud file's normals (not a scene, tree or demo)"
             ));
@@ -195,34 +180,24 @@ pub fn render(a: RenderArgs) -> Result<()> {
             ));
         }
     }
-    if let Some(line) = a.colour.apply(&mut cloud, &label)? {
-        eprintln!("stipple: {line}");
-    }
-    let peeled = crate::look::layers(&a.look, scene.as_ref()) > 1;
-    let (mut pipe, notes) = a
-        .pipeline
-        .choose(&mut cloud, &camera, tree.is_some(), peeled)?;
-    for n in &notes {
-        eprintln!("stipple: {n}");
-    }
     let mut renderer = a.backend.open()?;
-    let shadow_line = look::apply(
+    let crate::api::Rendered {
+        frame,
+        pipeline: pipe,
+        shadow_line,
+        ms,
+    } = crate::api::render_prepared(
+        &a,
         &mut cloud,
-        &mut pipe,
-        scene.as_ref(),
-        &a.look,
-        a.pipeline.background.is_some(),
+        &crate::api::View {
+            camera: &camera,
+            scene: scene.as_ref(),
+            tree,
+            label: &label,
+        },
         &mut renderer,
+        &mut |n| eprintln!("stipple: {n}"),
     )?;
-    if a.layer_images.is_some() {
-        if pipe.layers == 1 {
-            return Err(anyhow!("--layer-images needs --layers N (N > 1)"));
-        }
-        pipe.keep_layers = true;
-    }
-    let t0 = Instant::now();
-    let frame = renderer.render(&cloud, &camera, &pipe)?;
-    let ms = t0.elapsed().as_secs_f64() * 1e3;
     if let (Some(d), None) = (&a.save_normals, &cloud.cloud.normals) {
         return Err(anyhow!(
             "{}: not written: this render estimated no normals (--no-estimate-normals, \
