@@ -451,4 +451,28 @@ mod tests {
         assert_eq!(moved, p.cloud.bounds());
         assert_eq!(moved.max, glam::Vec3::splat(100.0));
     }
+
+    /// A second preparation with nothing new to do repeats the first's report (a cloud
+    /// rendered twice draws the same frame); a new k, or forgetting, does the work again.
+    #[test]
+    fn a_repeated_preparation_repeats_its_report() {
+        let positions: Vec<glam::Vec3> = (0..2000)
+            .map(|i| {
+                let (a, b) = (i as f32 * 0.1, i as f32 * 0.37);
+                glam::Vec3::new(a.cos() * b.sin(), a.sin() * b.sin(), b.cos())
+            })
+            .collect();
+        let mut p = PreparedCloud::new(PointCloud::from_positions(positions));
+        let first = p.prepare_surface(16, true).unwrap();
+        assert!(first.estimated && !first.repeated);
+        let normals = p.cloud.normals.clone();
+        let second = p.prepare_surface(16, true).unwrap();
+        assert!(second.repeated && second.estimated, "{second:?}");
+        assert_eq!(p.cloud.normals, normals);
+        let copy = p.duplicate();
+        assert_ne!(copy.key, p.key);
+        assert!(p.prepare_surface(12, true).is_ok_and(|r| !r.repeated));
+        p.forget_surface();
+        assert!(p.prepare_surface(12, true).is_ok_and(|r| !r.repeated));
+    }
 }
