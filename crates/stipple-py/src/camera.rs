@@ -7,6 +7,11 @@ use glam::DVec3;
 use pyo3::prelude::*;
 use stipple_core::camera::{Camera as CoreCamera, Projection};
 
+/// Camera(eye, target, up=(0, 1, 0), fov=45, size=1024, near=None, far=None, ortho=None)
+///
+/// The command line's camera: from eye towards target, fov vertical in degrees (or ortho, an
+/// orthographic view height), size (width, height) or one number; near and far are fitted to
+/// the cloud rendered unless given.
 #[pyclass(module = "stipple._stipple", frozen, from_py_object)]
 #[derive(Clone, Debug)]
 pub struct Camera {

@@ -30,6 +30,13 @@ pub fn lock(h: &Shared) -> MutexGuard<'_, Held> {
     h.lock().unwrap_or_else(PoisonError::into_inner)
 }
 
+/// Cloud(positions, normals=None, colors=None, intensity=None, opacity=None, origin=None,
+/// classification=None)
+///
+/// A point cloud from NumPy arrays: positions (N, 3) float32 or float64 (kept as float32
+/// offsets from a float64 origin), normals (N, 3), colors (N, 3) uint8/uint16/float 0..1,
+/// intensity (N,), opacity (N,) 0..1, classification (N,) uint8. Copied once; bad arrays raise
+/// ValueError naming the argument.
 #[pyclass(module = "stipple._stipple", frozen)]
 pub struct Cloud {
     pub held: Shared,

@@ -51,13 +51,9 @@ pub(crate) fn run_detached<T: Send + 'static>(
         match got {
             Ok(Ok(v)) => return Ok(v),
             Ok(Err(panic)) => {
-                let what = panic
-                    .downcast_ref::<&str>()
-                    .map(|s| s.to_string())
-                    .or_else(|| panic.downcast_ref::<String>().cloned())
-                    .unwrap_or_else(|| "unknown panic".into());
                 return Err(pyo3::exceptions::PyRuntimeError::new_err(format!(
-                    "stipple: internal error (please report it): {what}"
+                    "stipple: internal error (please report it): {}",
+                    panic_message(panic.as_ref())
                 )));
             }
             Err(RecvTimeoutError::Timeout) => {
@@ -85,6 +81,25 @@ pub(crate) fn run_detached<T: Send + 'static>(
             }
         }
     }
+}
+
+/// Runs `f` on the calling thread, turning a panic into a `RuntimeError` (pyo3 would raise
+/// its own `PanicException`, which is not an `Exception`).
+pub(crate) fn guard<T>(f: impl FnOnce() -> T) -> PyResult<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).map_err(|panic| {
+        pyo3::exceptions::PyRuntimeError::new_err(format!(
+            "stipple: internal error (please report it): {}",
+            panic_message(panic.as_ref())
+        ))
+    })
+}
+
+fn panic_message(panic: &(dyn std::any::Any + Send)) -> String {
+    panic
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| panic.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
 }
 
 #[pymodule]

@@ -29,7 +29,10 @@ enum Source {
     Tree(PathBuf),
 }
 
-/// A renderer, its options and what it draws: keeps the cloud uploaded (GPU) and its
+/// Renderer(source, pipeline="auto", backend="auto", **options)
+///
+/// A source (a Cloud, or the path of a cloud file, scene file or .stlod tree) with a backend
+/// and `stipple render` options, for many cameras: the cloud stays uploaded (GPU) and its
 /// normals estimated across renders.
 #[pyclass(module = "stipple._stipple", frozen)]
 pub struct Renderer {
@@ -40,7 +43,8 @@ pub struct Renderer {
     describe: String,
 }
 
-/// One rendered image with its depth, normals, camera and timings.
+/// One rendered frame: image (H, W, 4) uint8, depth (H, W) float32, normals (H, W, 3), the
+/// camera used, stats (ms per pass) and the renderer's notes.
 #[pyclass(module = "stipple._stipple", frozen)]
 pub struct RenderResult {
     image: Py<PyAny>,
@@ -316,6 +320,28 @@ impl Renderer {
 }
 
 impl RenderResult {
+    /// The normal image, made on first use (see the `normals` getter).
+    fn normals_now(&self, py: Python<'_>) -> Option<Py<PyAny>> {
+        self.normals
+            .get_or_init(|| {
+                let (frame, drawn, camera) = self
+                    .normal_source
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .take()?;
+                let h = lock(&drawn);
+                let n = frame.normal_image(&h.prepared, &camera);
+                drop(h);
+                let flat: Vec<f32> = n.into_iter().flatten().collect();
+                let a =
+                    Array3::from_shape_vec((frame.height as usize, frame.width as usize, 3), flat)
+                        .expect("normals are H×W×3");
+                Some(PyArray3::from_owned_array(py, a).into_any().unbind())
+            })
+            .as_ref()
+            .map(|a| a.clone_ref(py))
+    }
+
     fn from_done(py: Python<'_>, d: Done, backend: String) -> RenderResult {
         let Done {
             mut frame,
@@ -423,25 +449,8 @@ impl RenderResult {
     /// NaN on background (`--normal-out`): the splats' blended normals, else the normal of the
     /// point each pixel shows, else the depth image's own. Made on first access.
     #[getter]
-    fn normals(&self, py: Python<'_>) -> Option<Py<PyAny>> {
-        self.normals
-            .get_or_init(|| {
-                let (frame, drawn, camera) = self
-                    .normal_source
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner)
-                    .take()?;
-                let h = lock(&drawn);
-                let n = frame.normal_image(&h.prepared, &camera);
-                drop(h);
-                let flat: Vec<f32> = n.into_iter().flatten().collect();
-                let a =
-                    Array3::from_shape_vec((frame.height as usize, frame.width as usize, 3), flat)
-                        .expect("normals are H×W×3");
-                Some(PyArray3::from_owned_array(py, a).into_any().unbind())
-            })
-            .as_ref()
-            .map(|a| a.clone_ref(py))
+    fn normals(&self, py: Python<'_>) -> PyResult<Option<Py<PyAny>>> {
+        crate::guard(|| self.normals_now(py))
     }
 
     /// The camera used, with the near and far planes fitted to the cloud.
