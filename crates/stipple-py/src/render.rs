@@ -187,7 +187,13 @@ fn render_now(
             let a = stipple_cli::api::parse_render_args(args)?;
             let mut h = lock(held);
             let cam = match camera {
-                Some(c) => c.to_core(Some(h.prepared.cloud.world_bounds()))?,
+                Some(c) if c.near.is_some() => c.to_core(None)?,
+                Some(c) => {
+                    // Near and far from the cloud's bounds (cached by the cloud).
+                    let b = h.prepared.bounds();
+                    let o = h.prepared.cloud.origin;
+                    c.to_core(Some((o + b.min.as_dvec3(), o + b.max.as_dvec3())))?
+                }
                 None => default_camera.clone(),
             };
             stipple_cli::memory::check_frame(
