@@ -517,7 +517,7 @@ pub fn demo(name: &str, points: Option<usize>, seed: u64) -> PyResult<Cloud> {
         n as u64,
         stipple_cli::memory::BYTES_PER_POINT,
     )
-    .map_err(|e| value_error(e.to_string()))?;
+    .map_err(|e| value_error(crate::errors::python_names(&e.to_string())))?;
     Ok(Cloud::from_cloud(
         stipple_core::demo::generate(scene, n, seed),
         format!("demo scene `{}`", scene.name()),

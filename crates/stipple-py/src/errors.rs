@@ -58,6 +58,10 @@ pub fn to_py(e: anyhow::Error) -> PyErr {
             return pyo3::exceptions::PyKeyboardInterrupt::new_err(msg);
         }
     }
+    let text = stipple_cli::message(&e);
+    if text.contains("already exists") || text.contains("refusing to overwrite") {
+        return pyo3::exceptions::PyFileExistsError::new_err(msg);
+    }
     // Errors about what was asked (a value out of range, a flag that needs another) name the
     // option, and are the caller's to fix.
     if stipple_cli::message(&e).contains("--") {

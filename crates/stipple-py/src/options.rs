@@ -1,6 +1,6 @@
 //! Keyword arguments as `stipple render`'s flags: `fill_iterations=2` → `--fill-iterations=2`,
 //! `no_lighting=True` → `--no-lighting`, `background=(0, 0, 0)` → `--background=0,0,0`,
-//! `light=["point:0,2,1", "disc:1,2,0,0.2"]` → one `--light=…` each. Names are checked against
+//! `light="disc:1,2,0,0.2"` → `--light=disc:1,2,0,0.2`. Names are checked against
 //! the command's own list, so every flag of `stipple render` (and only those) is an option.
 
 use crate::errors::{python_names, value_error};
@@ -76,14 +76,17 @@ fn option_args(info: &OptionInfo, key: &str, v: &Bound<'_, PyAny>) -> PyResult<V
     }
     if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() || v.hasattr("__len__")? {
         let items: Vec<Bound<'_, PyAny>> = v.try_iter()?.collect::<PyResult<_>>()?;
-        if !items.is_empty() && items.iter().all(|i| i.is_instance_of::<PyString>()) {
-            // Several values of a repeatable flag (lights).
-            return items
-                .iter()
-                .map(|i| Ok(format!("{flag}={}", i.extract::<String>()?)))
-                .collect();
-        }
-        let parts: Option<Vec<String>> = items.iter().map(scalar).collect();
+        // Numbers only: `background=(0, 0, 0)`, `range=(10, 250)`.
+        let parts: Option<Vec<String>> = items
+            .iter()
+            .map(|i| {
+                if i.is_instance_of::<PyString>() {
+                    None
+                } else {
+                    scalar(i)
+                }
+            })
+            .collect();
         if let Some(p) = parts.filter(|p| !p.is_empty()) {
             return Ok(vec![format!("{flag}={}", p.join(","))]);
         }

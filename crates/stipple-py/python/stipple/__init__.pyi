@@ -189,7 +189,7 @@ def render(
     """Renders once. ``pipeline``: auto, dobrev, splat or raw; ``backend``: auto, cpu or gpu.
     ``options`` are ``stipple render``'s flags in snake_case (``layers=2, opacity=0.5``,
     ``shading="edl"``, ``no_lighting=True``, ``background=(0, 0, 0)``,
-    ``light=["disc:0,2,1,0.2"]``); ``render_options()`` lists them. A bad option raises
+    ``light="disc:0,2,1,0.2", shadows=True``); ``render_options()`` lists them. A bad option raises
     ValueError naming it."""
 
 def render_options() -> Mapping[str, str]:

@@ -128,6 +128,8 @@ def test_options_are_validated_like_the_cli_flags():
         (dict(layers=True), "layers: takes a value"),
         (dict(background=(1, 2)), "background"),
         (dict(light=[{"x": 1}]), "light: expected a number"),
+        (dict(light=["point:0,2,1", "point:1,2,1"]), "light: expected a number"),
+        (dict(fill_radius=10**30), "fill_radius: expected a number"),
     ]
     for options, message in cases:
         with pytest.raises(ValueError) as e:
@@ -239,8 +241,10 @@ def test_build_a_tree_and_render_it(tmp_path, cli):
     tree = tmp_path / "sheet.stlod"
     stipple.build_lod(las, tree, memory="256M", max_node_points=4096)
     assert tree.exists()
-    with pytest.raises(ValueError, match="exists"):
+    with pytest.raises(FileExistsError, match="exists"):
         stipple.build_lod([las], tree)
+    with pytest.raises(FileExistsError, match="refusing to overwrite an input"):
+        stipple.build_lod([las], las)
     cam = stipple.Camera(eye=(500_000.0, 3_999_700.0, 250.0), target=(500_000.0, 4_000_000.0, 50.0),
                          up=(0, 0, 1), fov=40.0, size=(200, 150))
     r = stipple.render(tree, cam, backend="cpu", point_budget="1M")
