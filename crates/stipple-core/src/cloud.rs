@@ -146,6 +146,10 @@ pub struct PointCloud {
     /// the default camera then sees the cloud as captured, and estimated normals face the
     /// sensor.
     pub sensor: Option<Sensor>,
+    /// The normals' signs are known to be right (a volume's iso-surface: from the gradient),
+    /// so renders keep them as they are instead of checking their consistency over a
+    /// neighbour graph (which can turn whole nested surfaces round where they touch).
+    pub normals_trusted: bool,
 }
 
 /// A sensor's pose in world coordinates: its position, viewing direction and image up.
@@ -313,6 +317,8 @@ impl PointCloud {
         }
         self.faces
             .extend(other.faces.iter().map(|f| f.map(|v| v + n0 as u32)));
+        // Trusted only where every point's normal is.
+        self.normals_trusted = (self.normals_trusted || n0 == 0) && other.normals_trusted;
     }
 
     /// Estimates the typical distance between neighbouring points (the median nearest-neighbour

@@ -1467,6 +1467,41 @@ pub fn estimate_from(
     }
 }
 
+/// Radii and splat shapes for normals whose signs are known to be right
+/// (`PointCloud::normals_trusted`): no orientation step; zero normals get PCA's.
+pub fn estimate_trusted(
+    positions: &[Vec3],
+    given: &[Vec3],
+    k: usize,
+    radius_scale: f32,
+) -> Result<Estimated, NormalError> {
+    let nb = neighbours(positions, k)?;
+    go_on()?;
+    let radii = splat_radii(&nb, radius_scale);
+    let mut normals: Vec<Vec3> = given
+        .iter()
+        .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
+        .collect();
+    if normals.contains(&Vec3::ZERO) {
+        let pca = pca_normals(positions, &nb);
+        for (n, p) in normals.iter_mut().zip(pca) {
+            if *n == Vec3::ZERO {
+                *n = p;
+            }
+        }
+    }
+    go_on()?;
+    let shapes = shapes(positions, &normals, &radii, &nb);
+    Ok(Estimated {
+        normals,
+        radii,
+        shapes,
+        flipped: 0,
+        given: true,
+        inconsistency: 0.0,
+    })
+}
+
 /// `n` random points on the unit sphere (tests).
 #[cfg(test)]
 pub(crate) fn random_sphere(n: usize, seed: u64) -> Vec<Vec3> {

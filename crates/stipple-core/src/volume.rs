@@ -186,6 +186,8 @@ pub fn iso_points(v: &Volume, iso: f64, limit: usize) -> Result<PointCloud, Volu
     }
     let mut cloud = PointCloud::from_world(&world);
     cloud.normals = Some(normals);
+    // The gradient's direction: outward from the object's side, consistent by construction.
+    cloud.normals_trusted = true;
     Ok(cloud)
 }
 

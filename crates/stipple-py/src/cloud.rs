@@ -311,8 +311,7 @@ impl Cloud {
             opacity: opacity.map(|v| unit_floats("opacity", v, n)).transpose()?,
             radius: None,
             faces: Vec::new(),
-            z_up: false,
-            sensor: None,
+            ..Default::default()
         };
         cloud
             .validate()

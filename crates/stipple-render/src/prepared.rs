@@ -325,8 +325,18 @@ impl PreparedCloud {
         }
         let t0 = std::time::Instant::now();
         let need_radii = c.radius.is_none();
-        let e =
-            stipple_core::normals::estimate_from(&c.positions, c.normals.as_deref(), k, 1.0, vp)?;
+        let e = match (&c.normals, c.normals_trusted) {
+            (Some(given), true) => {
+                stipple_core::normals::estimate_trusted(&c.positions, given, k, 1.0)?
+            }
+            _ => stipple_core::normals::estimate_from(
+                &c.positions,
+                c.normals.as_deref(),
+                k,
+                1.0,
+                vp,
+            )?,
+        };
         if need_normals {
             c.normals = Some(e.normals);
             report.estimated = true;
@@ -474,5 +484,38 @@ mod tests {
         assert!(p.prepare_surface(12, true).is_ok_and(|r| !r.repeated));
         p.forget_surface();
         assert!(p.prepare_surface(12, true).is_ok_and(|r| !r.repeated));
+    }
+
+    /// Trusted normals (a volume's gradient) are kept as they are, even where a consistency
+    /// check would turn them round.
+    #[test]
+    fn trusted_normals_are_not_turned_round() {
+        let positions: Vec<glam::Vec3> = (0..3000)
+            .map(|i| {
+                let (a, b) = (i as f32 * 0.1, i as f32 * 0.37);
+                glam::Vec3::new(a.cos() * b.sin(), a.sin() * b.sin(), b.cos())
+            })
+            .collect();
+        // Every normal inward: consistent, but against the outward seed of the check.
+        let inward: Vec<glam::Vec3> = positions.iter().map(|p| -p.normalize()).collect();
+        let cloud = PointCloud {
+            normals: Some(inward.clone()),
+            ..PointCloud::from_positions(positions)
+        };
+        let mut checked = PreparedCloud::new(cloud.clone());
+        let r = checked.prepare_surface(16, true).unwrap();
+        assert!(r.reoriented > 1000, "{r:?}");
+        let mut trusted = PreparedCloud::new(PointCloud {
+            normals_trusted: true,
+            ..cloud
+        });
+        let r = trusted.prepare_surface(16, true).unwrap();
+        assert_eq!(r.reoriented, 0);
+        let kept = trusted.cloud.normals.as_ref().unwrap();
+        assert!(kept
+            .iter()
+            .zip(&inward)
+            .all(|(a, b)| (*a - *b).length() < 1e-5));
+        assert!(trusted.cloud.radius.is_some() && trusted.shapes.is_some());
     }
 }
