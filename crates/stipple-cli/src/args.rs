@@ -640,6 +640,11 @@ pub struct PipelineArgs {
     /// area light of radius r facing the cloud, for soft shadows with --shadows).
     #[arg(long, default_value = "headlight", value_parser = parse_light, allow_hyphen_values = true)]
     pub light: Light,
+    /// Point and area lights fall off with the square of the distance, at full strength D
+    /// from the light (brighter nearer, 1/4 at 2D): lights inside or among objects light
+    /// what is near them [default: no falloff, or a scene's `falloff`].
+    #[arg(long, value_parser = positive_f64, value_name = "D")]
+    pub light_falloff: Option<f64>,
     /// Background colour: r,g,b or #rrggbb [default: 24,26,31, or a scene's].
     #[arg(long, value_parser = parse_colour)]
     pub background: Option<[u8; 3]>,
@@ -851,10 +856,14 @@ impl PipelineArgs {
                 self.aa_strength
             ));
         }
+        if let Some(d) = self.light_falloff.filter(|&d| !(d as f32).is_finite()) {
+            return Err(anyhow!("--light-falloff {d}: too large"));
+        }
         let mut p = Pipeline {
             backface_culling: !self.no_backface_culling,
             lighting: !self.no_lighting,
             lights: vec![self.light],
+            falloff: self.light_falloff.map(|d| d as f32),
             background: self.background.unwrap_or(DEFAULT_BACKGROUND),
             geometry: vec![],
             colour: vec![],

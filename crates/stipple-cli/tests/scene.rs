@@ -358,3 +358,74 @@ fn a_scene_mixes_clouds_meshes_and_volumes() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Light falloff from the command line and from a scene's `[render] falloff`: the same image
+/// either way, darker than without falloff where the light is farther than the distance
+/// given; bad distances refused with the flag or field named.
+#[test]
+fn light_falloff_from_the_flag_and_the_scene_agree() {
+    let dir = tempdir("falloff");
+    let scene = |falloff: &str| {
+        format!(
+            "[camera]\neye = [0.0, 3.0, 3.0]\ntarget = [0.0, 0.0, 0.0]\nsize = [96, 96]\n\
+             [render]\nshadows = false\n{falloff}\n[[cloud]]\ndemo = \"plane\"\npoints = 60000\nscale = 3\n\
+             colour = [200, 200, 200]\n[[light]]\ntype = \"point\"\nposition = [0.0, 2.0, 0.0]\n"
+        )
+    };
+    let mean = |png: &Path| -> f64 {
+        let (_, _, rgba) = stipple_io::image::read_png(png).unwrap();
+        rgba.chunks(4).map(|p| p[0] as f64).sum::<f64>() / (rgba.len() / 4) as f64
+    };
+    std::fs::write(dir.join("none.toml"), scene("")).unwrap();
+    std::fs::write(dir.join("half.toml"), scene("falloff = 1.0")).unwrap();
+    ok(
+        &dir,
+        &["render", "none.toml", "-o", "none.png", "--backend", "cpu"],
+    );
+    ok(
+        &dir,
+        &["render", "half.toml", "-o", "half.png", "--backend", "cpu"],
+    );
+    ok(
+        &dir,
+        &[
+            "render",
+            "none.toml",
+            "-o",
+            "flag.png",
+            "--backend",
+            "cpu",
+            "--light-falloff",
+            "1",
+        ],
+    );
+    let (none, half, flag) = (
+        mean(&dir.join("none.png")),
+        mean(&dir.join("half.png")),
+        mean(&dir.join("flag.png")),
+    );
+    assert!(
+        half < none - 5.0,
+        "falloff at 1 with the light 2 away: {half} vs {none}"
+    );
+    assert_eq!(
+        half, flag,
+        "the flag and the scene field give the same image"
+    );
+    let out = stipple(
+        &dir,
+        &["render", "none.toml", "--light-falloff", "0", "-o", "x.png"],
+    );
+    assert!(
+        !out.status.success() && text(&out).contains("--light-falloff"),
+        "{}",
+        text(&out)
+    );
+    std::fs::write(dir.join("bad.toml"), scene("falloff = -2")).unwrap();
+    let out = stipple(&dir, &["render", "bad.toml", "-o", "x.png"]);
+    assert!(
+        !out.status.success() && text(&out).contains("falloff = -2"),
+        "{}",
+        text(&out)
+    );
+}

@@ -132,6 +132,12 @@ pub struct Pipeline {
     pub colour: Vec<ColourPass>,
     /// The lights (1 to [`crate::lights::MAX_LIGHTS`]; the Phong terms add up).
     pub lights: Vec<Light>,
+    /// Distance attenuation of point and area lights (Gunjee §4.1): None, none (every light
+    /// shines at full strength wherever it reaches); Some(d₀), the inverse-square law with
+    /// full strength at distance d₀ from the light: strength (d₀ / d)², more than 1 nearer
+    /// than d₀. Every light then has the same power. Headlights and directional lights do
+    /// not fall off.
+    pub falloff: Option<f32>,
     /// The material of a plain cloud (a scene's objects carry their own, see
     /// [`crate::ObjectTable`]).
     pub material: Material,
@@ -177,6 +183,7 @@ impl Default for Pipeline {
                 },
             ],
             lights: vec![Light::Headlight],
+            falloff: None,
             material: Material::default(),
             lighting: true,
             background: [24, 26, 31],

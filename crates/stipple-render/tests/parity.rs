@@ -266,10 +266,19 @@ fn shade_matches_the_cpu() {
         return;
     };
     let mut r = GpuRenderer::new(ctx.clone()).unwrap();
-    for (perspective, light) in [
-        (true, stipple_render::Light::Headlight),
-        (false, stipple_render::Light::Point([3.0, 4.0, 9.0])),
-        (true, stipple_render::Light::Directional([0.2, 0.5, 1.0])),
+    for (perspective, light, falloff) in [
+        (true, stipple_render::Light::Headlight, None),
+        (false, stipple_render::Light::Point([3.0, 4.0, 9.0]), None),
+        (
+            true,
+            stipple_render::Light::Point([1.0, -2.0, 3.0]),
+            Some(2.5),
+        ),
+        (
+            true,
+            stipple_render::Light::Directional([0.2, 0.5, 1.0]),
+            None,
+        ),
     ] {
         let cam = camera(71, 53, perspective);
         let v = ViewParams::new(&cam, DVec3::ZERO);
@@ -279,6 +288,7 @@ fn shade_matches_the_cpu() {
         let (g, _) = cpu_project(&v, &prepared.cloud, true);
         let pipe = Pipeline {
             lights: vec![light],
+            falloff,
             ..Pipeline::default()
         };
         let (colour, depth) = r.shade(&up, &v, &g, &pipe).unwrap();

@@ -545,3 +545,62 @@ fn peeled_transparent_surfaces_composite_without_blotches() {
         }
     }
 }
+
+/// Inverse-square falloff (Gunjee §4.1): a plane lit straight from above by a point light at
+/// height h receives k_d (d₀ / h)² under the light; moving the light to 2h quarters it; with
+/// no falloff the height does not matter.
+#[test]
+fn point_lights_fall_off_with_the_square_of_the_distance() {
+    let (p, n) = plane(200_000, 2.0, 0.0, 21);
+    let c = PreparedCloud::new(cloud(&[(p, n, [255, 255, 255], 1.0)]));
+    let cam = top_camera(96);
+    let lut = stipple_render::srgb::srgb_to_linear_table();
+    // The mean linear red of the 5 × 5 pixels at the centre (under the light).
+    let centre = |f: &stipple_render::Frame| -> f32 {
+        let mut s = 0.0;
+        for j in 46..51 {
+            for i in 46..51 {
+                s += lut[f.rgba[(j * 96 + i) * 4] as usize];
+            }
+        }
+        s / 25.0
+    };
+    let material = stipple_render::Material {
+        ambient: 0.0,
+        diffuse: 0.8,
+        specular: 0.0,
+        ..Default::default()
+    };
+    for mut r in common::backends() {
+        let mut at = |h: f64, falloff: Option<f32>| {
+            let pipe = Pipeline {
+                lights: vec![Light::Point([0.0, 0.0, h])],
+                falloff,
+                material,
+                colour: vec![],
+                ..Pipeline::default()
+            };
+            centre(&r.render(&c, &cam, &pipe).unwrap())
+        };
+        let d0 = 0.9f32;
+        let (near, far) = (at(1.0, Some(d0)), at(2.0, Some(d0)));
+        // k_d (d₀ / h)² with the light 1 and 2 above the plane (d₀ / 2 = 0.45).
+        let want_near = 0.8 * (d0 / 1.0).powi(2);
+        let want_far = 0.8 * (d0 / 2.0).powi(2);
+        assert!(
+            (near - want_near).abs() < 0.02 * want_near,
+            "{}: {near} under the light at 1, want {want_near}",
+            r.describe()
+        );
+        assert!(
+            (far - want_far).abs() < 0.02 * want_far,
+            "{}: {far} under the light at 2, want {want_far}",
+            r.describe()
+        );
+        let (a, b) = (at(1.0, None), at(2.0, None));
+        assert!(
+            (a - 0.8).abs() < 0.01 && (b - 0.8).abs() < 0.01,
+            "no falloff: {a} {b}"
+        );
+    }
+}

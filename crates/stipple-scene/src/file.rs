@@ -51,6 +51,9 @@ pub struct RenderSpec {
     /// Compute shadow textures for the lights that cast them (default true).
     pub shadows: Option<bool>,
     pub shadow_size: Option<u32>,
+    /// Point and area lights fall off with the inverse square of the distance, at full
+    /// strength this far from the light (see `Pipeline::falloff`).
+    pub falloff: Option<f64>,
     /// A shadow cache file, relative to the scene file.
     pub shadow_cache: Option<PathBuf>,
 }
@@ -268,6 +271,13 @@ pub fn build(
             lights.len(),
             stipple_render::shadow::MAX_LIGHTS
         )));
+    }
+    if let Some(f) = spec.render.falloff {
+        if !(f.is_finite() && f > 0.0 && f <= f32::MAX as f64) {
+            return Err(err(format!(
+                "falloff = {f}: a distance above zero (where lights shine at full strength)"
+            )));
+        }
     }
     if let Some(l) = spec.render.layers {
         if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&l) {
@@ -557,6 +567,10 @@ impl LoadedScene {
         }
         if let Some(l) = self.render.layers {
             pipe.layers = l;
+        }
+        // The command line's --light-falloff wins.
+        if let (Some(f), None) = (self.render.falloff, pipe.falloff) {
+            pipe.falloff = Some(f as f32);
         }
     }
 

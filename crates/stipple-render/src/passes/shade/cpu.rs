@@ -9,7 +9,9 @@
 //! k_s, shininess) is the point's object's. Clouds without normals are shown unlit, or, with
 //! a shadow texture, as albedo · (k_a + (1 − k_a) · mean m): lit points keep their colour and
 //! shadowed ones fall to the ambient level. m_l = lit samples / samples taken (1 when the
-//! light has no shadow texture). Maths is in linear RGB; sRGB conversion happens at output.
+//! light has no shadow texture). With a falloff distance d₀ (`Pipeline::falloff`), a point or
+//! area light's m is multiplied by (d₀ / d)² at distance d (inverse-square law, Gunjee §4.1).
+//! Maths is in linear RGB; sRGB conversion happens at output.
 //!
 //! Surface depth (a deviation from the paper, which keeps the point's own depth): where the
 //! point has a normal, the pixel's depth is where the pixel's centre ray meets the point's
@@ -57,6 +59,8 @@ pub struct ShadeParams {
     pub max_correction: f32,
     /// Linear background colour.
     pub background: [f32; 3],
+    /// Point lights' falloff distance d₀ (strength (d₀ / d)²); 0: no falloff.
+    pub falloff: f32,
 }
 
 pub struct ShadeInput<'a> {
@@ -103,6 +107,21 @@ pub fn phong(albedo: [f32; 3], n: Vec3, v: Vec3, l: &[Vec3], m: &[f32; 4], t: &T
         }
     }
     albedo.map(|a| a * k + s)
+}
+
+/// A point light's strength at squared distance `d2`: (d₀ / d)² with `d0` > 0, else 1.
+#[inline]
+pub fn falloff(d0: f32, d2: f32) -> f32 {
+    if d0 > 0.0 {
+        if d2 > 0.0 {
+            d0 * d0 / d2
+        } else {
+            // At the light itself: no direction to light from (as the shader: l = 0).
+            0.0
+        }
+    } else {
+        1.0
+    }
 }
 
 /// Shades every pixel: `colour` gets linear RGB (background colour where no point is),
@@ -179,11 +198,16 @@ pub fn shade(
                 };
                 let to_eye = -unit;
                 let mut dirs = [Vec3::ZERO; 4];
-                for (d, light) in dirs.iter_mut().zip(&p.lights) {
+                let mut m = m;
+                for ((d, light), m) in dirs.iter_mut().zip(&p.lights).zip(&mut m) {
                     *d = match *light {
                         LocalLight::Headlight => to_eye,
                         LocalLight::Directional(d) => d,
-                        LocalLight::Point(lp) => (lp - hit).normalize_or_zero(),
+                        LocalLight::Point(lp) => {
+                            let lv = lp - hit;
+                            *m *= falloff(p.falloff, lv.length_squared());
+                            lv.normalize_or_zero()
+                        }
                     };
                 }
                 crow[i] = phong(albedo, n, to_eye, &dirs[..p.lights.len()], &m, t);

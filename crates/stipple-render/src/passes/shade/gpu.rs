@@ -34,7 +34,8 @@ pub(crate) struct ShadeBlock {
     pub base_colour: [f32; 3],
     pub max_correction: f32,
     pub background: [f32; 3],
-    pub pad: u32,
+    /// Point lights' falloff distance (0: none).
+    pub falloff: f32,
     pub samples: [u32; 4],
     /// xyz and kind (0 headlight, 1 directional, 2 point).
     pub lights: [[f32; 4]; 4],
@@ -98,7 +99,7 @@ impl ShadeBlock {
             base_colour: albedo.unwrap_or([0.0; 3]),
             max_correction: p.max_correction,
             background: p.background,
-            pad: 0,
+            falloff: p.falloff,
             samples: p.samples,
             lights,
         }

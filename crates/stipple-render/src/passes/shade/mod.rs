@@ -41,6 +41,7 @@ pub fn shade_params(
         // only flatten it again.
         max_correction: if pipe.splat.is_some() { -1.0 } else { gap },
         background: pipe.background.map(|c| lut[c as usize]),
+        falloff: pipe.falloff.unwrap_or(0.0),
     }
 }
 

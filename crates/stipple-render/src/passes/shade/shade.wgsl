@@ -12,7 +12,8 @@ struct Shade {
     base_colour: vec3<f32>,
     max_correction: f32,
     background: vec3<f32>,
-    pad0: u32,
+    // Point lights' falloff distance d0 (strength (d0 / d)^2); 0: none.
+    falloff: f32,
     // Shadow samples per light (0: m = 1 for that light).
     samples: vec4<u32>,
     // xyz: direction towards the light (w = 1) or position (w = 2); w = 0: headlight.
@@ -143,6 +144,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var li = 0u; li < sp.light_count; li++) {
         let light = sp.lights[li];
         var l = to_eye;
+        var strength = m[li];
         if (light.w == 1.0) {
             l = light.xyz;
         } else if (light.w == 2.0) {
@@ -153,12 +155,20 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             } else {
                 l = vec3<f32>(0.0);
             }
+            // shade::cpu::falloff
+            if (sp.falloff > 0.0) {
+                if (len2 > 0.0) {
+                    strength = strength * (sp.falloff * sp.falloff / len2);
+                } else {
+                    strength = 0.0;
+                }
+            }
         }
         let nl = dot3(n, l);
         if (nl > 0.0) {
             let r = 2.0 * nl * n - l;
-            kk = kk + m[li] * mat.y * nl;
-            sp_sum = sp_sum + m[li] * mat.z * powi(max(dot3(r, to_eye), 0.0), i32(mat.w));
+            kk = kk + strength * mat.y * nl;
+            sp_sum = sp_sum + strength * mat.z * powi(max(dot3(r, to_eye), 0.0), i32(mat.w));
         }
     }
     colour[k] = vec4<f32>(albedo * kk + sp_sum, 1.0);
