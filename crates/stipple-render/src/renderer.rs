@@ -169,16 +169,13 @@ impl Renderer {
             // The GPU copy now holds counts the cloud does not: rewrite it next frame.
             up.lit_key = 0;
         }
-        let centre = bounds.center().as_dvec3();
         for (done, &(l, k)) in todo.iter().enumerate() {
             let pos = shadow::sample_position(&lights[l], k).expect("lights with samples");
             let views =
                 shadow::light_views(&bounds, cloud.cloud.origin, cloud.spacing, pos, settings);
             let params = |view: &shadow::LightView| {
                 let v = &view.view;
-                let z = (centre - glam::Vec3::from(v.eye).as_dvec3())
-                    .dot(glam::Vec3::from(v.forward).as_dvec3())
-                    .max(v.near as f64) as f32;
+                let z = far_depth(v, &bounds);
                 passes::shadow_texture::cpu::MarkParams {
                     gap,
                     fill_gap: passes::shadow_texture::cpu::light_gap(v, gap, z),
@@ -210,6 +207,22 @@ impl Renderer {
         }
         Ok(lit)
     }
+}
+
+/// The largest view depth of the cloud's bounds in a light view (at least its near plane):
+/// the light image's fills use the light gap there, where a light pixel is widest.
+fn far_depth(v: &crate::params::ViewParams, b: &stipple_core::Bounds) -> f32 {
+    let (eye, fwd) = (glam::Vec3::from(v.eye), glam::Vec3::from(v.forward));
+    let mut z = v.near;
+    for k in 0..8 {
+        let c = glam::Vec3::new(
+            if k & 1 == 0 { b.min.x } else { b.max.x },
+            if k & 2 == 0 { b.min.y } else { b.max.y },
+            if k & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        z = z.max((c - eye).dot(fwd));
+    }
+    z
 }
 
 /// The GPU copy of `cloud`, uploaded (or its shadow texture updated) when it changed.

@@ -14,10 +14,12 @@
 //! 2. `shadow_texture` marks every point whose light-space depth is within
 //!    Δd = d̃' · min(1 / |⟨v, n⟩|, cap) of that filled depth at its pixel, where v is the
 //!    direction from the light to the point and n its normal ([`ShadowSettings::slope_cap`];
-//!    clouds without normals use Δd = d̃'). d̃' is d̃ widened to at least two light pixels
+//!    clouds without normals use Δd = d̃'). d̃' is d̃ widened to at least three light pixels
 //!    (`cpu::shadow_texture::light_gap`, a deviation: with the paper's d̃ alone a light image
 //!    whose pixels exceed d̃ / 2 shows acne on tilted surfaces); the light image's
-//!    `fill_occluded` uses d̃' at the cloud's centre.
+//!    `fill_occluded` uses d̃' at the far side of the cloud's bounds in that view, where its
+//!    pixels are widest (at the cloud's centre, which lies beside or behind a cube's side
+//!    face, the gap was d̃ alone and the fill took a grazing plane for holes: specks of acne).
 //!
 //! The paper marks the nearest unmarked point per pixel, excludes marked points and repeats
 //! until no point is newly marked, because a 2011 fragment shader could output one index per

@@ -604,3 +604,40 @@ fn point_lights_fall_off_with_the_square_of_the_distance() {
         );
     }
 }
+
+/// No shadow acne: a plane lit by a point light low above it (the far parts at up to 75° of
+/// grazing, seen by the side faces of the light's cube) is lit everywhere, on every backend.
+/// Before the light image's fills used the light gap where its pixels are widest (the far
+/// side of the cloud, not its centre, which lies behind a side face) and the mark's gap was
+/// widened from two to three light pixels, 3% of these points came out unlit in specks.
+#[test]
+fn a_plane_under_a_low_point_light_has_no_shadow_acne() {
+    let mut rng = Rng::new(3);
+    let n = 200_000;
+    let p: Vec<Vec3> = (0..n)
+        .map(|_| Vec3::new(rng.f32() * 5.0 - 2.5, 0.0, rng.f32() * 5.0 - 2.5))
+        .collect();
+    let c = PreparedCloud::new(PointCloud {
+        normals: Some(vec![Vec3::Y; n]),
+        ..PointCloud::from_positions(p)
+    });
+    let light = Light::Point([0.3, 0.8, 0.5]);
+    for mut r in common::backends() {
+        let lit = r
+            .shadow_texture(
+                &c,
+                &[light],
+                &ShadowSettings::default(),
+                None,
+                1,
+                &mut |_, _| {},
+            )
+            .unwrap();
+        let unlit = lit.counts.iter().filter(|&&k| k & 0xff == 0).count();
+        assert!(
+            unlit * 2000 < n,
+            "{}: {unlit} of {n} points of a plane in full view of the light are unlit",
+            r.describe()
+        );
+    }
+}

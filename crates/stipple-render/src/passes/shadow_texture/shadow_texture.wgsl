@@ -1,7 +1,7 @@
 // shadow_texture (Dobrev §6): count, per point, the light samples that reach it. CPU twin:
 // cpu/shadow_texture.rs. `reference` is the light image's depth after the hole fills; a
 // point is lit when its light-space depth is at most reference + Δd at its pixel, with
-// Δd = d̃' · min(1 / |⟨v, n⟩|, cap) (d̃' without normals), d̃' = max(d̃, two light pixels). A cube face marks only the points
+// Δd = d̃' · min(1 / |⟨v, n⟩|, cap) (d̃' without normals), d̃' = max(d̃, three light pixels). A cube face marks only the points
 // whose dominant direction from the light is its own.
 
 struct Mark {
@@ -41,7 +41,7 @@ fn dominant_face(d: vec3<f32>) -> u32 {
 
 // cpu::shadow_texture::light_gap and offset
 fn offset(d: vec3<f32>, local: u32, z: f32) -> f32 {
-    let gap = max(mp.gap, 2.0 * (2.0 / (f32(view.height) * view.sy) * z));
+    let gap = max(mp.gap, 3.0 * (2.0 / (f32(view.height) * view.sy) * z));
     if (mp.has_normals == 0u) {
         return gap;
     }
