@@ -25,7 +25,9 @@
 //!    were inconsistent: more than [`INCONSISTENT`] of neighbour pairs on smooth surface
 //!    point opposite ways ([`inconsistency`]: random signs), or at least [`REPATCH`] of the
 //!    normals change (reversed patches, as in scans merged from several views, or a whole
-//!    closed surface facing inwards).
+//!    closed surface facing inwards). A region the propagation turned round whose given
+//!    normals face outwards at its extreme points keeps them (a ball resting on a floor:
+//!    propagation crosses the contact and would turn the ball inside out).
 //! 5. **Splat radii** (Zhang & Pajarola §3.1 ask for radii "such that splats overlap"):
 //!    r = [`RADIUS_FACTOR`] × the distance to the 16th nearest neighbour (with k ≠ 16 the k-th
 //!    distance scaled by √(16/k), which estimates the same length). Why 0.6: for randomly
@@ -811,6 +813,77 @@ fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> us
     changed
 }
 
+/// Where the propagated orientation turned given normals round, region by region (connected
+/// over the neighbour graph): a region whose given normals face outwards at its extreme
+/// points (along ±x, ±y, ±z: at least three outwards, none inwards), as those of a closed
+/// object do, keeps them. Propagation crosses where two surfaces touch (a ball resting on
+/// a floor: the ball's underside faces down, the floor up) and would turn the whole ball
+/// inside out to agree with the floor; a reversed patch of a scan faces inwards at its
+/// extremes, or neither way, and stays repaired. Returns how many normals were restored.
+fn keep_outward_regions(
+    positions: &[Vec3],
+    given: &[Vec3],
+    oriented: &mut [Vec3],
+    nb: &Neighbours,
+) -> usize {
+    let n = positions.len();
+    let differs: Vec<bool> = (0..n).map(|i| oriented[i].dot(given[i]) < 0.0).collect();
+    let mut seen = vec![false; n];
+    let mut restored = 0;
+    let mut region = Vec::new();
+    const DIRS: [Vec3; 6] = [
+        Vec3::X,
+        Vec3::NEG_X,
+        Vec3::Y,
+        Vec3::NEG_Y,
+        Vec3::Z,
+        Vec3::NEG_Z,
+    ];
+    for start in 0..n {
+        if !differs[start] || seen[start] {
+            continue;
+        }
+        region.clear();
+        region.push(start as u32);
+        seen[start] = true;
+        let mut k = 0;
+        while k < region.len() {
+            let i = region[k] as usize;
+            k += 1;
+            for &j in nb.of(i) {
+                let j = j as usize;
+                if differs[j] && !seen[j] {
+                    seen[j] = true;
+                    region.push(j as u32);
+                }
+            }
+        }
+        let mut extreme = [(f32::NEG_INFINITY, 0usize); 6];
+        for &i in &region {
+            let p = positions[i as usize];
+            for (d, e) in DIRS.iter().zip(extreme.iter_mut()) {
+                let v = p.dot(*d);
+                if v > e.0 {
+                    *e = (v, i as usize);
+                }
+            }
+        }
+        let (mut out, mut inward) = (0, 0);
+        for (d, e) in DIRS.iter().zip(&extreme) {
+            let v = given[e.1].dot(*d);
+            out += (v > 0.5) as u32;
+            inward += (v < -0.5) as u32;
+        }
+        if out >= 3 && inward == 0 {
+            for &i in &region {
+                oriented[i as usize] = given[i as usize];
+            }
+            restored += region.len();
+        }
+    }
+    restored
+}
+
 /// Splat radii from the neighbourhoods (see the module docs, step 5), times `scale`, at most
 /// [`RADIUS_CAP`] × the median. Points that found no neighbour take the median radius.
 pub fn splat_radii(nb: &Neighbours, scale: f32) -> Vec<f32> {
@@ -1425,7 +1498,8 @@ pub fn estimate_from(
             go_on()?;
             let bad = inconsistency(positions, &normals, &nb);
             let mut oriented = normals.clone();
-            let differ = orient_given(positions, &mut oriented, &nb);
+            let differ = orient_given(positions, &mut oriented, &nb)
+                - keep_outward_regions(positions, &normals, &mut oriented, &nb);
             // A consistent field differs from the propagated one only by noise (thin parts,
             // creases): keep it as given then, unless whole components turned round.
             let share = differ as f32 / normals.len() as f32;
@@ -1652,6 +1726,32 @@ mod tests {
         let e = estimate(&all, Some(&g), 16, 1.0).unwrap();
         assert_eq!(e.flipped, 0);
         assert!(e.normals[pts.len()..].iter().all(|n| n.y > 0.99));
+    }
+
+    #[test]
+    fn a_ball_resting_on_a_floor_keeps_its_outward_normals() {
+        // Propagation crosses the contact (the ball's underside faces down, the floor up) and
+        // would turn the ball inside out to agree with the floor: the given normals are right.
+        let ball = sphere(20_000, 5);
+        let mut all: Vec<Vec3> = ball.iter().map(|&p| p + Vec3::Y).collect();
+        let mut g = ball.clone();
+        for i in 0..160 {
+            for j in 0..160 {
+                all.push(Vec3::new(
+                    i as f32 * 0.025 - 2.0,
+                    0.0,
+                    j as f32 * 0.025 - 2.0,
+                ));
+                g.push(Vec3::Y);
+            }
+        }
+        let e = estimate(&all, Some(&g), 16, 1.0).unwrap();
+        assert_eq!(e.flipped, 0, "given normals turned round");
+        assert_eq!(
+            angles(&e.normals[..ball.len()], &ball).2,
+            ball.len(),
+            "all outward"
+        );
     }
 
     #[test]
