@@ -1482,19 +1482,7 @@ pub fn estimate_from(
     }
     match given {
         Some(g) => {
-            let mut normals: Vec<Vec3> = g
-                .iter()
-                .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
-                .collect();
-            // Zero normals (unknown) get PCA's.
-            if normals.contains(&Vec3::ZERO) {
-                let pca = pca_normals(positions, &nb);
-                for (n, p) in normals.iter_mut().zip(pca) {
-                    if *n == Vec3::ZERO {
-                        *n = p;
-                    }
-                }
-            }
+            let mut normals = given_or_pca(positions, g, &nb);
             go_on()?;
             let bad = inconsistency(positions, &normals, &nb);
             let mut oriented = normals.clone();
@@ -1541,6 +1529,23 @@ pub fn estimate_from(
     }
 }
 
+/// Given normals at unit length; zero ones (unknown) get PCA's.
+fn given_or_pca(positions: &[Vec3], given: &[Vec3], nb: &Neighbours) -> Vec<Vec3> {
+    let mut normals: Vec<Vec3> = given
+        .iter()
+        .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
+        .collect();
+    if normals.contains(&Vec3::ZERO) {
+        let pca = pca_normals(positions, nb);
+        for (n, p) in normals.iter_mut().zip(pca) {
+            if *n == Vec3::ZERO {
+                *n = p;
+            }
+        }
+    }
+    normals
+}
+
 /// Radii and splat shapes for normals whose signs are known to be right
 /// (`PointCloud::normals_trusted`): no orientation step; zero normals get PCA's.
 pub fn estimate_trusted(
@@ -1552,18 +1557,7 @@ pub fn estimate_trusted(
     let nb = neighbours(positions, k)?;
     go_on()?;
     let radii = splat_radii(&nb, radius_scale);
-    let mut normals: Vec<Vec3> = given
-        .iter()
-        .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
-        .collect();
-    if normals.contains(&Vec3::ZERO) {
-        let pca = pca_normals(positions, &nb);
-        for (n, p) in normals.iter_mut().zip(pca) {
-            if *n == Vec3::ZERO {
-                *n = p;
-            }
-        }
-    }
+    let normals = given_or_pca(positions, given, &nb);
     go_on()?;
     let shapes = shapes(positions, &normals, &radii, &nb);
     Ok(Estimated {

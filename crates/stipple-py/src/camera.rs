@@ -113,6 +113,20 @@ impl Camera {
         Ok(c)
     }
 
+    /// The command line's checks (eye ≠ target, up not along the view, fov range), whatever
+    /// near and far will be.
+    fn checked(self) -> PyResult<Camera> {
+        let probe = Camera {
+            near: Some(1.0),
+            far: Some(2.0),
+            ..self.clone()
+        };
+        probe
+            .to_core(None)
+            .map_err(|e| value_error(e.to_string()))?;
+        Ok(self)
+    }
+
     /// The camera as the command line's flags (for inputs the CLI's code loads: trees).
     pub fn to_args(&self) -> Vec<String> {
         let v = |d: DVec3| format!("{:?},{:?},{:?}", d.x, d.y, d.z);
@@ -177,16 +191,7 @@ impl Camera {
                 )));
             }
         }
-        // The checks of the command line (eye ≠ target, up not along the view, fov range).
-        let probe = Camera {
-            near: Some(1.0),
-            far: Some(2.0),
-            ..c.clone()
-        };
-        probe
-            .to_core(None)
-            .map_err(|e| value_error(e.to_string()))?;
-        Ok(c)
+        c.checked()
     }
 
     /// The camera `stipple render` uses for this cloud when no camera is given: the whole
@@ -306,15 +311,7 @@ impl Camera {
         if let Some(s) = size {
             c.size = size_of(s)?;
         }
-        let probe = Camera {
-            near: Some(1.0),
-            far: Some(2.0),
-            ..c.clone()
-        };
-        probe
-            .to_core(None)
-            .map_err(|e| value_error(e.to_string()))?;
-        Ok(c)
+        c.checked()
     }
 
     fn __repr__(&self) -> String {
