@@ -1005,8 +1005,9 @@ pub fn parse_scene(s: &str) -> std::result::Result<stipple_core::demo::DemoScene
 pub struct ColourArgs {
     /// Colour the points by an attribute instead of the file's colours: elevation (Z for
     /// LiDAR and clouds flat in Z, else Y), intensity, classification (the ASPRS class
-    /// palette: ground brown, vegetation greens, buildings orange, water blue, …), or a
-    /// world coordinate x, y, z.
+    /// palette: ground brown, vegetation greens, buildings orange, water blue, …), return
+    /// (the LiDAR return number: first returns light grey, second amber, third orange, fourth
+    /// red, later purple: canopy against open ground), or a world coordinate x, y, z.
     #[arg(long, visible_alias = "color-by", value_name = "ATTR")]
     pub colour_by: Option<stipple_core::colour_map::Attribute>,
     /// Colour map for --colour-by: viridis (perceptually uniform, colour-blind safe),
@@ -1064,6 +1065,10 @@ impl ColourArgs {
         };
         Ok(Some(if attr == Attribute::Classification {
             "colouring by classification (ASPRS class palette)".to_string()
+        } else if attr == Attribute::Return {
+            "colouring by return number (first light grey, second amber, third orange, fourth \
+             red, later purple)"
+                .to_string()
         } else {
             // Three significant digits of the range's width.
             let decimals = (3.0 - (hi - lo).log10().floor()).clamp(0.0, 9.0) as usize;

@@ -779,6 +779,7 @@ fn colour_by_attribute_maps_values_through_the_colour_map() {
             "plane.xyz: --colour-by: the cloud has no classification values",
         ),
         (vec!["--colour-by", "intensity"], "no intensity values"),
+        (vec!["--colour-by", "return"], "no return-number values"),
         (vec!["--range", "0,1"], "--colour-by"),
         (vec!["--colour-by", "z", "--range", "3,1"], "LO < HI"),
         (vec!["--colour-by", "z", "--colour-map", "jet"], "viridis"),

@@ -102,3 +102,56 @@ fn every_covered_data_file_renders() {
         );
     }
 }
+
+/// `--colour-by return` on a real LiDAR tile: first returns (most of the ground) take the
+/// first colour, and some pixels (canopy) show later returns.
+#[test]
+fn lidar_colours_by_return_number() {
+    let laz =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/lidar/autzen_trim.laz");
+    if !laz.exists() {
+        eprintln!("skipping: {} is absent", laz.display());
+        return;
+    }
+    let out = std::env::temp_dir().join(format!("stipple-returns-{}.png", std::process::id()));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args([
+            "render",
+            laz.to_str().unwrap(),
+            "--colour-by",
+            "return",
+            "--no-lighting",
+        ])
+        .args([
+            "--pipeline",
+            "dobrev",
+            "--size",
+            "256x192",
+            "--backend",
+            "cpu",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("colouring by return number"), "{text}");
+    let (_, _, rgba) = stipple_io::image::read_png(&out).unwrap();
+    std::fs::remove_file(&out).ok();
+    let (mut first, mut later) = (0, 0);
+    for p in rgba.chunks(4) {
+        let [r, g, b] = [p[0] as i32, p[1] as i32, p[2] as i32];
+        // Light grey (first returns) against amber, orange and red (later ones).
+        if (r - b).abs() < 25 && (r - g).abs() < 25 && r > 120 {
+            first += 1;
+        } else if r > 150 && b < 110 {
+            later += 1;
+        }
+    }
+    assert!(
+        first > 5 * later && later >= 5,
+        "first {first}, later {later}"
+    );
+}

@@ -133,6 +133,8 @@ pub struct PointCloud {
     pub intensity: Option<Vec<u16>>,
     /// LiDAR classification codes.
     pub classification: Option<Vec<u8>>,
+    /// LiDAR return number of each pulse's echo (1 = first), as LAS files give it.
+    pub return_number: Option<Vec<u8>>,
     /// Per-point opacity in [0, 1].
     pub opacity: Option<Vec<f32>>,
     /// Splat radius per point, world units (PLY `radius`; see [`crate::normals`]).
@@ -229,6 +231,7 @@ impl PointCloud {
         check("colors", self.colors.as_ref().map(Vec::len))?;
         check("intensity", self.intensity.as_ref().map(Vec::len))?;
         check("classification", self.classification.as_ref().map(Vec::len))?;
+        check("return_number", self.return_number.as_ref().map(Vec::len))?;
         check("opacity", self.opacity.as_ref().map(Vec::len))?;
         check("radius", self.radius.as_ref().map(Vec::len))?;
         for (face, tri) in self.faces.iter().enumerate() {
@@ -257,6 +260,9 @@ impl PointCloud {
         }
         if self.classification.is_some() {
             a.push("classification");
+        }
+        if self.return_number.is_some() {
+            a.push("return number");
         }
         if self.opacity.is_some() {
             a.push("opacity");
@@ -309,6 +315,7 @@ impl PointCloud {
         merge(&mut self.colors, &other.colors, n0, n1, [255, 255, 255]);
         merge(&mut self.intensity, &other.intensity, n0, n1, 0);
         merge(&mut self.classification, &other.classification, n0, n1, 0);
+        merge(&mut self.return_number, &other.return_number, n0, n1, 1);
         merge(&mut self.opacity, &other.opacity, n0, n1, 1.0);
         // Radii are only meaningful where every point has one.
         match (self.radius.as_mut(), &other.radius) {

@@ -29,6 +29,11 @@ pub enum Attribute {
     Y,
     /// World Z.
     Z,
+    /// LiDAR return number (1 = first echo of a pulse), through its own palette (the colour
+    /// map is not used): first returns light grey, second amber, third orange, fourth red,
+    /// later ones purple, so that canopy and what lies under it stand out from open ground.
+    #[cfg_attr(feature = "clap", value(name = "return", alias = "return-number"))]
+    Return,
 }
 
 /// A named colour map.
@@ -158,6 +163,13 @@ pub fn values(cloud: &PointCloud, attr: Attribute) -> Result<Vec<f64>, ColourErr
             .iter()
             .map(|&v| v as f64)
             .collect(),
+        Attribute::Return => cloud
+            .return_number
+            .as_ref()
+            .ok_or(ColourError::Missing("return-number"))?
+            .iter()
+            .map(|&v| v as f64)
+            .collect(),
     })
 }
 
@@ -204,6 +216,17 @@ pub fn colour_by(
         let range = range.unwrap_or((0.0, 255.0));
         return Ok((v.iter().map(|&c| class_colour(c as u8)).collect(), range));
     }
+    if attr == Attribute::Return {
+        const PALETTE: [[u8; 3]; 5] = [
+            [205, 205, 200],
+            [250, 195, 60],
+            [240, 110, 40],
+            [200, 40, 40],
+            [150, 50, 160],
+        ];
+        let colour = |r: f64| PALETTE[(r.max(1.0) as usize - 1).min(PALETTE.len() - 1)];
+        return Ok((v.iter().map(|&r| colour(r)).collect(), (1.0, 5.0)));
+    }
     let (lo, hi) = match range {
         Some((lo, hi)) if lo.is_finite() && hi.is_finite() && lo < hi => (lo, hi),
         Some((lo, hi)) => return Err(ColourError::Range(lo, hi)),
@@ -220,6 +243,16 @@ pub fn colour_by(
 mod tests {
     use super::*;
     use glam::DVec3;
+
+    #[test]
+    fn return_numbers_have_a_colour_each() {
+        let mut c = PointCloud::from_world(&[DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z]);
+        assert!(colour_by(&c, Attribute::Return, ColourMap::Viridis, None).is_err());
+        c.return_number = Some(vec![1, 1, 2, 9]);
+        let (col, _) = colour_by(&c, Attribute::Return, ColourMap::Viridis, None).unwrap();
+        assert_eq!(col[0], col[1]);
+        assert!(col[0] != col[2] && col[2] != col[3], "{col:?}");
+    }
 
     #[test]
     fn maps_start_and_end_at_their_key_colours_and_clamp() {

@@ -284,6 +284,7 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         positions: Vec::with_capacity(cap),
         intensity: Some(Vec::with_capacity(cap)),
         classification: Some(Vec::with_capacity(cap)),
+        return_number: Some(Vec::with_capacity(cap)),
         z_up: true,
         ..Default::default()
     };
@@ -310,6 +311,11 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
             .as_mut()
             .unwrap()
             .extend(pd.classification());
+        cloud
+            .return_number
+            .as_mut()
+            .unwrap()
+            .extend(pd.return_number());
         if let (Some(dst), Some(src)) = (rgb16.as_mut(), pd.rgb()) {
             dst.extend(src.map(|(r, g, b)| [r, g, b]));
         }
@@ -366,6 +372,8 @@ pub fn write_las(path: &Path, cloud: &PointCloud, compress: bool) -> Result<(), 
             )
             .unwrap_or(las::point::Classification::CreatedNeverClassified),
             color: Some(color.unwrap_or(las::Color::new(65535, 65535, 65535))),
+            // Three bits in point format 2.
+            return_number: cloud.return_number.as_ref().map_or(1, |v| v[i].min(7)),
             ..Default::default()
         };
         w.write_point(point)

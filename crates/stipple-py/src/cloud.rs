@@ -364,6 +364,7 @@ impl Cloud {
             ("classification", c.classification.is_some()),
             ("opacity", c.opacity.is_some()),
             ("radius", c.radius.is_some()),
+            ("return_number", c.return_number.is_some()),
         ] {
             if has {
                 attrs.push(name);
