@@ -25,8 +25,9 @@ enum Source {
         /// The camera when none is given: the scene's, else the framing.
         default_camera: CoreCamera,
     },
-    /// A `.stlod` tree: each render loads the cut its camera needs.
-    Tree(PathBuf),
+    /// A `.stlod` tree: each render loads the cut its camera needs; the camera when none is
+    /// given frames the tree's bounds.
+    Tree(PathBuf, CoreCamera),
 }
 
 /// Renderer(source, pipeline="auto", backend="auto", **options)
@@ -99,7 +100,9 @@ fn source_of(
         ))
     })?;
     if stipple_lod::is_tree(&path) {
-        return Ok((Source::Tree(path), String::new()));
+        let a = crate::options::parse(args)?;
+        let (_, camera) = stipple_cli::lod::open_with_camera(&path, &a.camera).map_err(to_py)?;
+        return Ok((Source::Tree(path, camera), String::new()));
     }
     let mut full = vec![path.to_string_lossy().into_owned()];
     full.extend_from_slice(args);
@@ -300,7 +303,7 @@ impl Renderer {
                 scene: scene.clone(),
                 default_camera: default_camera.clone(),
             },
-            Source::Tree(p) => SourceRef::Tree(p.clone()),
+            Source::Tree(p, _) => SourceRef::Tree(p.clone()),
         };
         let args = self.args.clone();
         let renderer = self.renderer.clone();
@@ -419,10 +422,11 @@ impl Renderer {
 
     /// The camera used when none is given.
     #[getter]
-    fn default_camera(&self) -> Option<Camera> {
+    fn default_camera(&self) -> Camera {
         match &self.source {
-            Source::Cloud { default_camera, .. } => Some(Camera::from_core(default_camera)),
-            Source::Tree(_) => None,
+            Source::Cloud { default_camera, .. } | Source::Tree(_, default_camera) => {
+                Camera::from_core(default_camera)
+            }
         }
     }
 

@@ -272,6 +272,8 @@ def test_build_a_tree_and_render_it(tmp_path, cli):
                          up=(0, 0, 1), fov=40.0, size=(200, 150))
     r = stipple.render(tree, cam, backend="cpu", point_budget="1M")
     assert r.pipeline == "raw"
+    framed = stipple.Renderer(tree, backend="cpu").default_camera
+    assert framed.up == (0.0, 0.0, 1.0) and framed.size == (1024, 1024)
     assert np.isfinite(r.depth).mean() > 0.2
     png, npy = tmp_path / "t.png", tmp_path / "t.npy"
     run_cli(cli, "render", tree, "-o", png, "--depth-out", npy, "--backend", "cpu",
