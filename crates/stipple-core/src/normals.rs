@@ -771,36 +771,15 @@ fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> us
             -1
         };
     }
-    const DIRS: [Vec3; 6] = [
-        Vec3::X,
-        Vec3::NEG_X,
-        Vec3::Y,
-        Vec3::NEG_Y,
-        Vec3::Z,
-        Vec3::NEG_Z,
-    ];
-    let mut extreme = vec![[(f32::NEG_INFINITY, 0usize); 6]; m];
+    let mut extreme = vec![NO_EXTREMES; m];
     for (i, p) in positions.iter().enumerate() {
-        let c = label[i] as usize;
-        for (d, e) in DIRS.iter().zip(extreme[c].iter_mut()) {
-            let v = p.dot(*d);
-            if v > e.0 {
-                *e = (v, i);
-            }
-        }
+        widen_extremes(&mut extreme[label[i] as usize], *p, i);
     }
     let mut flip = vec![false; m];
     for c in 0..m {
         let majority = agree[c] < 0;
-        let (mut out, mut inward) = (0, 0);
-        for (d, e) in DIRS.iter().zip(&extreme[c]) {
-            let mut v = normals[e.1].dot(*d);
-            if majority {
-                v = -v;
-            }
-            out += (v > 0.5) as u32;
-            inward += (v < -0.5) as u32;
-        }
+        let (out, inward) =
+            facing_at_extremes(normals, &extreme[c], if majority { -1.0 } else { 1.0 });
         flip[c] = majority ^ (inward >= 3 && out == 0);
     }
     let mut changed = 0;
@@ -811,6 +790,40 @@ fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> us
         changed += (normals[i].dot(given[i]) < 0.0) as usize;
     }
     changed
+}
+
+/// The six axis directions along which a set's extreme points are taken.
+const EXTREME_DIRS: [Vec3; 6] = [
+    Vec3::X,
+    Vec3::NEG_X,
+    Vec3::Y,
+    Vec3::NEG_Y,
+    Vec3::Z,
+    Vec3::NEG_Z,
+];
+
+/// Per direction of [`EXTREME_DIRS`]: the largest coordinate seen and its point.
+type Extremes = [(f32, usize); 6];
+const NO_EXTREMES: Extremes = [(f32::NEG_INFINITY, 0); 6];
+
+fn widen_extremes(e: &mut Extremes, p: Vec3, i: usize) {
+    for (d, e) in EXTREME_DIRS.iter().zip(e.iter_mut()) {
+        let v = p.dot(*d);
+        if v > e.0 {
+            *e = (v, i);
+        }
+    }
+}
+
+/// How many extreme points' normals (times `sign`) face outwards and inwards (|cos| > 0.5).
+fn facing_at_extremes(normals: &[Vec3], e: &Extremes, sign: f32) -> (u32, u32) {
+    let (mut out, mut inward) = (0, 0);
+    for (d, e) in EXTREME_DIRS.iter().zip(e) {
+        let v = sign * normals[e.1].dot(*d);
+        out += (v > 0.5) as u32;
+        inward += (v < -0.5) as u32;
+    }
+    (out, inward)
 }
 
 /// Where the propagated orientation turned given normals round, region by region (connected
@@ -831,14 +844,6 @@ fn keep_outward_regions(
     let mut seen = vec![false; n];
     let mut restored = 0;
     let mut region = Vec::new();
-    const DIRS: [Vec3; 6] = [
-        Vec3::X,
-        Vec3::NEG_X,
-        Vec3::Y,
-        Vec3::NEG_Y,
-        Vec3::Z,
-        Vec3::NEG_Z,
-    ];
     for start in 0..n {
         if !differs[start] || seen[start] {
             continue;
@@ -858,22 +863,11 @@ fn keep_outward_regions(
                 }
             }
         }
-        let mut extreme = [(f32::NEG_INFINITY, 0usize); 6];
+        let mut extreme = NO_EXTREMES;
         for &i in &region {
-            let p = positions[i as usize];
-            for (d, e) in DIRS.iter().zip(extreme.iter_mut()) {
-                let v = p.dot(*d);
-                if v > e.0 {
-                    *e = (v, i as usize);
-                }
-            }
+            widen_extremes(&mut extreme, positions[i as usize], i as usize);
         }
-        let (mut out, mut inward) = (0, 0);
-        for (d, e) in DIRS.iter().zip(&extreme) {
-            let v = given[e.1].dot(*d);
-            out += (v > 0.5) as u32;
-            inward += (v < -0.5) as u32;
-        }
+        let (out, inward) = facing_at_extremes(given, &extreme, 1.0);
         if out >= 3 && inward == 0 {
             for &i in &region {
                 oriented[i as usize] = given[i as usize];
