@@ -86,6 +86,15 @@ fn main() {
                 }
             }
         }
+        if let Ok(rad) = std::env::var("PEEL_QUALITY_RADIUS") {
+            for g in &mut pipe.geometry {
+                if let stipple_render::GeometryPass::FillBackground { radius, .. }
+                | stipple_render::GeometryPass::FillOccluded { radius, .. } = g
+                {
+                    *radius = rad.parse().unwrap()
+                }
+            }
+        }
         let f = r.render(&cloud, &cam, &pipe).unwrap();
         if let Ok(dir) = std::env::var("PEEL_QUALITY_OUT") {
             let out = std::path::Path::new(&dir).join(format!("peel-{size}.png"));

@@ -326,8 +326,16 @@ pub fn auto_kernel(spacing_px: f32) -> u32 {
 
 impl Pipeline {
     /// Resolves the automatic settings (kernel 0, fill iterations 0) for a cloud of median
-    /// point spacing `spacing` whose centre is at view depth `depth`.
-    pub fn resolved(&self, v: &crate::ViewParams, spacing: f32, depth: f32) -> Pipeline {
+    /// point spacing `spacing` whose centre is at view depth `depth`; peeled layers size
+    /// their fills at view depth `front` (nearer than the centre: see
+    /// [`peel_fill_iterations`]).
+    pub fn resolved(
+        &self,
+        v: &crate::ViewParams,
+        spacing: f32,
+        depth: f32,
+        front: f32,
+    ) -> Pipeline {
         let mut p = self.clone();
         let px = if depth > v.near {
             spacing / v.footprint(depth)
@@ -358,11 +366,22 @@ impl Pipeline {
         }
         if p.layers > 1 {
             // Peeled layers: the fills follow the spacing (see `peel_fill_iterations`).
+            let px = if front > v.near {
+                spacing / v.footprint(front)
+            } else {
+                px
+            };
             let want = peel_fill_iterations(px);
+            let wide = px >= PEEL_WIDE_FILL_SPACING;
             for g in &mut p.geometry {
-                if let GeometryPass::FillBackground { iterations, .. }
-                | GeometryPass::FillOccluded { iterations, .. } = g
+                if let GeometryPass::FillBackground { iterations, radius }
+                | GeometryPass::FillOccluded {
+                    iterations, radius, ..
+                } = g
                 {
+                    if wide {
+                        *radius = (*radius).max(2);
+                    }
                     if let Iterations::Fixed(n) = iterations {
                         *n = (*n).max(want);
                     }
@@ -375,24 +394,37 @@ impl Pipeline {
 
 /// Fill iterations of each peeled layer for points `spacing_px` pixels apart on screen (the
 /// median distance to the nearest neighbour, as [`crate::PreparedCloud::screen_spacing`]
-/// gives it; a pipeline asking for fewer gets these): 1 below 0.65 px, 2 below 1 px, then 3.
-/// Why: a layer's holes grow with the spacing and each iteration closes one pixel from each
-/// side; an unfilled hole of a front layer lets the surface behind win that pixel, which then
-/// shows once too often in the composite (the blotches of a transparent sphere), while more
-/// iterations than the holes need smear a layer's edge. Measured with
-/// `examples/peel_quality.rs` (a sphere of opacity 0.5 over a plane, errors to the analytic
-/// composite in 8-bit levels): at 0.39 px 1 iteration errs by 0.00 and 2 by 3.1; at 0.71 px
-/// 2 iterations by 0.07 and 1 by 1.3; at 1.1 px 3 iterations by 0.02, 2 by 0.20 and 1 by
-/// 4.4; at 1.33 px 3 by 0.63 and 2 by 2.9.
+/// gives it; a pipeline asking for fewer gets these): 1 below 0.8 px, 2 below 1.2 px, then 3.
+/// From [`PEEL_WIDE_FILL_SPACING`] on, the fills of peeled layers also use the 5×5 masks
+/// (radius 2).
+///
+/// Why: a layer's holes grow with the spacing; an unfilled hole of a front layer lets the
+/// surface behind win that pixel, which then shows once too often in the composite (the
+/// blotches of a transparent sphere), while more iterations than the holes need smear a
+/// layer's edge. Where points land a pixel or more apart, gaps two pixels wide see a clear
+/// half-plane of the 3×3 masks and never close (see `passes::fill_background`), and the
+/// spacing is not uniform over the image (nearer parts of a surface are sparser than the
+/// median), so the wider masks close what more iterations cannot. Measured with
+/// `examples/peel_quality.rs` (a sphere of opacity 0.5 over a plane, interior) and
+/// `examples/peel_rims.rs` (a tilted torus of opacity 0.5, every pixel but 2 px around
+/// silhouettes), errors to the analytic composite in 8-bit levels: with 3×3 masks the torus
+/// errs by 9.4 levels at 0.99 px and 19 at 1.32 px (27–39% of its pixels off by more than
+/// 12) and the sphere by 4.5 at 1.56 px; with these rules the sphere errs by at most 0.01
+/// from 0.33 to 1.56 px and the torus by 0.45 (0.33 px), 0.41 (0.66 px), 0.55 (0.99 px) and
+/// 0.95 (1.32 px); at 0.66 px 2 iterations err by 0.73 and at 1.32 px 2 by 2.0.
 pub fn peel_fill_iterations(spacing_px: f32) -> u32 {
-    if !spacing_px.is_finite() || spacing_px < 0.65 {
+    if !spacing_px.is_finite() || spacing_px < 0.8 {
         1
-    } else if spacing_px < 1.0 {
+    } else if spacing_px < 1.2 {
         2
     } else {
         3
     }
 }
+
+/// The screen spacing (pixels) from which peeled layers fill with the 5×5 masks (see
+/// [`peel_fill_iterations`]); below it holes are rare and the 3×3 masks keep edges sharper.
+pub const PEEL_WIDE_FILL_SPACING: f32 = 0.4;
 
 /// The default layer gap d̃ for a cloud: 2.5 × its estimated point spacing.
 ///
@@ -498,7 +530,7 @@ mod tests {
             strength: 0.5,
             colour: Some([0.0, 0.0, 1.0]),
         });
-        let r = p.resolved(&v, 0.01, 5.0);
+        let r = p.resolved(&v, 0.01, 5.0, 5.0);
         let colours: Vec<_> = r
             .colour
             .iter()

@@ -218,7 +218,9 @@ impl PreparedCloud {
 
     /// The pipeline with its automatic settings resolved for this cloud and view.
     pub fn resolve(&self, pipe: &Pipeline, v: &ViewParams) -> Pipeline {
-        let mut p = pipe.resolved(v, self.spacing, self.centre_depth(v));
+        let centre = self.centre_depth(v);
+        let front = 0.5 * (self.depth_range(v).0 + centre);
+        let mut p = pipe.resolved(v, self.spacing, centre, front);
         if let Some(s) = &mut p.splat {
             s.epsilon = Some(self.splat_epsilon(s));
             if s.mode == SplatMode::Deferred {

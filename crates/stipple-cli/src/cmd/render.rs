@@ -252,7 +252,7 @@ pub fn render(a: RenderArgs) -> Result<()> {
     }
     if pipe.layers > 1 {
         println!(
-            "peeled {} of at most {} layers (each through the image-space filters), blended              front to back",
+            "peeled {} of at most {} layers (each through the image-space filters), blended front to back",
             frame.layers_peeled, pipe.layers
         );
     }

@@ -31,6 +31,8 @@ pub struct CpuRenderer {
     srgb: shade::SrgbEncoder,
     /// Depth peeling: the previous layer's surface depth, and the blend accumulator.
     peel_ref: Vec<f32>,
+    peel_planes: Vec<project::Plane>,
+    peel_own: Vec<f32>,
     acc: Vec<[f32; 4]>,
     /// The splat pass's blended normals and albedo (blend mode).
     blended: crate::passes::splat::cpu::Blended,
@@ -239,7 +241,16 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             r.blended_valid = blend;
             return Ok(Some(kept));
         }
-        let peel = peel.map(|gap| (&r.peel_ref[..], gap));
+        let planes = match c.normals.as_deref() {
+            Some(n) if r.peel_planes.len() == v.pixels() => Some((&r.peel_planes[..], n)),
+            _ => None,
+        };
+        let peel = peel.map(|gap| project::PeelTest {
+            reference: &r.peel_ref,
+            own: &r.peel_own,
+            planes,
+            gap,
+        });
         let bufs = &mut r.private;
         let kept = timed(stats, PassId::Project, || {
             use rayon::prelude::*;
@@ -329,6 +340,8 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let r = &mut *self.r;
         r.peel_ref.clear();
         r.peel_ref.resize(n, f32::INFINITY);
+        r.peel_own.clear();
+        r.peel_planes.clear();
         r.acc.clear();
         r.acc.resize(n, [0.0, 0.0, 0.0, 1.0]);
         Ok(())
@@ -358,8 +371,15 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let bound = project::PEEL_NEIGHBOUR_GAPS * gap;
         let (w, h) = (v.width as usize, v.height as usize);
         let (sd, pr) = (&r.surface_depth, &mut r.peel_ref);
+        let c = &self.cloud.cloud;
+        let ga = &r.g.as_ref().expect("made by project").0;
+        let (planes, own) = (&mut r.peel_planes, &mut r.peel_own);
         timed(&mut self.stats, PassId::PeelReference, || {
             project::peel_reference(w, h, sd, bound, pr);
+            own.clear();
+            own.extend_from_slice(sd);
+            planes.resize(w * h, [0.0; 4]);
+            project::peel_planes(&ga.id, sd, &c.positions, c.normals.as_deref(), planes);
             ((), 1, 0)
         });
         Ok(())

@@ -171,7 +171,8 @@ pub(crate) struct FrameBuffers {
     pub(crate) attr_normal: Buffer,
     /// (object | opacity << 8, shadow counts) of each pixel's point.
     pub(crate) attr_style: Buffer,
-    /// Depth peeling: the previous layer's surface depth, and the blend accumulator.
+    /// Depth peeling: what the previous layer left (two vec4 per pixel, see
+    /// `peel_reference.wgsl`), and the blend accumulator.
     pub(crate) peel_ref: Buffer,
     pub(crate) acc: Buffer,
     /// Each layer's image when the pipeline keeps them (made on demand).
@@ -209,7 +210,7 @@ impl FrameBuffers {
             attr_pos: s("pixel positions", 16 * n),
             attr_normal: s("pixel normals", 16 * n),
             attr_style: s("pixel styles", 8 * n),
-            peel_ref: s("peel reference", 4 * n),
+            peel_ref: s("peel reference", 32 * n),
             acc: s("blend accumulator", 16 * n),
             layers_read: None,
             colour: [s("colour a", 16 * n), s("colour b", 16 * n)],

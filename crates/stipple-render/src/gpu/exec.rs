@@ -160,7 +160,8 @@ impl PassExec for GpuExec<'_> {
 
     fn peel_behind(&mut self, gap: f32) -> Result<(), GpuError> {
         let bound = project::cpu::PEEL_NEIGHBOUR_GAPS * gap;
-        project::gpu::record_peel_reference(&mut self.rec, self.b, bound)
+        let normals = self.cloud.has_normals;
+        project::gpu::record_peel_reference(&mut self.rec, self.b, bound, normals)
     }
 
     fn compose(&mut self) -> Result<(), GpuError> {

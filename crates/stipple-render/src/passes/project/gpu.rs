@@ -25,10 +25,12 @@ pub(crate) struct ChunkBlock {
     pub count: u32,
     pub cull: u32,
     pub slot: u32,
-    /// 1: depth peeling against the reference depth, with `gap` = d̃.
+    /// 1: depth peeling against the previous layer (see `cpu::PeelTest`), with `gap` = d̃.
     pub peel: u32,
     pub gap: f32,
-    pub pad: [u32; 2],
+    /// 1: the cloud has normals.
+    pub has_normals: u32,
+    pub pad: u32,
 }
 
 #[repr(C)]
@@ -43,7 +45,8 @@ pub(crate) struct ResolveBlock {
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub(crate) struct PeelReferenceBlock {
     pub bound: f32,
-    pub pad: [u32; 3],
+    pub has_normals: u32,
+    pub pad: [u32; 2],
 }
 
 /// The peel reference pass's pipeline (see `cpu::peel_reference`).
@@ -55,27 +58,41 @@ impl GpuPass for PeelReference {
             &ctx.device,
             &crate::device::shaders::PEEL_REFERENCE_MODULE,
             "peel_reference",
-            &[UNIFORM, DYNAMIC, READ, WRITE],
+            &[UNIFORM, DYNAMIC, READ, WRITE, READ, READ],
         ))
     }
 }
 
-/// The next peeled layer's reference depth from the current surface depth (see
-/// `cpu::peel_reference`); `bound` = 4 d̃.
+/// What the next peeled layer is compared with, from the current layer's surface depth and
+/// its points' positions and normals as shade gathered them (see `cpu::peel_reference`,
+/// `cpu::peel_planes`); `bound` = 4 d̃.
 pub(crate) fn record_peel_reference(
     rec: &mut Rec<'_>,
     b: Binder<'_>,
     bound: f32,
+    has_normals: bool,
 ) -> Result<(), GpuError> {
     let q = rec.section();
     let grid = grid_2d(b.ctx, b.f.width, b.f.height)?;
-    let off = rec.arena.push(&PeelReferenceBlock { bound, pad: [0; 3] })?;
+    let off = rec.arena.push(&PeelReferenceBlock {
+        bound,
+        has_normals: has_normals as u32,
+        pad: [0; 2],
+    })?;
     let pass = b.pass::<PeelReference>();
     let [view, block] = b.view_and::<PeelReferenceBlock>();
+    let f = b.f;
     let group = b.bind(
         "peel_reference",
         &pass.0.bgl,
-        &[view, block, Res::Buf(&b.f.surface), Res::Buf(&b.f.peel_ref)],
+        &[
+            view,
+            block,
+            Res::Buf(&f.surface),
+            Res::Buf(&f.peel_ref),
+            Res::Buf(&f.attr_pos),
+            Res::Buf(&f.attr_normal),
+        ],
     );
     rec.image_pass(q, &pass.0.pipeline, &group, &[off], grid);
     rec.end(PassId::PeelReference, 1, vec![], q)
@@ -166,7 +183,8 @@ pub(crate) fn record(
             slot,
             peel: peel.is_some() as u32,
             gap: peel.unwrap_or(0.0),
-            pad: [0; 2],
+            has_normals: cloud.has_normals as u32,
+            pad: 0,
         })?;
         let [view, block] = b.view_and::<ChunkBlock>();
         let mut res = vec![

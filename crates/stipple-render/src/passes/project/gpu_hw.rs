@@ -161,7 +161,8 @@ pub(crate) fn record(
             slot: 0,
             peel: 0,
             gap: 0.0,
-            pad: [0; 2],
+            has_normals: 0,
+            pad: 0,
         })?;
         draws.push((off, c));
     }

@@ -1,10 +1,12 @@
-// peel_reference: the reference depth of the next peeled layer, per pixel the largest finite
-// depth of the layer's 3×3 neighbourhood at most `bound` (4 d̃) behind the pixel's own
-// (+inf stays +inf). CPU twin: cpu.rs peel_reference.
+// peel_reference: what the next peeled layer is compared with (CPU twin: cpu.rs
+// peel_reference, peel_planes and PeelTest). Per pixel two vec4s: [2k] the tangent plane of
+// the layer's point there (normal, n · x), [2k + 1] (the largest finite depth of the 3×3
+// neighbourhood at most `bound` = 4 d̃ behind the pixel's own, the pixel's own depth, 1 when
+// the plane is valid (the pixel shows a point and the cloud has normals) else 0, 0).
 
 struct PeelReference {
     bound: f32,
-    pad0: u32,
+    has_normals: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -12,7 +14,10 @@ struct PeelReference {
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<uniform> pr: PeelReference;
 @group(0) @binding(2) var<storage, read> surface: array<f32>;
-@group(0) @binding(3) var<storage, read_write> peel_ref: array<f32>;
+@group(0) @binding(3) var<storage, read_write> peel_ref: array<vec4<f32>>;
+// The layer's per-pixel point positions and normals (written by shade's gather).
+@group(0) @binding(4) var<storage, read> attr_pos: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read> attr_normal: array<vec4<f32>>;
 
 @compute @workgroup_size(8, 8)
 fn peel_reference(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -23,6 +28,8 @@ fn peel_reference(@builtin(global_invocation_id) gid: vec3<u32>) {
     let k = gid.y * w + gid.x;
     let d0 = surface[k];
     var m = d0;
+    var valid = 0.0;
+    var plane = vec4<f32>(0.0);
     if (is_finite(d0)) {
         let limit = d0 + pr.bound;
         let y0 = max(i32(gid.y) - 1, 0);
@@ -37,6 +44,12 @@ fn peel_reference(@builtin(global_invocation_id) gid: vec3<u32>) {
                 }
             }
         }
+        if (pr.has_normals == 1u) {
+            let n = attr_normal[k].xyz;
+            plane = vec4<f32>(n, dot3(n, attr_pos[k].xyz));
+            valid = 1.0;
+        }
     }
-    peel_ref[k] = m;
+    peel_ref[2u * k] = plane;
+    peel_ref[2u * k + 1u] = vec4<f32>(m, d0, valid, 0.0);
 }

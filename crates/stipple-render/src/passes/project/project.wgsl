@@ -10,12 +10,16 @@ struct Chunk {
     cull: u32,
     // Counter slot that receives the number of points kept.
     slot: u32,
-    // 1: depth peeling, keep only points deeper than peel_ref[pixel] + gap (d̃).
+    // 1: depth peeling, keep only points the previous layer does not hold (see peeled).
     peel: u32,
     gap: f32,
-    pad0: u32,
+    // 1: the cloud has normals (the peel's same-surface test uses them).
+    has_normals: u32,
     pad1: u32,
 }
+
+// cpu::project::PEEL_SLOPE_CAP.
+const PEEL_SLOPE_CAP: f32 = 16.0;
 
 // Threads per workgroup, and points per thread: a workgroup projects WG × BATCH consecutive
 // points, one coalesced block of WG at a time.
@@ -27,8 +31,9 @@ const BATCH: u32 = 8u;
 @group(0) @binding(2) var<storage, read> positions: array<f32>;
 @group(0) @binding(3) var<storage, read> normals: array<f32>;
 @group(0) @binding(4) var<storage, read_write> counters: array<atomic<u32>>;
-// The previous layer's surface depth (depth peeling; bound but unread otherwise).
-@group(0) @binding(5) var<storage, read> peel_ref: array<f32>;
+// What the previous layer left (depth peeling; bound but unread otherwise): see
+// peel_reference.wgsl.
+@group(0) @binding(5) var<storage, read> peel_ref: array<vec4<f32>>;
 
 var<workgroup> kept: atomic<u32>;
 
@@ -44,17 +49,46 @@ fn count_kept(li: u32, mine: u32) {
     }
 }
 
+fn normal_at(local: u32) -> vec3<f32> {
+    return vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
+}
+
 // cpu::project::back_facing.
-fn back_facing(p: vec3<f32>, local: u32) -> bool {
-    if (chunk.cull == 0u) {
-        return false;
-    }
-    let n = vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
+fn turned_away(p: vec3<f32>, n: vec3<f32>) -> bool {
     var to_point = view.forward;
     if (view.perspective == 1u) {
         to_point = p - view.eye;
     }
     return dot3(n, to_point) > 0.0;
+}
+
+fn back_facing(p: vec3<f32>, local: u32) -> bool {
+    if (chunk.cull == 0u) {
+        return false;
+    }
+    return turned_away(p, normal_at(local));
+}
+
+// cpu::project::PeelTest::peeled: does the point belong to a layer already peeled?
+fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
+    let r = peel_ref[2u * pixel + 1u];
+    if (chunk.has_normals == 1u && r.z > 0.5) {
+        if (depth <= r.y) {
+            return true;
+        }
+        let pl = peel_ref[2u * pixel];
+        let front = !turned_away(p, pl.xyz);
+        if (front != !turned_away(p, normal_at(local))) {
+            return false;
+        }
+        let off = dot3(pl.xyz, p) - pl.w;
+        var behind = off;
+        if (front) {
+            behind = -off;
+        }
+        return behind <= chunk.gap && depth <= r.y + PEEL_SLOPE_CAP * chunk.gap;
+    }
+    return depth <= r.x + chunk.gap;
 }
 
 // The point a thread handles in round k of its workgroup's batch, projected: not ok when
@@ -71,7 +105,7 @@ fn visible_point(wg: vec3<u32>, groups: vec3<u32>, li: u32, k: u32) -> Hit {
     if (h.ok && back_facing(p, local)) {
         h.ok = false;
     }
-    if (h.ok && chunk.peel == 1u && !(h.depth > peel_ref[h.pixel] + chunk.gap)) {
+    if (h.ok && chunk.peel == 1u && peeled(p, local, h.pixel, h.depth)) {
         h.ok = false;
     }
     h.index = chunk.base + local;
