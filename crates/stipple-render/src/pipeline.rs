@@ -424,7 +424,7 @@ pub fn peel_fill_iterations(spacing_px: f32) -> u32 {
 
 /// The screen spacing (pixels) from which peeled layers fill with the 5×5 masks (see
 /// [`peel_fill_iterations`]); below it holes are rare and the 3×3 masks keep edges sharper.
-pub const PEEL_WIDE_FILL_SPACING: f32 = 0.4;
+pub const PEEL_WIDE_FILL_SPACING: f32 = 0.8;
 
 /// The default layer gap d̃ for a cloud: 2.5 × its estimated point spacing.
 ///

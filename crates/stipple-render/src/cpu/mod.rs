@@ -375,11 +375,15 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let ga = &r.g.as_ref().expect("made by project").0;
         let (planes, own) = (&mut r.peel_planes, &mut r.peel_own);
         timed(&mut self.stats, PassId::PeelReference, || {
-            project::peel_reference(w, h, sd, bound, pr);
-            own.clear();
-            own.extend_from_slice(sd);
-            planes.resize(w * h, [0.0; 4]);
-            project::peel_planes(&ga.id, sd, &c.positions, c.normals.as_deref(), planes);
+            if c.normals.is_some() {
+                // The plane test needs no neighbourhood reference (see `PeelTest`).
+                own.clear();
+                own.extend_from_slice(sd);
+                planes.resize(w * h, [0.0; 4]);
+                project::peel_planes(&ga.id, sd, &c.positions, c.normals.as_deref(), planes);
+            } else {
+                project::peel_reference(w, h, sd, bound, pr);
+            }
             ((), 1, 0)
         });
         Ok(())

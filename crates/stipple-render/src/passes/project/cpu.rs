@@ -38,8 +38,9 @@
 //!   lies at most d̃ behind the plane (measured along the normal: the slope-scaled gap of
 //!   Fig. 14, without the reference point's own depth error), within [`PEEL_SLOPE_CAP`] d̃ of
 //!   the layer's depth (Dobrev's cap of the slope factor).
-//! * Without normals (or at a pixel the layer left empty) the reference is the largest depth
-//!   of the layer over the pixel's 3×3 neighbourhood, counting neighbours at most 4 d̃ behind
+//! * Nothing is peeled behind a pixel the layer left empty (Dobrev's rule: a hole of a layer
+//!   is filled or stays a hole). Without normals the reference is the largest depth of the
+//!   layer over the pixel's 3×3 neighbourhood, counting neighbours at most 4 d̃ behind
 //!   the pixel's own depth ([`peel_reference`]; a neighbour farther back belongs to another
 //!   surface), plus d̃.
 //!
@@ -177,9 +178,9 @@ pub fn faces_eye(v: &ViewParams, p: Vec3, n: Vec3) -> bool {
     !back_facing(v, p, n)
 }
 
-/// What a later peeled layer compares its points with: the previous layer's reference
-/// depth (`reference`, from [`peel_reference`]), its own depth (`own`), its tangent planes
-/// and the cloud's normals (both or neither), and d̃ (`gap`).
+/// What a later peeled layer compares its points with: with normals, the previous layer's
+/// own depth (`own`), its tangent planes and the cloud's normals (`planes`); without, its
+/// reference depth (`reference`, from [`peel_reference`]); and d̃ (`gap`).
 #[derive(Clone, Copy)]
 pub struct PeelTest<'a> {
     pub reference: &'a [f32],
@@ -198,22 +199,24 @@ impl PeelTest<'_> {
     #[inline(always)]
     pub fn peeled(&self, v: &ViewParams, pix: usize, p: Vec3, z: f32, index: usize) -> bool {
         if let Some((planes, normals)) = self.planes {
-            let pl = planes[pix];
-            if pl[3].is_finite() {
-                let d0 = self.own[pix];
-                if z <= d0 {
-                    return true;
-                }
-                let m = Vec3::new(pl[0], pl[1], pl[2]);
-                let front = faces_eye(v, p, m);
-                if front != faces_eye(v, p, normals[index]) {
-                    return false;
-                }
-                // Distance behind the plane, away from the eye.
-                let off = dot3(m, p) - pl[3];
-                let behind = if front { -off } else { off };
-                return behind <= self.gap && z <= d0 + PEEL_SLOPE_CAP * self.gap;
+            let d0 = self.own[pix];
+            // Also where the layer left the pixel empty (+inf): nothing lies behind it.
+            if z <= d0 {
+                return true;
             }
+            let pl = planes[pix];
+            if !pl[3].is_finite() {
+                return false;
+            }
+            let m = Vec3::new(pl[0], pl[1], pl[2]);
+            let front = faces_eye(v, p, m);
+            if front != faces_eye(v, p, normals[index]) {
+                return false;
+            }
+            // Distance behind the plane, away from the eye.
+            let off = dot3(m, p) - pl[3];
+            let behind = if front { -off } else { off };
+            return behind <= self.gap && z <= d0 + PEEL_SLOPE_CAP * self.gap;
         }
         z <= self.reference[pix] + self.gap
     }

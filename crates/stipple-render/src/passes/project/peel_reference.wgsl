@@ -1,8 +1,9 @@
 // peel_reference: what the next peeled layer is compared with (CPU twin: cpu.rs
 // peel_reference, peel_planes and PeelTest). Per pixel two vec4s: [2k] the tangent plane of
-// the layer's point there (normal, n · x), [2k + 1] (the largest finite depth of the 3×3
-// neighbourhood at most `bound` = 4 d̃ behind the pixel's own, the pixel's own depth, 1 when
-// the plane is valid (the pixel shows a point and the cloud has normals) else 0, 0).
+// the layer's point there (normal, n · x), [2k + 1] (without normals: the largest finite
+// depth of the 3×3 neighbourhood at most `bound` = 4 d̃ behind the pixel's own; the pixel's
+// own depth; 1 when the plane is valid (the pixel shows a point and the cloud has normals)
+// else 0; 0).
 
 struct PeelReference {
     bound: f32,
@@ -30,7 +31,11 @@ fn peel_reference(@builtin(global_invocation_id) gid: vec3<u32>) {
     var m = d0;
     var valid = 0.0;
     var plane = vec4<f32>(0.0);
-    if (is_finite(d0)) {
+    if (is_finite(d0) && pr.has_normals == 1u) {
+        let n = attr_normal[k].xyz;
+        plane = vec4<f32>(n, dot3(n, attr_pos[k].xyz));
+        valid = 1.0;
+    } else if (is_finite(d0)) {
         let limit = d0 + pr.bound;
         let y0 = max(i32(gid.y) - 1, 0);
         let y1 = min(i32(gid.y) + 1, i32(view.height) - 1);
@@ -43,11 +48,6 @@ fn peel_reference(@builtin(global_invocation_id) gid: vec3<u32>) {
                     m = d;
                 }
             }
-        }
-        if (pr.has_normals == 1u) {
-            let n = attr_normal[k].xyz;
-            plane = vec4<f32>(n, dot3(n, attr_pos[k].xyz));
-            valid = 1.0;
         }
     }
     peel_ref[2u * k] = plane;

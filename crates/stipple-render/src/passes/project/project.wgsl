@@ -72,9 +72,12 @@ fn back_facing(p: vec3<f32>, local: u32) -> bool {
 // cpu::project::PeelTest::peeled: does the point belong to a layer already peeled?
 fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
     let r = peel_ref[2u * pixel + 1u];
-    if (chunk.has_normals == 1u && r.z > 0.5) {
+    if (chunk.has_normals == 1u) {
         if (depth <= r.y) {
             return true;
+        }
+        if (r.z < 0.5) {
+            return false;
         }
         let pl = peel_ref[2u * pixel];
         let front = !turned_away(p, pl.xyz);
