@@ -393,8 +393,8 @@ impl Pipeline {
 }
 
 /// Fill iterations of each peeled layer for points `spacing_px` pixels apart on screen (the
-/// median distance to the nearest neighbour, as [`crate::PreparedCloud::screen_spacing`]
-/// gives it; a pipeline asking for fewer gets these): 1 below 0.8 px, 2 below 1.2 px, then 3.
+/// median distance to the nearest neighbour, taken at the view depth halfway between the
+/// cloud's nearest bound and its centre; a pipeline asking for fewer gets these): 1 below 0.8 px, 2 below 1.2 px, then 3.
 /// From [`PEEL_WIDE_FILL_SPACING`] on, the fills of peeled layers also use the 5×5 masks
 /// (radius 2).
 ///
@@ -409,9 +409,9 @@ impl Pipeline {
 /// `examples/peel_rims.rs` (a tilted torus of opacity 0.5, every pixel but 2 px around
 /// silhouettes), errors to the analytic composite in 8-bit levels: with 3×3 masks the torus
 /// errs by 9.4 levels at 0.99 px and 19 at 1.32 px (27–39% of its pixels off by more than
-/// 12) and the sphere by 4.5 at 1.56 px; with these rules the sphere errs by at most 0.01
-/// from 0.33 to 1.56 px and the torus by 0.45 (0.33 px), 0.41 (0.66 px), 0.55 (0.99 px) and
-/// 0.95 (1.32 px); at 0.66 px 2 iterations err by 0.73 and at 1.32 px 2 by 2.0.
+/// 12) and the sphere by 4.5 at 1.56 px; with these rules the sphere errs by at most 0.23
+/// from 0.33 to 1.56 px and the torus by 0.45 (0.33 px), 0.68 (0.50 px), 0.73 (0.66 px),
+/// 0.58 (0.83 px), 0.90 (0.99 px) and 0.95 (1.32 px), all of it at silhouettes.
 pub fn peel_fill_iterations(spacing_px: f32) -> u32 {
     if !spacing_px.is_finite() || spacing_px < 0.8 {
         1
