@@ -153,16 +153,19 @@ pub fn peel_planes(
     normals: Option<&[Vec3]>,
     out: &mut [Plane],
 ) {
-    out.par_iter_mut()
-        .zip(id.par_iter().zip(surface.par_iter()))
-        .for_each(|(o, (&i, d))| {
-            *o = match normals {
-                Some(n) if d.is_finite() && (i as usize) < positions.len() => {
-                    let (n, x) = (n[i as usize], positions[i as usize]);
-                    [n.x, n.y, n.z, dot3(n, x)]
-                }
-                _ => [0.0, 0.0, 0.0, f32::NAN],
-            };
+    const ROWS: usize = 4096;
+    out.par_chunks_mut(ROWS)
+        .zip(id.par_chunks(ROWS).zip(surface.par_chunks(ROWS)))
+        .for_each(|(o, (id, surface))| {
+            for (o, (&i, d)) in o.iter_mut().zip(id.iter().zip(surface)) {
+                *o = match normals {
+                    Some(n) if d.is_finite() && (i as usize) < positions.len() => {
+                        let (n, x) = (n[i as usize], positions[i as usize]);
+                        [n.x, n.y, n.z, dot3(n, x)]
+                    }
+                    _ => [0.0, 0.0, 0.0, f32::NAN],
+                };
+            }
         });
 }
 
@@ -478,7 +481,18 @@ mod tests {
         let far = 0.5 + 3.0 * m.z / m.x;
         assert!(10.0 - on(far) > 8.0 + PEEL_SLOPE_CAP * gap);
         assert!(!at(steep, p(far, on(far)), up));
-        // No plane (no normals, or an empty pixel): the paper's depth rule.
+        // A pixel the layer left empty: nothing behind it is a new layer.
+        let empty = vec![f32::INFINITY; 64];
+        let planes = vec![[0.0, 0.0, 0.0, f32::NAN]; 64];
+        let normals = vec![up];
+        let t = PeelTest {
+            reference: &reference,
+            own: &empty,
+            planes: Some((&planes, &normals)),
+            gap,
+        };
+        assert!(t.peeled(&v, k, p(0.5, -5.0), 15.0, 0));
+        // No normals: the paper's depth rule.
         let t = PeelTest {
             reference: &reference,
             own: &own,
