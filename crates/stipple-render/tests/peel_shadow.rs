@@ -546,37 +546,6 @@ fn peeled_transparent_surfaces_composite_without_blotches() {
     }
 }
 
-/// How many times the centre ray of each pixel of `cam` (perspective) crosses the surface
-/// whose signed distance is `sdf` (sphere tracing with a floor on the step).
-fn crossings(cam: &Camera, sdf: &dyn Fn(DVec3) -> f64) -> Vec<u8> {
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let fwd = (cam.target - cam.eye).normalize();
-    let right = fwd.cross(cam.up).normalize();
-    let up = right.cross(fwd);
-    let Projection::Perspective { fov_deg } = cam.projection else {
-        panic!("perspective only")
-    };
-    let th = (fov_deg.to_radians() / 2.0).tan();
-    let mut out = vec![0u8; w * h];
-    for j in 0..h {
-        for i in 0..w {
-            let x = ((i as f64 + 0.5) / w as f64 * 2.0 - 1.0) * th * w as f64 / h as f64;
-            let y = (1.0 - (j as f64 + 0.5) / h as f64 * 2.0) * th;
-            let d = (fwd + right * x + up * y).normalize();
-            let (mut t, mut prev) = (cam.near, sdf(cam.eye + d * cam.near));
-            while t < cam.far {
-                t += prev.abs().max(0.0005);
-                let v = sdf(cam.eye + d * t);
-                if (v < 0.0) != (prev < 0.0) {
-                    out[j * w + i] += 1;
-                }
-                prev = v;
-            }
-        }
-    }
-    out
-}
-
 /// Issue "Depth-peeled transparency without blotches", where rays graze: a torus of opacity
 /// 0.5 seen obliquely (as in `examples/nested-tori.toml`) over the background, so that near
 /// its silhouettes a ray crosses the tube twice within a few d̃ and elsewhere four times.
@@ -594,12 +563,7 @@ fn peeled_layers_stay_closed_where_rays_graze_a_transparent_torus() {
     }
     let (colour, background) = ([60u8, 100, 210], [250u8, 250, 250]);
     let c = PreparedCloud::new(cloud(&[(p, n, colour, 0.5)]));
-    let sdf = |q: DVec3| {
-        (((q.x * q.x + q.z * q.z).sqrt() - major as f64).powi(2) + q.y * q.y).sqrt() - tube as f64
-    };
-    let lut = stipple_render::srgb::srgb_to_linear_table();
-    let lin = |c: [u8; 3]| c.map(|v| lut[v as usize]);
-    let (s, b) = (lin(colour), lin(background));
+    let sdf = common::rims::torus_sdf(major as f64, tube as f64);
     let pipe = Pipeline {
         layers: 4,
         lighting: false,
@@ -617,33 +581,12 @@ fn peeled_layers_stay_closed_where_rays_graze_a_transparent_torus() {
             near: 0.5,
             far: 10.0,
         };
-        let counts = crossings(&cam, &sdf);
+        let counts = common::rims::crossings(&cam, &sdf);
         let w = size as usize;
         for mut r in common::backends() {
             let f = r.render(&c, &cam, &pipe).unwrap();
-            let (mut err, mut total, mut bad) = (0.0, 0usize, 0usize);
-            for j in 2..w - 2 {
-                for i in 2..w - 2 {
-                    let k = counts[j * w + i];
-                    let uniform =
-                        (j - 2..=j + 2).all(|y| (i - 2..=i + 2).all(|x| counts[y * w + x] == k));
-                    if !uniform || k == 0 {
-                        continue;
-                    }
-                    let t = 0.5f32.powi(k as i32);
-                    let want = std::array::from_fn::<f32, 3, _>(|ch| (1.0 - t) * s[ch] + t * b[ch])
-                        .map(stipple_render::srgb::linear_to_srgb8);
-                    let px = (j * w + i) * 4;
-                    let e = (0..3)
-                        .map(|ch| (f.rgba[px + ch] as f64 - want[ch] as f64).abs())
-                        .sum::<f64>()
-                        / 3.0;
-                    err += e;
-                    total += 1;
-                    bad += (e > 12.0) as usize;
-                }
-            }
-            let (err, bad) = (err / total as f64, bad as f64 / total as f64);
+            let sc = common::rims::score(&f.rgba, w, &counts, colour, background);
+            let (err, bad) = (sc.error, sc.bad);
             eprintln!(
                 "{}: torus at {size}² ({:.2} px): error {err:.2} levels, {:.2}% of pixels off by > 12",
                 r.describe(),

@@ -2,6 +2,8 @@
 //! module with `mod common;`; not every file uses every helper).
 #![allow(dead_code)]
 
+pub mod rims;
+
 use glam::Vec3;
 use stipple_core::rng::Rng;
 use stipple_render::gpu::GpuOptions;
