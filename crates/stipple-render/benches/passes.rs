@@ -1,7 +1,7 @@
 //! Kernel benchmarks (criterion): each CPU pass on a 1024×1024 frame of the 1 M point
 //! `plane-objects` demo scene. Whole-frame figures come from `stipple bench`.
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use stipple_core::demo::{generate, DemoScene};
 use stipple_core::Camera;
 use stipple_render::passes::{
@@ -31,15 +31,26 @@ fn passes(c: &mut Criterion) {
         b.iter(|| project::project_private(&v, pts, normals, true, None, &mut bufs, &mut g))
     });
     group.throughput(Throughput::Elements(v.pixels() as u64));
-    let mut out = GBuffer::new(v.width, v.height);
+    // The fills work in place: each iteration gets a fresh copy of the G-buffer (not timed).
     for r in [1, 2] {
         group.bench_function(format!("fill_background_r{r}_1024"), |b| {
-            b.iter(|| fill_background::fill_background(&g, &mut out, r))
+            b.iter_batched_ref(
+                || g.clone(),
+                |h| fill_background::fill_background_in_place(h, r),
+                BatchSize::LargeInput,
+            )
         });
     }
-    group.bench_function("fill_occluded_1024", |b| {
-        b.iter(|| fill_occluded::fill_occluded(&g, &mut out, 3.0 * cloud.spacing, 1))
-    });
+    let gap = 3.0 * cloud.spacing;
+    for r in [1, 2] {
+        group.bench_function(format!("fill_occluded_r{r}_1024"), |b| {
+            b.iter_batched_ref(
+                || g.clone(),
+                |h| fill_occluded::fill_occluded_in_place(h, gap, r),
+                BatchSize::LargeInput,
+            )
+        });
+    }
     let colour = vec![[0.5f32; 3]; v.pixels()];
     let mut dst = colour.clone();
     let (w, h) = (v.width as usize, v.height as usize);

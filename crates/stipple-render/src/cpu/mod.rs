@@ -340,8 +340,6 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let r = &mut *self.r;
         r.peel_ref.clear();
         r.peel_ref.resize(n, f32::INFINITY);
-        r.peel_own.clear();
-        r.peel_planes.clear();
         r.acc.clear();
         r.acc.resize(n, [0.0, 0.0, 0.0, 1.0]);
         Ok(())
@@ -370,17 +368,18 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let (r, v) = (&mut *self.r, self.v);
         let bound = project::PEEL_NEIGHBOUR_GAPS * gap;
         let (w, h) = (v.width as usize, v.height as usize);
-        let (sd, pr) = (&r.surface_depth, &mut r.peel_ref);
         let c = &self.cloud.cloud;
         let ga = &r.g.as_ref().expect("made by project").0;
         let (planes, own) = (&mut r.peel_planes, &mut r.peel_own);
+        let (sd, pr) = (&mut r.surface_depth, &mut r.peel_ref);
         timed(&mut self.stats, PassId::PeelReference, || {
             if c.normals.is_some() {
-                // The plane test needs no neighbourhood reference (see `PeelTest`).
-                own.clear();
-                own.extend_from_slice(sd);
+                // The plane test needs no neighbourhood reference (see `PeelTest`). The
+                // layer's surface depth becomes `own` (the next shade writes every pixel of
+                // `surface_depth` anew); every plane is written, so none is cleared first.
+                std::mem::swap(own, sd);
                 planes.resize(w * h, [0.0; 4]);
-                project::peel_planes(&ga.id, sd, &c.positions, c.normals.as_deref(), planes);
+                project::peel_planes(&ga.id, own, &c.positions, c.normals.as_deref(), planes);
             } else {
                 project::peel_reference(w, h, sd, bound, pr);
             }

@@ -114,19 +114,17 @@ impl<P: pixel::PixelPass> ColourKernel for Pixel<P> {
     }
 }
 
-/// Runs an iterative G-buffer step with ping-pong buffers (the result ends in `a`): the
-/// iterations run and the pixels changed in all.
-pub(crate) fn iterate(
-    a: &mut GBuffer,
-    b: &mut GBuffer,
+/// Runs an iterative G-buffer step that works in place on `g`: the iterations run and the
+/// pixels changed in all.
+pub(crate) fn iterate_in_place(
+    g: &mut GBuffer,
     its: Iterations,
-    mut step: impl FnMut(&GBuffer, &mut GBuffer) -> u64,
+    mut step: impl FnMut(&mut GBuffer) -> u64,
 ) -> (u32, u64) {
     let mut done = 0;
     let mut total = 0;
     while done < its.max() {
-        let changed = step(a, b);
-        std::mem::swap(a, b);
+        let changed = step(g);
         done += 1;
         total += changed;
         if changed == 0 && matches!(its, Iterations::UntilStable { .. }) {

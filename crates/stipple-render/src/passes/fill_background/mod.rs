@@ -24,9 +24,12 @@ impl GeometryKernel for FillBackground {
         PassId::FillBackground
     }
 
-    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, _gap: f32) -> (u32, u64) {
-        super::iterate(a, b, self.iterations, |s, d| {
-            cpu::fill_background(s, d, self.radius)
+    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, _b: &mut GBuffer, _gap: f32) -> (u32, u64) {
+        let mut since = None;
+        super::iterate_in_place(a, self.iterations, |g| {
+            let (n, changed) = cpu::fill_background_step(g, self.radius, since.as_ref());
+            since = Some(changed);
+            n
         })
     }
 

@@ -8,20 +8,34 @@
 //! minimum depth (ties: smaller id). d̃ is the minimum gap between two surface layers, in
 //! world units along the view axis.
 
-use crate::gbuffer::{is_point, GBuffer};
-use crate::passes::fill_background::cpu::fill_pass;
+use crate::gbuffer::GBuffer;
+use crate::passes::fill::cpu::{fill_points, Changed};
+#[cfg(doc)]
+use crate::passes::fill_background::cpu::fill_background_step;
 
 /// One iteration from `src` into `dst` (masks over the (2·radius+1)² window); returns the
 /// number of pixels replaced.
 pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32, radius: u32) -> u64 {
+    dst.clone_from(src);
+    fill_occluded_in_place(dst, layer_gap, radius)
+}
+
+/// [`fill_occluded`] on `g` itself (every pixel decided from `g` as it was, then the
+/// replaced pixels written).
+pub fn fill_occluded_in_place(g: &mut GBuffer, layer_gap: f32, radius: u32) -> u64 {
+    fill_occluded_step(g, layer_gap, radius, None).0
+}
+
+/// [`fill_occluded_in_place`] after a step that changed `since` (see
+/// [`fill_background_step`]): returns the pixels replaced and where they are.
+pub fn fill_occluded_step(
+    g: &mut GBuffer,
+    layer_gap: f32,
+    radius: u32,
+    since: Option<&Changed>,
+) -> (u64, Changed) {
     // "Dark" (solid) cells: at least d̃ nearer than the candidate pixel.
-    fill_pass(
-        src,
-        dst,
-        radius,
-        |_, id| is_point(id),
-        |d, cd, _, _| cd <= d - layer_gap,
-    )
+    fill_points(g, radius, layer_gap, since)
 }
 
 #[cfg(test)]

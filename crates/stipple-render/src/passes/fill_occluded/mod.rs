@@ -26,10 +26,13 @@ impl GeometryKernel for FillOccluded {
         PassId::FillOccluded
     }
 
-    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, gap: f32) -> (u32, u64) {
+    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, _b: &mut GBuffer, gap: f32) -> (u32, u64) {
         let gap = self.layer_gap.unwrap_or(gap);
-        super::iterate(a, b, self.iterations, |s, d| {
-            cpu::fill_occluded(s, d, gap, self.radius)
+        let mut since = None;
+        super::iterate_in_place(a, self.iterations, |g| {
+            let (n, changed) = cpu::fill_occluded_step(g, gap, self.radius, since.as_ref());
+            since = Some(changed);
+            n
         })
     }
 
