@@ -144,7 +144,7 @@ impl Coverage {
         let r = self.rows.radius as i32;
         let n = 2 * self.rows.radius + 1;
         // Bits x − r ..= x + r of a row, at x − r + PAD ≥ 0.
-        let s = (x - r) as usize + Self::PAD;
+        let s = (x - r + Self::PAD as i32) as usize;
         let (word, off) = (s / 64, s % 64);
         let mut blocked = 0u8;
         for yy in (y - r).max(0)..=(y + r).min(h - 1) {
