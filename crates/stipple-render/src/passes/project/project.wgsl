@@ -69,6 +69,26 @@ fn back_facing(p: vec3<f32>, local: u32) -> bool {
     return turned_away(p, normal_at(local));
 }
 
+// The tangent-plane test of cpu::project::PeelTest::peeled against the layer's point at
+// pixel q, for a point at p, view depth `depth`, facing the eye when `own_front`.
+fn on_plane(p: vec3<f32>, depth: f32, own_front: bool, q: u32) -> bool {
+    let r = peel_ref[2u * q + 1u];
+    if (r.z < 0.5) {
+        return false;
+    }
+    let pl = peel_ref[2u * q];
+    let front = !turned_away(p, pl.xyz);
+    if (front != own_front) {
+        return false;
+    }
+    let off = dot3(pl.xyz, p) - pl.w;
+    var behind = off;
+    if (front) {
+        behind = -off;
+    }
+    return behind <= chunk.gap && depth <= r.y + PEEL_SLOPE_CAP * chunk.gap;
+}
+
 // cpu::project::PeelTest::peeled: does the point belong to a layer already peeled?
 fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
     let r = peel_ref[2u * pixel + 1u];
@@ -79,17 +99,25 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
         if (r.z < 0.5) {
             return false;
         }
-        let pl = peel_ref[2u * pixel];
-        let front = !turned_away(p, pl.xyz);
-        if (front != !turned_away(p, normal_at(local))) {
+        let own_front = !turned_away(p, normal_at(local));
+        if (!turned_away(p, peel_ref[2u * pixel].xyz) != own_front) {
             return false;
         }
-        let off = dot3(pl.xyz, p) - pl.w;
-        var behind = off;
-        if (front) {
-            behind = -off;
+        if (on_plane(p, depth, own_front, pixel)) {
+            return true;
         }
-        return behind <= chunk.gap && depth <= r.y + PEEL_SLOPE_CAP * chunk.gap;
+        let w = view.width;
+        let x = pixel % w;
+        let y = pixel / w;
+        for (var yy = max(y, 1u) - 1u; yy < min(y + 2u, view.height); yy++) {
+            for (var xx = max(x, 1u) - 1u; xx < min(x + 2u, w); xx++) {
+                let q = yy * w + xx;
+                if (q != pixel && on_plane(p, depth, own_front, q)) {
+                    return true;
+                }
+            }
+        }
+        return false;
     }
     return depth <= r.x + chunk.gap;
 }
