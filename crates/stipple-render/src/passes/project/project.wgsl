@@ -18,8 +18,9 @@ struct Chunk {
     pad1: u32,
 }
 
-// cpu::project::PEEL_SLOPE_CAP.
+// cpu::project::PEEL_SLOPE_CAP and PEEL_NEIGHBOUR_GAPS.
 const PEEL_SLOPE_CAP: f32 = 16.0;
+const PEEL_NEIGHBOUR_GAPS: f32 = 4.0;
 
 // Threads per workgroup, and points per thread: a workgroup projects WG × BATCH consecutive
 // points, one coalesced block of WG at a time.
@@ -106,13 +107,23 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
         if (on_plane(p, depth, own_front, pixel)) {
             return true;
         }
+        // The layer's surface here: the point on the ray through p at the layer's depth.
+        var here = p - view.forward * (depth - r.y);
+        if (view.perspective == 1u) {
+            here = view.eye + (p - view.eye) * (r.y / depth);
+        }
         let w = view.width;
         let x = pixel % w;
         let y = pixel / w;
         for (var yy = max(y, 1u) - 1u; yy < min(y + 2u, view.height); yy++) {
             for (var xx = max(x, 1u) - 1u; xx < min(x + 2u, w); xx++) {
                 let q = yy * w + xx;
-                if (q != pixel && on_plane(p, depth, own_front, q)) {
+                if (q == pixel) {
+                    continue;
+                }
+                let pl = peel_ref[2u * q];
+                if (abs(dot3(pl.xyz, here) - pl.w) <= PEEL_NEIGHBOUR_GAPS * chunk.gap
+                    && on_plane(p, depth, own_front, q)) {
                     return true;
                 }
             }
