@@ -394,26 +394,28 @@ impl Pipeline {
 
 /// Fill iterations of each peeled layer for points `spacing_px` pixels apart on screen (the
 /// median distance to the nearest neighbour, taken at the view depth halfway between the
-/// cloud's nearest bound and its centre; a pipeline asking for fewer gets these): 1 below 0.8 px, 2 below 1.2 px, then 3.
-/// From [`PEEL_WIDE_FILL_SPACING`] on, the fills of peeled layers also use the 5×5 masks
-/// (radius 2).
+/// cloud's nearest bound and its centre; a pipeline asking for fewer gets these): 1 below
+/// 0.4 px, 2 below 1.2 px, then 3. From [`PEEL_WIDE_FILL_SPACING`] on, the fills of peeled
+/// layers also use the 5×5 masks (radius 2).
 ///
 /// Why: a layer's holes grow with the spacing; an unfilled hole of a front layer lets the
 /// surface behind win that pixel, which then shows once too often in the composite (the
-/// blotches of a transparent sphere), while more iterations than the holes need smear a
-/// layer's edge. Where points land a pixel or more apart, gaps two pixels wide see a clear
-/// half-plane of the 3×3 masks and never close (see `passes::fill_background`), and the
-/// spacing is not uniform over the image (nearer parts of a surface are sparser than the
-/// median), so the wider masks close what more iterations cannot. Measured with
-/// `examples/peel_quality.rs` (a sphere of opacity 0.5 over a plane, interior) and
-/// `examples/peel_rims.rs` (a tilted torus of opacity 0.5, every pixel but 2 px around
-/// silhouettes), errors to the analytic composite in 8-bit levels: with 3×3 masks the torus
-/// errs by 9.4 levels at 0.99 px and 19 at 1.32 px (27–39% of its pixels off by more than
-/// 12) and the sphere by 4.5 at 1.56 px; with these rules the sphere errs by at most 0.23
-/// from 0.33 to 1.56 px and the torus by 0.45 (0.33 px), 0.68 (0.50 px), 0.73 (0.66 px),
-/// 0.58 (0.83 px), 0.90 (0.99 px) and 0.95 (1.32 px), all of it at silhouettes.
+/// blotches of a transparent sphere, the specks of `examples/nested-tori.toml` at 512²,
+/// where holes three pixels across in the outer torus let the inner ones through), while
+/// more iterations than the holes need smear a layer's edge. Where points land a pixel or
+/// more apart, gaps two pixels wide see a clear half-plane of the 3×3 masks and never close
+/// (see `passes::fill_background`), and the spacing is not uniform over the image (nearer
+/// parts of a surface are sparser than the median), so the wider masks close what more
+/// iterations cannot. Measured with `examples/peel_quality.rs` (a sphere of opacity 0.5
+/// over a plane, interior) and `examples/peel_rims.rs` (a tilted torus of opacity 0.5,
+/// every pixel but 2 px around silhouettes), errors to the analytic composite in 8-bit
+/// levels: with 3×3 masks the torus errs by 9.4 levels at 0.99 px and 19 at 1.32 px
+/// (27–39% of its pixels off by more than 12) and the sphere by 4.5 at 1.56 px; with these
+/// rules the sphere errs by at most 0.01 from 0.56 to 1.11 px (median neighbour) and the
+/// torus by 0.91 (0.33 px: at its silhouettes, where one iteration gave 0.35), 0.43
+/// (0.50 px), 0.50 (0.66 px), 0.41 (0.83 px), 0.58 (0.99 px) and 0.80 (1.32 px).
 pub fn peel_fill_iterations(spacing_px: f32) -> u32 {
-    if !spacing_px.is_finite() || spacing_px < 0.8 {
+    if !spacing_px.is_finite() || spacing_px < 0.4 {
         1
     } else if spacing_px < 1.2 {
         2
