@@ -21,6 +21,7 @@ struct Chunk {
 // cpu::project::PEEL_SLOPE_CAP and PEEL_NEIGHBOUR_GAPS.
 const PEEL_SLOPE_CAP: f32 = 16.0;
 const PEEL_NEIGHBOUR_GAPS: f32 = 4.0;
+const GRAZING_COS2: f32 = 0.25;
 
 // Threads per workgroup, and points per thread: a workgroup projects WG × BATCH consecutive
 // points, one coalesced block of WG at a time.
@@ -106,6 +107,16 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
         }
         if (on_plane(p, depth, own_front, pixel)) {
             return true;
+        }
+        // Only grazing points (cpu::project::GRAZING_COS2).
+        var ray = view.forward;
+        if (view.perspective == 1u) {
+            ray = p - view.eye;
+        }
+        let n = normal_at(local);
+        let c = dot3(n, ray);
+        if (c * c > GRAZING_COS2 * dot3(n, n) * dot3(ray, ray)) {
+            return false;
         }
         // The layer's surface here: the point on the ray through p at the layer's depth.
         var here = p - view.forward * (depth - r.y);
