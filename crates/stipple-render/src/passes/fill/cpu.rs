@@ -46,7 +46,7 @@ pub(crate) fn dilate(rows: &[Option<(i32, i32)>], radius: u32) -> Changed {
         .collect()
 }
 
-/// Which pixels may skip the mask test of [`hole_fill`] (the result is the same: a skipped
+/// Which pixels may skip the mask test of [`MaskTest::fill`] (the result is the same: a skipped
 /// pixel is one whose masks could not all be blocked), and whether a pixel that goes on is
 /// known to have all its masks blocked.
 pub(crate) enum Precheck {
@@ -252,6 +252,7 @@ pub(crate) fn fill_changes(
 ) -> Vec<RowChanges> {
     let (w, h) = (src.width as i32, src.height as i32);
     let win = window(radius);
+    let test = MaskTest { src, win: &win };
     let r = radius as i32;
     (0..h)
         .into_par_iter()
@@ -330,9 +331,8 @@ pub(crate) fn fill_changes(
                         }
                         Precheck::None => 0,
                     };
-                    if let Some((nd, nid)) = hole_fill(src, &win, x, y, w, h, known, |cd, cid| {
-                        solid(d, cd, id, cid)
-                    }) {
+                    if let Some((nd, nid)) = test.fill(x, y, known, |cd, cid| solid(d, cd, id, cid))
+                    {
                         changed.push((x as u32, nd, nid));
                     }
                 }
@@ -342,70 +342,74 @@ pub(crate) fn fill_changes(
         .collect()
 }
 
-/// The shared mask test: cells for which `solid(depth, id)` holds block the masks they belong
-/// to (cells outside the image never do). When all eight masks are blocked, returns the solid
-/// cell of minimum (depth, id) on the nearest ring that has one; otherwise None (a border
-/// pixel). `known`: masks already known to be blocked (0xFF when the caller has established
-/// that all are: the scan then stops after the first ring holding a solid cell).
-#[inline]
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn hole_fill(
-    src: &GBuffer,
-    win: &[(i32, i32, u8)],
-    x: i32,
-    y: i32,
-    w: i32,
-    h: i32,
-    known: u8,
-    solid: impl Fn(f32, u32) -> bool,
-) -> Option<(f32, u32)> {
-    let r = win.last().map_or(0, |c| c.1.abs().max(c.0.abs()));
-    if x >= r && y >= r && x < w - r && y < h - r {
-        hole_fill_in::<false>(src, win, x, y, w, h, known, solid)
-    } else {
-        hole_fill_in::<true>(src, win, x, y, w, h, known, solid)
-    }
+/// The shared mask test over the window `win` of an image `src`: cells for which
+/// `solid(depth, id)` holds block the masks they belong to (cells outside the image never
+/// do).
+pub(crate) struct MaskTest<'a> {
+    pub src: &'a GBuffer,
+    pub win: &'a [(i32, i32, u8)],
 }
 
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn hole_fill_in<const CHECK: bool>(
-    src: &GBuffer,
-    win: &[(i32, i32, u8)],
-    x: i32,
-    y: i32,
-    w: i32,
-    h: i32,
-    known: u8,
-    solid: impl Fn(f32, u32) -> bool,
-) -> Option<(f32, u32)> {
-    let mut blocked = known;
-    let mut best = (f32::INFINITY, BACKGROUND);
-    let mut best_ring = i32::MAX;
-    for &(dx, dy, m) in win {
-        let ring = dx.abs().max(dy.abs());
-        // Cells come ring by ring: once every mask is blocked, a farther ring cannot win.
-        if blocked == 0xFF && best_ring < ring {
-            break;
-        }
-        let (nx, ny) = (x + dx, y + dy);
-        if CHECK && (nx < 0 || ny < 0 || nx >= w || ny >= h) {
-            continue;
-        }
-        let n = (ny * w + nx) as usize;
-        let (nd, nid) = (src.depth[n], src.id[n]);
-        if !solid(nd, nid) {
-            continue;
-        }
-        blocked |= m;
-        if ring < best_ring
-            || (ring == best_ring && (nd < best.0 || (nd == best.0 && nid < best.1)))
-        {
-            best = (nd, nid);
-            best_ring = ring;
+impl MaskTest<'_> {
+    /// At pixel (x, y): when all eight masks are blocked, the solid cell of minimum (depth,
+    /// id) on the nearest ring that has one; otherwise None (a border pixel). `known`: masks
+    /// already known to be blocked (0xFF when the caller has established that all are: the
+    /// scan then stops after the first ring holding a solid cell).
+    #[inline]
+    pub(crate) fn fill(
+        &self,
+        x: i32,
+        y: i32,
+        known: u8,
+        solid: impl Fn(f32, u32) -> bool,
+    ) -> Option<(f32, u32)> {
+        let (w, h) = (self.src.width as i32, self.src.height as i32);
+        let r = self.win.last().map_or(0, |c| c.1.abs().max(c.0.abs()));
+        if x >= r && y >= r && x < w - r && y < h - r {
+            self.fill_in::<false>(x, y, known, solid)
+        } else {
+            self.fill_in::<true>(x, y, known, solid)
         }
     }
-    (blocked == 0xFF).then_some(best)
+
+    #[inline(always)]
+    fn fill_in<const CHECK: bool>(
+        &self,
+        x: i32,
+        y: i32,
+        known: u8,
+        solid: impl Fn(f32, u32) -> bool,
+    ) -> Option<(f32, u32)> {
+        let (src, win) = (self.src, self.win);
+        let (w, h) = (src.width as i32, src.height as i32);
+        let mut blocked = known;
+        let mut best = (f32::INFINITY, BACKGROUND);
+        let mut best_ring = i32::MAX;
+        for &(dx, dy, m) in win {
+            let ring = dx.abs().max(dy.abs());
+            // Cells come ring by ring: once every mask is blocked, a farther ring cannot win.
+            if blocked == 0xFF && best_ring < ring {
+                break;
+            }
+            let (nx, ny) = (x + dx, y + dy);
+            if CHECK && (nx < 0 || ny < 0 || nx >= w || ny >= h) {
+                continue;
+            }
+            let n = (ny * w + nx) as usize;
+            let (nd, nid) = (src.depth[n], src.id[n]);
+            if !solid(nd, nid) {
+                continue;
+            }
+            blocked |= m;
+            if ring < best_ring
+                || (ring == best_ring && (nd < best.0 || (nd == best.0 && nid < best.1)))
+            {
+                best = (nd, nid);
+                best_ring = ring;
+            }
+        }
+        (blocked == 0xFF).then_some(best)
+    }
 }
 
 #[cfg(test)]
@@ -445,6 +449,7 @@ mod tests {
     ) -> GBuffer {
         let (w, h) = (src.width as i32, src.height as i32);
         let win = window(radius);
+        let test = MaskTest { src, win: &win };
         let mut out = src.clone();
         for y in 0..h {
             for x in 0..w {
@@ -453,9 +458,7 @@ mod tests {
                 if !candidate(d, src.id[k]) {
                     continue;
                 }
-                if let Some((nd, nid)) =
-                    hole_fill(src, &win, x, y, w, h, 0, |cd, cid| solid(d, cd, cid))
-                {
+                if let Some((nd, nid)) = test.fill(x, y, 0, |cd, cid| solid(d, cd, cid)) {
                     out.depth[k] = nd;
                     out.id[k] = nid;
                 }

@@ -1,6 +1,6 @@
 // The hole-filling step shared by fill_background and fill_occluded (Dobrev §3.2–3.3);
 // each of those files supplies `candidate` and `solid`. CPU twin: cpu/fill_background.rs
-// (fill_changes, hole_fill).
+// (fill_changes, MaskTest).
 //
 // For a candidate pixel, every "solid" cell of the window blocks the half-plane masks it
 // belongs to (masks.rs); when all eight are blocked the pixel takes the solid neighbour on the

@@ -526,8 +526,11 @@ mod tests {
         let steep = [m.x, m.y, m.z, m.dot(Vec3::new(0.5, 0.5, 2.0))];
         let up = Vec3::Z;
         let down = -Vec3::Z;
-        let at = |plane: [f32; 4], p: Vec3, n: Vec3| {
-            let planes = vec![plane; 64];
+        // The test for a point at p of normal n, the pixel's plane `centre` and its right
+        // neighbour's plane `right`.
+        let peeled = |centre: [f32; 4], right: [f32; 4], p: Vec3, n: Vec3| {
+            let mut planes = vec![centre; 64];
+            planes[k + 1] = right;
             let normals = vec![n];
             let t = PeelTest {
                 reference: &reference,
@@ -537,6 +540,7 @@ mod tests {
             };
             t.peeled(&v, k, p, 10.0 - p.z, 0)
         };
+        let at = |plane: [f32; 4], p: Vec3, n: Vec3| peeled(plane, plane, p, n);
         let p = |x: f32, z: f32| Vec3::new(x, 0.5, z);
         assert!(at(flat, p(0.5, 1.95), up), "same surface, within d̃");
         assert!(!at(flat, p(0.5, 1.85), up), "same facing, beyond d̃");
@@ -565,18 +569,7 @@ mod tests {
         // neighbour facing the other way, or the pixel's own point facing the other way,
         // does not count, nor does a point whose normal is within 60° of the ray.
         let graze = Vec3::new(1.0, 0.0, 0.3).normalize();
-        let with = |centre: [f32; 4], neighbour: [f32; 4], n: Vec3| {
-            let mut planes = vec![centre; 64];
-            planes[k + 1] = neighbour;
-            let normals = vec![n];
-            let t = PeelTest {
-                reference: &reference,
-                own: &own,
-                planes: Some((&planes, &normals)),
-                gap,
-            };
-            t.peeled(&v, k, p(0.5, 1.85), 8.15, 0)
-        };
+        let with = |centre, right, n| peeled(centre, right, p(0.5, 1.85), n);
         let lower = [0.0, 0.0, 1.0, 1.85]; // z = 1.85
         let lower_down = [0.0, 0.0, -1.0, -1.85];
         assert!(with(flat, lower, graze), "on the neighbour's plane");
@@ -592,16 +585,11 @@ mod tests {
         assert!(!with(flat, flat, graze), "on no plane of the neighbourhood");
         // A neighbour showing a speck of a deeper surface (z = 1, 10 d̃ below the layer
         // here) does not peel that surface around it.
-        let mut planes = vec![flat; 64];
-        planes[k + 1] = [0.0, 0.0, 1.0, 1.0];
-        let normals = vec![graze];
-        let t = PeelTest {
-            reference: &reference,
-            own: &own,
-            planes: Some((&planes, &normals)),
-            gap,
-        };
-        assert!(!t.peeled(&v, k, p(0.5, 1.0), 9.0, 0), "a speck's surface");
+        let speck = [0.0, 0.0, 1.0, 1.0];
+        assert!(
+            !peeled(flat, speck, p(0.5, 1.0), graze),
+            "a speck's surface"
+        );
         // A pixel the layer left empty: nothing behind it is a new layer.
         let empty = vec![f32::INFINITY; 64];
         let planes = vec![[0.0, 0.0, 0.0, f32::NAN]; 64];
