@@ -18,7 +18,7 @@ struct Chunk {
     pad1: u32,
 }
 
-// cpu::project::PEEL_SLOPE_CAP and PEEL_NEIGHBOUR_GAPS.
+// cpu::project::PEEL_SLOPE_CAP, PEEL_NEIGHBOUR_GAPS and GRAZING_COS2.
 const PEEL_SLOPE_CAP: f32 = 16.0;
 const PEEL_NEIGHBOUR_GAPS: f32 = 4.0;
 const GRAZING_COS2: f32 = 0.25;
