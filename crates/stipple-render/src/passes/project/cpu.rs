@@ -112,12 +112,17 @@ pub fn project_point(v: &ViewParams, p: Vec3) -> Option<(usize, f32)> {
 /// Is the point's normal turned away from the eye?
 #[inline(always)]
 pub fn back_facing(v: &ViewParams, p: Vec3, n: Vec3) -> bool {
-    let to_point = if v.perspective == 1 {
+    n.dot(to_point(v, p)) > 0.0
+}
+
+/// The direction of the ray from the eye to the point at `p` (not normalised).
+#[inline(always)]
+fn to_point(v: &ViewParams, p: Vec3) -> Vec3 {
+    if v.perspective == 1 {
         p - Vec3::from(v.eye)
     } else {
         Vec3::from(v.forward)
-    };
-    n.dot(to_point) > 0.0
+    }
 }
 
 /// Points per parallel task.
@@ -229,7 +234,8 @@ impl PeelTest<'_> {
             }
             // A point facing the other way from the layer's point here is a new layer
             // however close.
-            let own_front = faces_eye(v, p, normals[index]);
+            let n = normals[index];
+            let own_front = faces_eye(v, p, n);
             if faces_eye(v, p, Vec3::new(c[0], c[1], c[2])) != own_front {
                 return false;
             }
@@ -261,12 +267,7 @@ impl PeelTest<'_> {
             // in the layer must not peel that surface around it. Only grazing points are
             // tested so (a point whose normal is within 60° of the ray sees the curvature
             // of less than a pixel): the others skip the eight reads.
-            let ray = if v.perspective == 1 {
-                p - Vec3::from(v.eye)
-            } else {
-                Vec3::from(v.forward)
-            };
-            let n = normals[index];
+            let ray = to_point(v, p);
             let c = dot3(n, ray);
             if c * c > GRAZING_COS2 * dot3(n, n) * dot3(ray, ray) {
                 return false;

@@ -55,13 +55,17 @@ fn normal_at(local: u32) -> vec3<f32> {
     return vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
 }
 
+// cpu::project::to_point: the direction of the ray from the eye to p.
+fn to_point(p: vec3<f32>) -> vec3<f32> {
+    if (view.perspective == 1u) {
+        return p - view.eye;
+    }
+    return view.forward;
+}
+
 // cpu::project::back_facing.
 fn turned_away(p: vec3<f32>, n: vec3<f32>) -> bool {
-    var to_point = view.forward;
-    if (view.perspective == 1u) {
-        to_point = p - view.eye;
-    }
-    return dot3(n, to_point) > 0.0;
+    return dot3(n, to_point(p)) > 0.0;
 }
 
 fn back_facing(p: vec3<f32>, local: u32) -> bool {
@@ -101,7 +105,8 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
         if (r.z < 0.5) {
             return false;
         }
-        let own_front = !turned_away(p, normal_at(local));
+        let n = normal_at(local);
+        let own_front = !turned_away(p, n);
         if (!turned_away(p, peel_ref[2u * pixel].xyz) != own_front) {
             return false;
         }
@@ -109,11 +114,7 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
             return true;
         }
         // Only grazing points (cpu::project::GRAZING_COS2).
-        var ray = view.forward;
-        if (view.perspective == 1u) {
-            ray = p - view.eye;
-        }
-        let n = normal_at(local);
+        let ray = to_point(p);
         let c = dot3(n, ray);
         if (c * c > GRAZING_COS2 * dot3(n, n) * dot3(ray, ray)) {
             return false;
