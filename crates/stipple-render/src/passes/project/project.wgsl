@@ -18,10 +18,16 @@ struct Chunk {
     pad1: u32,
 }
 
-// cpu::project::PEEL_SLOPE_CAP, PEEL_NEIGHBOUR_GAPS and GRAZING_COS2.
+// cpu::project::PEEL_SLOPE_CAP, PEEL_NEIGHBOUR_GAPS, GRAZING_COS2 and EDGE_COS2.
 const PEEL_SLOPE_CAP: f32 = 16.0;
 const PEEL_NEIGHBOUR_GAPS: f32 = 4.0;
 const GRAZING_COS2: f32 = 0.25;
+const EDGE_COS2: f32 = 0.01;
+
+// cpu::project::Facing.
+const FRONT: u32 = 0u;
+const BACK: u32 = 1u;
+const EDGE: u32 = 2u;
 
 // Threads per workgroup, and points per thread: a workgroup projects WG × BATCH consecutive
 // points, one coalesced block of WG at a time.
@@ -68,6 +74,24 @@ fn turned_away(p: vec3<f32>, n: vec3<f32>) -> bool {
     return dot3(n, to_point(p)) > 0.0;
 }
 
+// cpu::project::Facing::of.
+fn facing(p: vec3<f32>, n: vec3<f32>) -> u32 {
+    let ray = to_point(p);
+    let c = dot3(n, ray);
+    if (c * c < EDGE_COS2 * dot3(n, n) * dot3(ray, ray)) {
+        return EDGE;
+    }
+    if (c > 0.0) {
+        return BACK;
+    }
+    return FRONT;
+}
+
+// cpu::project::Facing::opposes.
+fn opposes(a: u32, b: u32) -> bool {
+    return (a == FRONT && b == BACK) || (a == BACK && b == FRONT);
+}
+
 fn back_facing(p: vec3<f32>, local: u32) -> bool {
     if (chunk.cull == 0u) {
         return false;
@@ -76,21 +100,23 @@ fn back_facing(p: vec3<f32>, local: u32) -> bool {
 }
 
 // The tangent-plane test of cpu::project::PeelTest::peeled against the layer's point at
-// pixel q, for a point at p, view depth `depth`, facing the eye when `own_front`.
-fn on_plane(p: vec3<f32>, depth: f32, own_front: bool, q: u32) -> bool {
+// pixel q, for a point at p, view depth `depth`, facing `own`.
+fn on_plane(p: vec3<f32>, depth: f32, own: u32, q: u32) -> bool {
     let r = peel_ref[2u * q + 1u];
     if (r.z < 0.5) {
         return false;
     }
     let pl = peel_ref[2u * q];
-    let front = !turned_away(p, pl.xyz);
-    if (front != own_front) {
+    let f = facing(p, pl.xyz);
+    if (opposes(own, f)) {
         return false;
     }
     let off = dot3(pl.xyz, p) - pl.w;
     var behind = off;
-    if (front) {
+    if (f == FRONT) {
         behind = -off;
+    } else if (f == EDGE) {
+        behind = abs(off);
     }
     return behind <= chunk.gap && depth <= r.y + PEEL_SLOPE_CAP * chunk.gap;
 }
@@ -106,11 +132,15 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
             return false;
         }
         let n = normal_at(local);
-        let own_front = !turned_away(p, n);
-        if (!turned_away(p, peel_ref[2u * pixel].xyz) != own_front) {
+        let own = facing(p, n);
+        // An edge-on point behind a covered pixel starts no layer (cpu::project::Facing).
+        if (own == EDGE) {
+            return true;
+        }
+        if (opposes(own, facing(p, peel_ref[2u * pixel].xyz))) {
             return false;
         }
-        if (on_plane(p, depth, own_front, pixel)) {
+        if (on_plane(p, depth, own, pixel)) {
             return true;
         }
         // Only grazing points (cpu::project::GRAZING_COS2).
@@ -135,7 +165,7 @@ fn peeled(p: vec3<f32>, local: u32, pixel: u32, depth: f32) -> bool {
                 }
                 let pl = peel_ref[2u * q];
                 if (abs(dot3(pl.xyz, here) - pl.w) <= PEEL_NEIGHBOUR_GAPS * chunk.gap
-                    && on_plane(p, depth, own_front, q)) {
+                    && on_plane(p, depth, own, q)) {
                     return true;
                 }
             }
