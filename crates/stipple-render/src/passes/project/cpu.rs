@@ -522,16 +522,31 @@ fn project_peeled(
             if t.planes.is_some() && t.peeled_with(v, pix, p, z, index, f) {
                 continue;
             }
-            if let Some(n) = normals {
-                if back_facing(v, p, n[index]) {
-                    continue;
-                }
-            }
-            kept += 1;
-            write(pix, key(z, index as u32));
+            kept += emit(v, normals, p, pix, z, index, &mut write);
         }
     }
     kept
+}
+
+/// Writes the key of a point that passed the view and peel tests, unless culling (`normals`
+/// given) finds it back-facing; returns 1 if written, else 0.
+#[inline(always)]
+fn emit(
+    v: &ViewParams,
+    normals: Option<&[Vec3]>,
+    p: Vec3,
+    pix: usize,
+    z: f32,
+    index: usize,
+    write: &mut impl FnMut(usize, u64),
+) -> u64 {
+    if let Some(n) = normals {
+        if back_facing(v, p, n[index]) {
+            return 0;
+        }
+    }
+    write(pix, key(z, index as u32));
+    1
 }
 
 #[inline(always)]
@@ -547,14 +562,7 @@ fn project_loop(
         let Some((pix, z)) = project_point(v, p) else {
             continue;
         };
-        let index = base + k;
-        if let Some(n) = normals {
-            if back_facing(v, p, n[index]) {
-                continue;
-            }
-        }
-        kept += 1;
-        write(pix, key(z, index as u32));
+        kept += emit(v, normals, p, pix, z, base + k, &mut write);
     }
     kept
 }
