@@ -33,6 +33,8 @@ pub struct CpuRenderer {
     peel_ref: Vec<f32>,
     peel_planes: Vec<project::Plane>,
     peel_own: Vec<f32>,
+    /// One bit per point, set once a layer's test has peeled it (`PeelTest::done`).
+    peel_done: Vec<AtomicU64>,
     acc: Vec<[f32; 4]>,
     /// The splat pass's blended normals and albedo (blend mode).
     blended: crate::passes::splat::cpu::Blended,
@@ -245,11 +247,21 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             Some(n) if r.peel_planes.len() == v.pixels() => Some((&r.peel_planes[..], n)),
             _ => None,
         };
+        if peel.is_none() {
+            // A first layer: no point is peeled yet.
+            let words = c.positions.len().div_ceil(64);
+            r.peel_done.resize_with(words, || AtomicU64::new(0));
+            r.peel_done.truncate(words);
+            for w in &r.peel_done {
+                w.store(0, Ordering::Relaxed);
+            }
+        }
         let peel = peel.map(|gap| project::PeelTest {
             reference: &r.peel_ref,
             own: &r.peel_own,
             planes,
             gap,
+            done: Some(&r.peel_done),
         });
         let bufs = &mut r.private;
         let kept = timed(stats, PassId::Project, || {

@@ -42,6 +42,9 @@ pub struct GpuCloud {
     pub chunks: Vec<Chunk>,
     /// Bound where a chunk has no normals or albedo (never read then).
     pub dummy: wgpu::Buffer,
+    /// Depth peeling: one bit per point, set once a layer's test has peeled it (see
+    /// `passes::project::cpu::PeelTest::done`); cleared by the first layer.
+    pub done: wgpu::Buffer,
 }
 
 static NEXT_KEY: AtomicU64 = AtomicU64::new(1);
@@ -127,6 +130,12 @@ impl GpuCloud {
             base = end;
         }
         let dummy = init("dummy", &[0u8; 16]);
+        let done = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("peeled points"),
+            size: (c.len().div_ceil(32).max(1) * 4) as u64,
+            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         ctx.take_errors()?;
         let mut up = GpuCloud {
             key: NEXT_KEY.fetch_add(1, Ordering::Relaxed),
@@ -144,6 +153,7 @@ impl GpuCloud {
             lit_key: 0,
             chunks,
             dummy,
+            done,
         };
         up.set_lit(ctx, cloud.lit(), cloud.lit_key)?;
         Ok(up)

@@ -107,7 +107,7 @@ pub(crate) struct Project {
     pub resolve: wgpu::ComputePipeline,
 }
 
-const BASE: [Slot; 6] = [UNIFORM, DYNAMIC, READ, READ, WRITE, READ];
+const BASE: [Slot; 7] = [UNIFORM, DYNAMIC, READ, READ, WRITE, READ, WRITE];
 
 impl GpuPass for Project {
     fn new(ctx: &GpuContext, _: &Shared) -> Project {
@@ -148,7 +148,8 @@ impl GpuPass for Project {
 
 impl Project {
     /// The layout of the projection in use: view, chunk block (arena), positions, normals,
-    /// counters, the peeling reference depth, then the visibility buffer(s).
+    /// counters, the peeling reference depth, the peeled points' bits, then the visibility
+    /// buffer(s).
     pub fn bgl(&self) -> &wgpu::BindGroupLayout {
         match &self.wide {
             Some((bgl, _)) => bgl,
@@ -171,6 +172,10 @@ pub(crate) fn record(
     let q = rec.section();
     rec.enc.clear_buffer(&f.vis, 0, None);
     rec.enc.clear_buffer(&f.vis_id, 0, None);
+    if peel.is_none() {
+        // A first layer: no point is peeled yet.
+        rec.enc.clear_buffer(&cloud.done, 0, None);
+    }
     let slot = rec.slot()?;
     let cull = cull && cloud.has_normals;
     let proj = b.pass::<Project>();
@@ -194,6 +199,7 @@ pub(crate) fn record(
             Res::Buf(c.normals.as_ref().unwrap_or(&cloud.dummy)),
             Res::Buf(&s.counters),
             Res::Buf(&f.peel_ref),
+            Res::Buf(&cloud.done),
             Res::Buf(&f.vis),
         ];
         if proj.wide.is_none() {

@@ -42,6 +42,8 @@ const BATCH: u32 = 8u;
 // What the previous layer left (depth peeling; bound but unread otherwise): see
 // peel_reference.wgsl.
 @group(0) @binding(5) var<storage, read> peel_ref: array<vec4<f32>>;
+// One bit per point, set once a layer's test has peeled it (cpu::project::PeelTest::done).
+@group(0) @binding(6) var<storage, read_write> done: array<atomic<u32>>;
 
 var<workgroup> kept: atomic<u32>;
 
@@ -189,8 +191,17 @@ fn visible_point(wg: vec3<u32>, groups: vec3<u32>, li: u32, k: u32) -> Hit {
     if (h.ok && back_facing(p, local)) {
         h.ok = false;
     }
-    if (h.ok && chunk.peel == 1u && peeled(p, local, h.pixel, h.depth)) {
-        h.ok = false;
+    if (h.ok && chunk.peel == 1u) {
+        // A point peeled by an earlier layer stays peeled; one peeled now is marked. (The
+        // two passes of the 32-bit path agree: a point marked by the first was peeled.)
+        let i = chunk.base + local;
+        let bit = 1u << (i % 32u);
+        if ((atomicLoad(&done[i / 32u]) & bit) != 0u) {
+            h.ok = false;
+        } else if (peeled(p, local, h.pixel, h.depth)) {
+            atomicOr(&done[i / 32u], bit);
+            h.ok = false;
+        }
     }
     h.index = chunk.base + local;
     return h;

@@ -3,8 +3,8 @@
 // order like the values); pass 2 keeps, among the points at exactly that depth, the smallest
 // index. The result equals the 64-bit key minimum.
 
-@group(0) @binding(6) var<storage, read_write> vis_depth: array<atomic<u32>>;
-@group(0) @binding(7) var<storage, read_write> vis_id: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> vis_depth: array<atomic<u32>>;
+@group(0) @binding(8) var<storage, read_write> vis_id: array<atomic<u32>>;
 
 @compute @workgroup_size(256)
 fn project_depth(

@@ -3,7 +3,7 @@
 // turns "nearest, then smallest index" into a maximum, so the buffer clears to zero.
 // With only MIN_MAX the value an atomic returns must be discarded: it is.
 
-@group(0) @binding(6) var<storage, read_write> vis: array<atomic<u64>>;
+@group(0) @binding(7) var<storage, read_write> vis: array<atomic<u64>>;
 
 @compute @workgroup_size(256)
 fn project(
