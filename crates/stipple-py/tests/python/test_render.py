@@ -288,14 +288,32 @@ def test_build_a_tree_and_render_it(tmp_path, cli):
 def test_an_interrupted_tree_build_leaves_nothing(tmp_path):
     rng = np.random.default_rng(3)
     las = tmp_path / "big.las"
-    stipple.Cloud(rng.uniform(0, 1000, size=(3_000_000, 3))).save(las)
+    stipple.Cloud(rng.uniform(0, 1000, size=(6_000_000, 3))).save(las)
     out = tmp_path / "big.stlod"
-    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
-    timer.start()
+    # The interrupt comes once the build is under way (its temporary files exist), not after
+    # a fixed delay: 3 M points once built in 0.3 s, and a signal after the build escaped the
+    # test and stopped the whole session. It never comes after the build has returned.
+    returned = threading.Event()
+
+    def interrupt():
+        deadline = time.monotonic() + 30
+        while not returned.is_set() and time.monotonic() < deadline:
+            if any(f.name != "big.las" for f in tmp_path.iterdir()):
+                time.sleep(0.02)
+                break
+            time.sleep(0.001)
+        if not returned.is_set():
+            os.kill(os.getpid(), signal.SIGINT)
+
+    watcher = threading.Thread(target=interrupt)
     t0 = time.monotonic()
-    with pytest.raises(KeyboardInterrupt):
-        stipple.build_lod(las, out, memory="128M")
-    timer.cancel()
+    watcher.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            stipple.build_lod(las, out, memory="128M")
+    finally:
+        returned.set()
+        watcher.join()
     assert time.monotonic() - t0 < 3.0
     assert not out.exists()
     assert sorted(f.name for f in tmp_path.iterdir()) == ["big.las"]
