@@ -227,31 +227,14 @@ pub struct PeelTest<'a> {
 /// cap of the slope factor, §6).
 pub const PEEL_SLOPE_CAP: f32 = 16.0;
 
-/// What [`PeelTest`] reads first at a point's pixel (see [`PeelTest::fetch`]).
-#[derive(Clone, Copy, Default)]
-pub struct Fetched {
-    /// The previous layer's depth (with planes) or reference depth (without).
-    depth: f32,
-    plane: Plane,
-}
-
 impl PeelTest<'_> {
     /// Does the point `index` at `p`, depth `z` in pixel `pix`, belong to a layer already
     /// peeled?
     #[inline(always)]
     pub fn peeled(&self, v: &ViewParams, pix: usize, p: Vec3, z: f32, index: usize) -> bool {
-        self.peeled_with(v, pix, p, z, index, self.fetch(pix))
-    }
-
-    /// The pixel's depth and plane, which every test reads (the peeled projection reads them
-    /// a batch of points at a time).
-    #[inline(always)]
-    pub fn fetch(&self, pix: usize) -> Fetched {
         let depth = self.depth(pix);
-        Fetched {
-            depth,
-            plane: self.plane(pix),
-        }
+        self.by_depth(z, depth)
+            .unwrap_or_else(|| self.by_plane(v, pix, p, z, index, depth, self.plane(pix)))
     }
 
     /// The depth a test compares with first at `pix`: the previous layer's own depth with
@@ -273,7 +256,8 @@ impl PeelTest<'_> {
         }
     }
 
-    /// What the depth alone decides: `Some(peeled)`, or `None` when the plane must be read.
+    /// What the depth alone decides: `Some(peeled)`, or `None` when the plane must be read
+    /// ([`PeelTest::by_plane`]; only with planes).
     #[inline(always)]
     fn by_depth(&self, z: f32, depth: f32) -> Option<bool> {
         match self.planes {
@@ -283,23 +267,22 @@ impl PeelTest<'_> {
         }
     }
 
-    /// [`PeelTest::peeled`] with what [`PeelTest::fetch`] read at `pix`.
+    /// The rest of [`PeelTest::peeled`] where the depth did not decide: the previous layer's
+    /// depth `d0` and plane `c` at `pix`, as [`PeelTest::depth`] and [`PeelTest::plane`] read
+    /// them (the peeled projection reads them a batch of points at a time).
     #[inline(always)]
-    pub fn peeled_with(
+    #[allow(clippy::too_many_arguments)]
+    fn by_plane(
         &self,
         v: &ViewParams,
         pix: usize,
         p: Vec3,
         z: f32,
         index: usize,
-        f: Fetched,
+        d0: f32,
+        c: Plane,
     ) -> bool {
-        if let Some(peeled) = self.by_depth(z, f.depth) {
-            return peeled;
-        }
         if let Some((planes, normals)) = self.planes {
-            let d0 = f.depth;
-            let c = f.plane;
             if !c[3].is_finite() {
                 return false;
             }
@@ -504,7 +487,8 @@ fn project_peeled(
 ) -> u64 {
     const N: usize = 64;
     let mut kept = 0;
-    let mut batch = [(0usize, 0f32, 0usize, Fetched::default()); N];
+    // (pixel, depth, index in the chunk, the previous layer's depth and plane there)
+    let mut batch = [(0usize, 0f32, 0usize, 0f32, [0f32; 4]); N];
     let mark = |i: usize| {
         if let Some(d) = t.done {
             d[i / 64].fetch_or(1 << (i % 64), Ordering::Relaxed);
@@ -512,7 +496,7 @@ fn project_peeled(
     };
     for (c, chunk) in positions.chunks(N).enumerate() {
         let mut n = 0;
-        // The chunk's points already peeled (whole words where the chunk is aligned).
+        // Points already peeled by an earlier layer.
         let first = base + c * N;
         let skip = |k: usize| {
             t.done.is_some_and(|d| {
@@ -524,33 +508,29 @@ fn project_peeled(
             if skip(k) {
                 continue;
             }
-            if let Some((pix, z)) = project_point(v, p) {
-                let depth = t.depth(pix);
-                if let Some(peeled) = t.by_depth(z, depth) {
-                    if peeled {
-                        mark(first + k);
-                        continue;
-                    }
-                    // Kept by the depth alone (no planes): the plane is never read.
-                }
-                let plane = [0.0, 0.0, 0.0, f32::NAN];
-                batch[n] = (pix, z, k, Fetched { depth, plane });
-                n += 1;
-            }
-        }
-        if t.planes.is_some() {
-            for (pix, _, _, f) in &mut batch[..n] {
-                f.plane = t.plane(*pix);
-            }
-        }
-        for &(pix, z, k, f) in &batch[..n] {
-            let p = chunk[k];
-            let index = base + c * N + k;
-            if t.planes.is_some() && t.peeled_with(v, pix, p, z, index, f) {
-                mark(index);
+            let Some((pix, z)) = project_point(v, p) else {
                 continue;
+            };
+            let depth = t.depth(pix);
+            match t.by_depth(z, depth) {
+                Some(true) => mark(first + k),
+                Some(false) => kept += emit(v, normals, p, pix, z, first + k, &mut write),
+                None => {
+                    batch[n] = (pix, z, k, depth, [0.0; 4]);
+                    n += 1;
+                }
             }
-            kept += emit(v, normals, p, pix, z, index, &mut write);
+        }
+        for (pix, _, _, _, plane) in &mut batch[..n] {
+            *plane = t.plane(*pix);
+        }
+        for &(pix, z, k, depth, plane) in &batch[..n] {
+            let (p, index) = (chunk[k], first + k);
+            if t.by_plane(v, pix, p, z, index, depth, plane) {
+                mark(index);
+            } else {
+                kept += emit(v, normals, p, pix, z, index, &mut write);
+            }
         }
     }
     kept
