@@ -929,6 +929,13 @@ pub struct LookArgs {
     /// Side of the light images in pixels (default: about two point spacings per pixel).
     #[arg(long, value_name = "PX")]
     pub shadow_size: Option<u32>,
+    /// Translucent shadows (Gunjee et al. §4.1): light layers peeled from each light image
+    /// when some point has an opacity below 1, 1 to 64 [default: 8, or a scene's
+    /// `shadow_layers`]. Each surface of opacity α in front of a point lets 1 − α of the light
+    /// through; points behind the last layer get what the layers let through. 1 = every
+    /// surface casts a full shadow, as an opaque one does.
+    #[arg(long, value_name = "N")]
+    pub shadow_layers: Option<u32>,
     /// Reuse shadow textures: load them from FILE when they were computed for the same clouds,
     /// placement and lights (the whole scene may have moved), else compute and save them there.
     #[arg(long, value_name = "FILE.stshadow")]

@@ -117,11 +117,19 @@ pub fn apply(
             .shadow_size
             .or(scene.and_then(|s| s.render.shadow_size))
             .unwrap_or(0),
+        layers: look
+            .shadow_layers
+            .or(scene.and_then(|s| s.render.shadow_layers))
+            .unwrap_or(ShadowSettings::default().layers),
         ..ShadowSettings::default()
     };
-    settings
-        .validate()
-        .map_err(|e| anyhow!("--shadow-size: {e}"))?;
+    settings.validate().map_err(|e| {
+        let flag = match e {
+            shadow::ShadowError::Layers(_) => "--shadow-layers (or a scene's shadow_layers)",
+            _ => "--shadow-size",
+        };
+        anyhow!("{flag}: {e}")
+    })?;
     let max_samples = look.shadow_samples.unwrap_or(shadow::MAX_SAMPLES);
     if !(1..=shadow::MAX_SAMPLES).contains(&max_samples) {
         return Err(anyhow!(

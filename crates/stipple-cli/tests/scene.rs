@@ -429,3 +429,68 @@ fn light_falloff_from_the_flag_and_the_scene_agree() {
         text(&out)
     );
 }
+
+/// Translucent shadows from the command line and from a scene's `[render] shadow_layers`:
+/// the same image either way; a translucent ball's shadow lets light through (a brighter
+/// image than with `--shadow-layers 1`, where it casts a full shadow); counts outside 1–64
+/// refused with the flag or field named.
+#[test]
+fn translucent_shadows_from_the_flag_and_the_scene_agree() {
+    let dir = tempdir("translucent");
+    let scene = |layers: &str| {
+        format!(
+            "[camera]\neye = [0.0, 3.0, 2.0]\ntarget = [0.0, 0.0, 0.0]\nsize = [96, 96]\n\
+             [render]\n{layers}\n[[cloud]]\ndemo = \"plane\"\npoints = 80000\nscale = 3\n\
+             colour = [200, 200, 200]\n[[cloud]]\ndemo = \"sphere\"\npoints = 40000\n\
+             scale = 0.5\ntranslate = [0.0, 0.8, 0.0]\ncolour = [90, 120, 220]\nopacity = 0.4\n\
+             [[light]]\ntype = \"point\"\nposition = [0.6, 3.0, 0.0]\n"
+        )
+    };
+    let mean = |png: &Path| -> f64 {
+        let (_, _, rgba) = stipple_io::image::read_png(png).unwrap();
+        rgba.chunks(4).map(|p| p[0] as f64).sum::<f64>() / (rgba.len() / 4) as f64
+    };
+    std::fs::write(dir.join("default.toml"), scene("")).unwrap();
+    std::fs::write(dir.join("one.toml"), scene("shadow_layers = 1")).unwrap();
+    let render = |file: &str, out: &str, extra: &[&str]| {
+        let mut args = vec!["render", file, "-o", out, "--backend", "cpu"];
+        args.extend_from_slice(extra);
+        ok(&dir, &args);
+        mean(&dir.join(out))
+    };
+    let translucent = render("default.toml", "t.png", &[]);
+    let full = render("one.toml", "full.png", &[]);
+    let flag = render("default.toml", "flag.png", &["--shadow-layers", "1"]);
+    assert!(
+        translucent > full + 1.0,
+        "a translucent ball's shadow lets light through: {translucent} vs {full}"
+    );
+    assert_eq!(
+        full, flag,
+        "the flag and the scene field give the same image"
+    );
+    let out = stipple(
+        &dir,
+        &[
+            "render",
+            "default.toml",
+            "--shadow-layers",
+            "0",
+            "-o",
+            "x.png",
+        ],
+    );
+    assert!(
+        !out.status.success() && text(&out).contains("--shadow-layers"),
+        "{}",
+        text(&out)
+    );
+    std::fs::write(dir.join("bad.toml"), scene("shadow_layers = 65")).unwrap();
+    let out = stipple(&dir, &["render", "bad.toml", "-o", "x.png"]);
+    assert!(
+        !out.status.success() && text(&out).contains("shadow_layers"),
+        "{}",
+        text(&out)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -25,6 +25,7 @@ pub mod schedule;
 pub mod shadow;
 pub mod srgb;
 pub mod stats;
+pub mod translucent;
 
 pub use frame::Frame;
 pub use gbuffer::{is_point, GBuffer, BACKGROUND, HOLE};

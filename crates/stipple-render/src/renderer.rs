@@ -13,7 +13,7 @@ enum Inner {
     Cpu(Box<cpu::CpuRenderer>),
     Gpu {
         renderer: Box<gpu::GpuRenderer>,
-        uploaded: Option<(u64, gpu::GpuCloud)>,
+        uploaded: Option<Box<(u64, gpu::GpuCloud)>>,
     },
 }
 
@@ -150,6 +150,7 @@ impl Renderer {
             .layer_gap
             .unwrap_or_else(|| cloud.layer_gap(&Pipeline::default()));
         let bounds = cloud.bounds();
+        let layers = crate::translucent::light_layers(cloud, settings);
         let mut todo = Vec::new();
         for (l, light) in lights.iter().enumerate() {
             let target = shadow::light_samples(light).min(max_samples);
@@ -171,8 +172,9 @@ impl Renderer {
         }
         for (done, &(l, k)) in todo.iter().enumerate() {
             let pos = shadow::sample_position(&lights[l], k).expect("lights with samples");
-            let views =
-                shadow::light_views(&bounds, cloud.cloud.origin, cloud.spacing, pos, settings);
+            let c = &cloud.cloud;
+            let near = shadow::near_distance(&c.positions, c.origin, pos);
+            let views = shadow::light_views(&bounds, c.origin, cloud.spacing, pos, near, settings);
             let params = |view: &shadow::LightView| {
                 let v = &view.view;
                 let z = far_depth(v, &bounds);
@@ -182,6 +184,7 @@ impl Renderer {
                     slope_cap: settings.slope_cap,
                     face: view.face,
                     light: l as u32,
+                    mode: Default::default(),
                 }
             };
             match &mut self.inner {
@@ -189,13 +192,13 @@ impl Renderer {
                     for view in &views {
                         let p = params(view);
                         let light_pipe = settings.light_pipeline(p.fill_gap);
-                        r.light_view(cloud, &view.view, &light_pipe, &p, &mut lit.counts);
+                        r.light_view(cloud, &view.view, &light_pipe, &p, layers, &mut lit.counts);
                     }
                 }
                 Inner::Gpu { renderer, uploaded } => {
                     let up = &uploaded.as_ref().expect("uploaded above").1;
                     let marks: Vec<_> = views.iter().map(|v| (v.view, params(v))).collect();
-                    renderer.shadow_views(up, &marks, settings)?;
+                    renderer.shadow_views(up, &marks, settings, layers)?;
                 }
             }
             lit.samples[l] = k + 1;
@@ -228,13 +231,13 @@ fn far_depth(v: &crate::params::ViewParams, b: &stipple_core::Bounds) -> f32 {
 /// The GPU copy of `cloud`, uploaded (or its shadow texture updated) when it changed.
 fn upload<'a>(
     renderer: &gpu::GpuRenderer,
-    uploaded: &'a mut Option<(u64, gpu::GpuCloud)>,
+    uploaded: &'a mut Option<Box<(u64, gpu::GpuCloud)>>,
     cloud: &PreparedCloud,
 ) -> Result<&'a mut gpu::GpuCloud, RenderError> {
     if uploaded.as_ref().map(|u| u.0) != Some(cloud.key) {
         *uploaded = None;
         let up = gpu::GpuCloud::upload(renderer.context(), cloud)?;
-        *uploaded = Some((cloud.key, up));
+        *uploaded = Some(Box::new((cloud.key, up)));
     }
     let up = &mut uploaded.as_mut().expect("uploaded").1;
     if up.lit_key != cloud.lit_key {

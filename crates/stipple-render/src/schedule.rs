@@ -11,6 +11,11 @@
 //!                  [blend_layer, keep_layer, peel_behind]
 //!              [compose] output
 //! light view:  project → the light pipeline's geometry passes → mark   (shadow textures)
+//! translucent: begin_transmit
+//! light view   for each light layer (ShadowSettings::layers):
+//!                  project (peeling) → geometry passes → mark (layer)
+//!                  light_surface → blend_layer (transmittance) → peel_behind
+//!              mark (rest)
 //! ```
 //!
 //! A backend implements [`PassExec`]: the CPU runs each step when it is called, the GPU
@@ -18,7 +23,7 @@
 //! and the rules around them (culling only without peeling, stopping at an empty layer,
 //! which layer's depth is the frame's), live here and nowhere else.
 
-use crate::passes::shadow_texture::cpu::MarkParams;
+use crate::passes::shadow_texture::cpu::{MarkMode, MarkParams};
 use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
 use crate::SplatSettings;
 
@@ -69,8 +74,18 @@ pub trait PassExec {
     /// Encodes the colour image to 8-bit sRGB.
     fn output(&mut self) -> Result<(), Self::Error>;
 
-    /// Marks the points the light sees in this light image (Dobrev §6).
+    /// Marks the points the light sees in this light image (Dobrev §6), or with a
+    /// translucent mode the points of this light layer (see `passes::shadow_texture::cpu`).
     fn mark(&mut self, params: &MarkParams) -> Result<(), Self::Error>;
+
+    /// A translucent light view begins: every light pixel lets all light through (the
+    /// blend accumulator's transmittance is 1) and no point is marked yet.
+    fn begin_transmit(&mut self) -> Result<(), Self::Error>;
+
+    /// A light layer's surface for the steps after it: the per-pixel surface depth (the
+    /// layer's depth, as shade leaves it for points) and each pixel's point attributes
+    /// (opacity, position and normal), which `blend_layer` and `peel_behind` read.
+    fn light_surface(&mut self) -> Result<(), Self::Error>;
 }
 
 /// Runs (or records) one frame of `pipe`; `gap` is the layer gap d̃ for the cloud (see
@@ -133,19 +148,50 @@ fn layer<X: PassExec>(
     Ok(kept)
 }
 
-/// One light image of a shadow texture: project from the light (nothing culled, nothing
-/// peeled), close the holes with `light_pipe`'s geometry passes and mark the points the
-/// light sees (see [`crate::shadow`]).
+/// One light image of a shadow texture: project from the light (nothing culled), close the
+/// holes with `light_pipe`'s geometry passes and mark the points the light sees (see
+/// [`crate::shadow`]). With `layers` > 1 (a translucent cloud, see [`crate::translucent`])
+/// the light image is peeled into up to `layers` layers, each marking its points with the
+/// light the layers in front of it let through.
 pub fn light_view<X: PassExec>(
     x: &mut X,
     light_pipe: &Pipeline,
     params: &MarkParams,
+    layers: u32,
 ) -> Result<(), X::Error> {
-    x.project(None, None, false)?;
-    for pass in &light_pipe.geometry {
-        x.geometry(pass, params.fill_gap)?;
+    if layers <= 1 {
+        x.project(None, None, false)?;
+        for pass in &light_pipe.geometry {
+            x.geometry(pass, params.fill_gap)?;
+        }
+        return x.mark(&MarkParams {
+            mode: MarkMode::Opaque,
+            ..*params
+        });
     }
-    x.mark(params)
+    x.begin_transmit()?;
+    for k in 0..layers {
+        let peel = (k > 0).then_some(params.fill_gap);
+        if x.project(None, peel, false)? == Some(0) {
+            break;
+        }
+        for pass in &light_pipe.geometry {
+            x.geometry(pass, params.fill_gap)?;
+        }
+        x.mark(&MarkParams {
+            mode: MarkMode::Layer,
+            ..*params
+        })?;
+        x.light_surface()?;
+        x.blend_layer()?;
+        if k + 1 < layers {
+            x.peel_behind(params.fill_gap)?;
+        }
+    }
+    x.mark(&MarkParams {
+        mode: MarkMode::Rest,
+        ..*params
+    })
 }
 
 #[cfg(test)]
@@ -223,7 +269,16 @@ mod tests {
             Ok(())
         }
         fn mark(&mut self, p: &MarkParams) -> Result<(), ()> {
-            self.steps.push(format!("mark(light {})", p.light));
+            self.steps
+                .push(format!("mark(light {}, {:?})", p.light, p.mode));
+            Ok(())
+        }
+        fn begin_transmit(&mut self) -> Result<(), ()> {
+            self.steps.push("begin_transmit".into());
+            Ok(())
+        }
+        fn light_surface(&mut self) -> Result<(), ()> {
+            self.steps.push("light_surface".into());
             Ok(())
         }
     }
@@ -318,15 +373,46 @@ mod tests {
             slope_cap: 16.0,
             face: 0,
             light: 2,
+            mode: MarkMode::Rest,
         };
-        light_view(&mut x, &light, &params).unwrap();
+        light_view(&mut x, &light, &params, 1).unwrap();
         assert_eq!(
             x.steps,
             [
                 "project(peel None, cull false)",
                 "fill_background(0.125)",
-                "mark(light 2)"
+                "mark(light 2, Opaque)"
             ]
         );
+
+        // Translucent: layers peel behind each other with the light gap until one is empty,
+        // then the points no layer marked take what is left.
+        let mut x = log(2, true);
+        light_view(&mut x, &light, &params, 4).unwrap();
+        assert_eq!(
+            x.steps,
+            [
+                "begin_transmit",
+                "project(peel None, cull false)",
+                "fill_background(0.125)",
+                "mark(light 2, Layer)",
+                "light_surface",
+                "blend",
+                "peel_behind",
+                "project(peel Some(0.125), cull false)",
+                "fill_background(0.125)",
+                "mark(light 2, Layer)",
+                "light_surface",
+                "blend",
+                "peel_behind",
+                "project(peel Some(0.125), cull false)",
+                "mark(light 2, Rest)"
+            ]
+        );
+        let mut x = log(9, false);
+        light_view(&mut x, &light, &params, 3).unwrap();
+        assert_eq!(x.steps.iter().filter(|s| *s == "peel_behind").count(), 2);
+        assert_eq!(x.steps.iter().filter(|s| *s == "blend").count(), 3);
+        assert_eq!(x.steps.last().unwrap(), "mark(light 2, Rest)");
     }
 }

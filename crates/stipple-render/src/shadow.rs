@@ -39,8 +39,11 @@
 //! texture can be refined progressively: one sample first, then more towards N, each new
 //! sample adding to the counts (m = lit samples / samples taken).
 //!
-//! A texture holds up to [`MAX_LIGHTS`] lights and [`MAX_SAMPLES`] samples each: one byte of
-//! a u32 per point and light, the count of samples that lit it.
+//! A texture holds up to [`MAX_LIGHTS`] lights and [`MAX_SAMPLES`] samples each: 16 bits per
+//! point and light, the light its samples brought in units of [`FULL`] per fully lit sample
+//! (an opaque cloud's points take 0 or [`FULL`] per sample; a point behind translucent
+//! surfaces takes its transmittance times [`FULL`], rounded; see [`crate::translucent`]), so
+//! m = sum / ([`FULL`] · samples).
 
 pub use crate::lights::{light_samples, sample_position};
 use crate::params::ViewParams;
@@ -50,11 +53,16 @@ use stipple_core::{Bounds, Camera, Projection};
 
 pub use crate::lights::{MAX_LIGHTS, MAX_SAMPLES};
 
-/// Per-point lit counts for up to four lights, and the samples taken for each.
+/// What one sample that reaches a point unattenuated adds to its lit sum.
+pub const FULL: u16 = 255;
+
+/// Per-point lit sums for up to four lights, and the samples taken for each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LitTexture {
-    /// Light l's count in byte l.
-    pub counts: Vec<u32>,
+    /// Light l's sum in element l ([`FULL`] per fully lit sample). In memory (little-endian)
+    /// this is what the GPU reads as two u32 words per point: lights 0 | 1 << 16 and
+    /// 2 | 3 << 16.
+    pub counts: Vec<[u16; 4]>,
     /// Samples taken per light (0: no shadow texture for that light, m = 1).
     pub samples: [u32; 4],
 }
@@ -62,7 +70,7 @@ pub struct LitTexture {
 impl LitTexture {
     pub fn new(points: usize) -> LitTexture {
         LitTexture {
-            counts: vec![0; points],
+            counts: vec![[0; 4]; points],
             samples: [0; 4],
         }
     }
@@ -78,7 +86,7 @@ pub struct ShadowSettings {
     /// Side of the (square) light image in pixels; 0 = automatic: a light pixel about twice
     /// the point spacing at the cloud's centre (a surface facing the light then puts one to
     /// four points in each pixel: few holes, and shadow edges as sharp as the points allow),
-    /// within 64 to 4096.
+    /// within 64 to [`MAX_AUTO_SIZE`].
     pub size: u32,
     /// The largest 1/⟨v, n⟩ (see the module notes).
     pub slope_cap: f32,
@@ -92,6 +100,10 @@ pub struct ShadowSettings {
     /// sphere-over-plane test 1 iteration gives an IoU of 0.98 with the analytic shadow, 2
     /// give 0.975, 8 give 0.95.
     pub occluded_fill_iterations: u32,
+    /// Light layers peeled for a translucent cloud (one with an opacity below 1; see
+    /// [`crate::translucent`]); an opaque cloud takes one light image whatever this says.
+    /// Points behind the last layer get the light the layers let through.
+    pub layers: u32,
 }
 
 impl Default for ShadowSettings {
@@ -102,6 +114,7 @@ impl Default for ShadowSettings {
             layer_gap: None,
             background_fill_iterations: 8,
             occluded_fill_iterations: 1,
+            layers: 8,
         }
     }
 }
@@ -138,6 +151,9 @@ impl ShadowSettings {
         if !(self.slope_cap >= 1.0 && self.slope_cap.is_finite()) {
             return Err(ShadowError::SlopeCap(self.slope_cap));
         }
+        if !(1..=MAX_LIGHT_LAYERS).contains(&self.layers) {
+            return Err(ShadowError::Layers(self.layers));
+        }
         if let Some(g) = self.layer_gap {
             if !(g > 0.0 && g.is_finite()) {
                 return Err(ShadowError::LayerGap(g));
@@ -154,6 +170,8 @@ pub enum ShadowError {
     MapSize(u32),
     #[error("slope cap {0}: must be at least 1")]
     SlopeCap(f32),
+    #[error("{0} light layers: must be 1 to {MAX_LIGHT_LAYERS}")]
+    Layers(u32),
     #[error("layer gap {0}: must be a positive distance")]
     LayerGap(f32),
     #[error("shadow texture for {texture} points, but the cloud has {cloud}")]
@@ -170,6 +188,15 @@ pub struct LightView {
 }
 
 pub const ALL_FACES: u32 = 6;
+
+/// The largest automatic light image side: its per-pixel buffers (16 bytes a pixel, 32 for
+/// the planes of translucent layers) fit the 128 MiB storage binding that every GPU adapter
+/// offers, so both backends use the same light images (at 4096 the GPU refused
+/// `examples/shadows.toml`). A larger `size` can be asked for explicitly.
+pub const MAX_AUTO_SIZE: u32 = 2048;
+
+/// The most light layers a translucent shadow peels ([`ShadowSettings::layers`]).
+pub const MAX_LIGHT_LAYERS: u32 = 64;
 
 /// The cube face of direction `d` (as the shader computes it).
 #[inline]
@@ -194,13 +221,32 @@ pub fn dominant_face(d: Vec3) -> u32 {
     }
 }
 
+/// The distance from `light` (world) within which a tenth of the points (local positions,
+/// `origin`) lie, from a strided sample of at most 4096 of them.
+pub fn near_distance(positions: &[Vec3], origin: DVec3, light: DVec3) -> f64 {
+    if positions.is_empty() {
+        return 0.0;
+    }
+    let step = positions.len().div_ceil(4096);
+    let local = light - origin;
+    let mut d: Vec<f64> = positions
+        .iter()
+        .step_by(step)
+        .map(|p| (p.as_dvec3() - local).length())
+        .collect();
+    let k = d.len() / 10;
+    *d.select_nth_unstable_by(k, f64::total_cmp).1
+}
+
 /// The views that see a cloud (local bounds `bounds`, origin `origin`, median spacing
-/// `spacing`) from world position `light`.
+/// `spacing`) from world position `light`; `near` is the distance within which a tenth of
+/// the points lie ([`near_distance`]), which sizes a cube's faces.
 pub fn light_views(
     bounds: &Bounds,
     origin: DVec3,
     spacing: f32,
     light: DVec3,
+    near: f64,
     settings: &ShadowSettings,
 ) -> Vec<LightView> {
     let lo = origin + bounds.min.as_dvec3();
@@ -229,7 +275,9 @@ pub fn light_views(
         if settings.size > 0 {
             settings.size
         } else {
-            (extent / (2.0 * spacing)).ceil().clamp(64.0, 4096.0) as u32
+            (extent / (2.0 * spacing))
+                .ceil()
+                .clamp(64.0, MAX_AUTO_SIZE as f64) as u32
         }
     };
     let up_for = |f: DVec3| {
@@ -275,9 +323,16 @@ pub fn light_views(
         }
     }
     // A cube around the light; faces overlap slightly, and each point is marked only by the
-    // face of its dominant axis.
+    // face of its dominant axis. A light pixel at a face's corners is about twice the
+    // spacing at the distance within which a tenth of the points lie: a surface near the
+    // light (a lamp's shade, the wall of a room around it) must cover its pixels without
+    // holes, or light passes through it (the cloud's centre, used before, can lie far beyond
+    // it or beside the light). A corner pixel subtends (1/3)^(3/2) of the solid angle of a
+    // centre pixel, so it holds that fraction of the points: the side is scaled by
+    // (1/3)^(3/4) of what the centre alone would ask.
     let fov = 2.0 * 1.02f64.atan();
-    let s = side(2.0 * dist.max(0.25 * diag) * 1.02);
+    let corner = (1.0f64 / 3.0).powf(0.75);
+    let s = side(2.0 * near.max(1e-3 * diag) * 1.02 * corner);
     let axes = [
         (DVec3::X, DVec3::Y),
         (-DVec3::X, DVec3::Y),
@@ -320,10 +375,18 @@ mod tests {
             max: Vec3::splat(1.0),
         };
         let s = ShadowSettings::default();
-        let v = light_views(&b, DVec3::ZERO, 0.01, DVec3::new(0.0, 10.0, 0.0), &s);
+        let v = light_views(&b, DVec3::ZERO, 0.01, DVec3::new(0.0, 10.0, 0.0), 10.0, &s);
         assert_eq!(v.len(), 1);
         assert_eq!(v[0].face, ALL_FACES);
-        let v = light_views(&b, DVec3::ZERO, 0.01, DVec3::new(0.2, 0.1, 0.0), &s);
+        let v = light_views(&b, DVec3::ZERO, 0.01, DVec3::new(0.2, 0.1, 0.0), 0.5, &s);
+        // Faces sized for the surfaces near the light: twice as near, twice as fine.
+        let inside = DVec3::new(0.2, 0.1, 0.0);
+        let side = |near| {
+            light_views(&b, DVec3::ZERO, 0.001, inside, near, &s)[0]
+                .view
+                .width
+        };
+        assert_eq!((side(0.5), side(0.25)), (224, 112));
         assert_eq!(v.len(), 6);
         // Every direction falls in the view of its own face.
         let mut rng = stipple_core::rng::Rng::new(1);

@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 use stipple_core::rng::Rng;
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::gpu::GpuOptions;
-use stipple_render::shadow::ShadowSettings;
+use stipple_render::shadow::{ShadowSettings, FULL};
 use stipple_render::{
     AreaLight, AreaShape, Backend, GeometryPass, Light, LitTexture, Pipeline, PreparedCloud,
     Renderer,
@@ -237,7 +237,7 @@ fn sphere_over_plane_point_light_shadow_matches_the_analytic_one() {
         // Plane: marked unlit vs the analytic shadow.
         let (mut inter, mut union, mut truth) = (0, 0, 0);
         for i in 0..s.plane {
-            let dark = lit.counts[i] == 0;
+            let dark = lit.counts[i][0] == 0;
             let want = segment_hits_sphere(l, pos[i], s.centre, s.radius);
             inter += (dark && want) as u32;
             union += (dark || want) as u32;
@@ -262,7 +262,7 @@ fn sphere_over_plane_point_light_shadow_matches_the_analytic_one() {
         for i in s.plane..pos.len() {
             if normals[i].dot(l - pos[i]) > 0.0 {
                 facing += 1;
-                lit_facing += (lit.counts[i] != 0) as u32;
+                lit_facing += (lit.counts[i][0] != 0) as u32;
             }
         }
         let frac = lit_facing as f64 / facing as f64;
@@ -277,7 +277,7 @@ fn sphere_over_plane_point_light_shadow_matches_the_analytic_one() {
         let back: Vec<usize> = (s.plane..pos.len())
             .filter(|&i| normals[i].dot(l - pos[i]) < -0.3 * (l - pos[i]).length())
             .collect();
-        let back_lit = back.iter().filter(|&&i| lit.counts[i] != 0).count();
+        let back_lit = back.iter().filter(|&&i| lit.counts[i][0] != 0).count();
         assert!(
             back_lit as f64 <= 1e-3 * back.len() as f64,
             "{}: {back_lit} of {} far side points lit",
@@ -319,8 +319,8 @@ fn the_penumbra_widens_as_the_area_light_grows() {
             assert_eq!(lit.samples[0], n);
             let penumbra = (0..s.plane)
                 .filter(|&i| {
-                    let c = lit.counts[i] & 0xff;
-                    c > 0 && c < n
+                    let c = lit.counts[i][0] as u32;
+                    c > 0 && c < n * FULL as u32
                 })
                 .count();
             widths.push(penumbra);
@@ -351,7 +351,10 @@ fn progressive_refinement_equals_computing_all_samples_at_once() {
         .shadow_texture(&s.cloud, &[light], &settings, None, 1, &mut |_, _| {})
         .unwrap();
     assert_eq!(first.samples[0], 1);
-    assert!(first.counts.iter().all(|&c| c <= 1), "one sample: binary");
+    assert!(
+        first.counts.iter().all(|c| c[0] == 0 || c[0] == FULL),
+        "one sample of an opaque cloud: all or nothing"
+    );
     let mut calls = 0;
     let refined = r
         .shadow_texture(
@@ -694,7 +697,7 @@ fn a_plane_under_a_low_point_light_has_no_shadow_acne() {
                 &mut |_, _| {},
             )
             .unwrap();
-        let unlit = lit.counts.iter().filter(|&&k| k & 0xff == 0).count();
+        let unlit = lit.counts.iter().filter(|k| k[0] == 0).count();
         assert!(
             unlit * 2000 < n,
             "{}: {unlit} of {n} points of a plane in full view of the light are unlit",

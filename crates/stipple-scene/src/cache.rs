@@ -2,9 +2,11 @@
 //! of what it was computed for (clouds, their placement and the lights, see
 //! `scene::relative_key`), reloaded instead of recomputed while the key matches.
 //!
-//! Layout (little-endian): magic `STSHADOW`, u32 version (1), u32 reserved (0), u64 key,
-//! u64 point count, 4 × u32 samples per light, then one u32 of packed counts per point
-//! (light l in byte l), then the CRC-32 of everything before it.
+//! Layout (little-endian): magic `STSHADOW`, u32 version (2), u32 reserved (0), u64 key,
+//! u64 point count, 4 × u32 samples per light, then four u16 lit sums per point (light l's
+//! at 2l; 255 per fully lit sample, see `stipple_render::LitTexture`), then the CRC-32 of
+//! everything before it. Version 1 (one byte of sample counts per light) is not read: such a
+//! cache is recomputed, and the new one replaces it.
 
 use crate::SceneError;
 use std::io::Write;
@@ -12,7 +14,9 @@ use std::path::Path;
 use stipple_render::LitTexture;
 
 const MAGIC: &[u8; 8] = b"STSHADOW";
-const VERSION: u32 = 1;
+const VERSION: u32 = 2;
+/// Bytes per point.
+const PER_POINT: usize = 8;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8 + 16;
 
 /// What a cache file holds.
@@ -35,7 +39,7 @@ pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), SceneError> 
             });
         }
     }
-    let mut buf = Vec::with_capacity(HEADER + 4 * lit.counts.len() + 4);
+    let mut buf = Vec::with_capacity(HEADER + PER_POINT * lit.counts.len() + 4);
     buf.extend_from_slice(MAGIC);
     buf.extend_from_slice(&VERSION.to_le_bytes());
     buf.extend_from_slice(&0u32.to_le_bytes());
@@ -45,7 +49,9 @@ pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), SceneError> 
         buf.extend_from_slice(&s.to_le_bytes());
     }
     for c in &lit.counts {
-        buf.extend_from_slice(&c.to_le_bytes());
+        for v in c {
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
     }
     let crc = crc32fast::hash(&buf);
     buf.extend_from_slice(&crc.to_le_bytes());
@@ -72,9 +78,26 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
         source: e,
     };
     let len = std::fs::metadata(path).map_err(read_error)?.len();
-    let want = (HEADER + 4 * points + 4) as u64;
+    let want = (HEADER as u64)
+        .saturating_add((PER_POINT as u64).saturating_mul(points as u64))
+        .saturating_add(4);
     if len < HEADER as u64 {
         return Err(bad("too short to be a shadow cache"));
+    }
+    // The version first: a version-1 file has another size for the same cloud.
+    {
+        use std::io::Read;
+        let mut head = [0u8; 12];
+        let mut f = std::fs::File::open(path).map_err(read_error)?;
+        f.read_exact(&mut head).map_err(read_error)?;
+        if &head[..8] == MAGIC {
+            let v = u32::from_le_bytes(head[8..12].try_into().unwrap());
+            if v != VERSION {
+                return Err(bad(&format!(
+                    "version {v} (this stipple reads {VERSION}; it is recomputed)"
+                )));
+            }
+        }
     }
     if len != want {
         return Err(bad(&format!(
@@ -90,7 +113,7 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
     let u64_at = |o: usize| u64::from_le_bytes(buf[o..o + 8].try_into().unwrap());
     if u32_at(8) != VERSION {
         return Err(bad(&format!(
-            "version {} (this stipple reads 1)",
+            "version {} (this stipple reads {VERSION})",
             u32_at(8)
         )));
     }
@@ -111,10 +134,14 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
     {
         return Err(bad("sample counts out of range"));
     }
-    let counts = buf[HEADER..n]
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes(c.try_into().unwrap()))
+    let counts: Vec<[u16; 4]> = buf[HEADER..n]
+        .chunks_exact(PER_POINT)
+        .map(|c| std::array::from_fn(|l| u16::from_le_bytes([c[2 * l], c[2 * l + 1]])))
         .collect();
+    let most = |l: usize| samples[l] * stipple_render::shadow::FULL as u32;
+    if counts.iter().any(|c| (0..4).any(|l| c[l] as u32 > most(l))) {
+        return Err(bad("lit sums out of range for the samples taken"));
+    }
     Ok(Cached {
         key: u64_at(16),
         lit: LitTexture { counts, samples },
@@ -132,7 +159,10 @@ mod tests {
         let p = dir.join("a.stshadow");
         let lit = LitTexture {
             counts: (0..1000u32)
-                .map(|i| i.wrapping_mul(2_654_435_761))
+                .map(|i| {
+                    let h = i.wrapping_mul(2_654_435_761);
+                    [(h % 7651) as u16, (h % 256) as u16, 0, (h % 65026) as u16]
+                })
                 .collect(),
             samples: [30, 1, 0, 255],
         };
@@ -160,6 +190,23 @@ mod tests {
             .to_string()
             .contains("refusing"));
         assert_eq!(std::fs::read(&other).unwrap(), b"my notes");
+        // A version-1 cache (a byte per light and point) is refused, to be recomputed.
+        let mut v1 = MAGIC.to_vec();
+        v1.extend_from_slice(&1u32.to_le_bytes());
+        v1.resize(HEADER + 4 * 1000 + 4, 0);
+        std::fs::write(&p, &v1).unwrap();
+        assert!(read(&p, 1000)
+            .unwrap_err()
+            .to_string()
+            .contains("version 1"));
+        // A sum larger than the samples allow (light 1 took one sample: at most 255).
+        let mut big = lit.clone();
+        big.counts[7][1] = 256;
+        write(&p, 42, &big).unwrap();
+        assert!(read(&p, 1000)
+            .unwrap_err()
+            .to_string()
+            .contains("out of range"));
         std::fs::remove_dir_all(dir).unwrap();
     }
 }

@@ -51,6 +51,8 @@ pub struct RenderSpec {
     /// Compute shadow textures for the lights that cast them (default true).
     pub shadows: Option<bool>,
     pub shadow_size: Option<u32>,
+    /// Light layers of translucent shadows (see `ShadowSettings::layers`).
+    pub shadow_layers: Option<u32>,
     /// Point and area lights fall off with the inverse square of the distance, at full
     /// strength this far from the light (see `Pipeline::falloff`).
     pub falloff: Option<f64>,
@@ -652,6 +654,7 @@ pub fn relative_key(
         settings.layer_gap.map(f32::to_bits),
         settings.background_fill_iterations,
         settings.occluded_fill_iterations,
+        settings.layers,
     )
         .hash(&mut h);
     h.finish()

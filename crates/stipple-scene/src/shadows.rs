@@ -4,6 +4,7 @@
 
 use crate::{cache, file, LoadedScene, SceneError};
 use glam::DAffine3;
+use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use stipple_render::shadow::{self, ShadowSettings};
@@ -28,7 +29,9 @@ pub fn key(
     lights: &[Light],
     settings: &ShadowSettings,
 ) -> u64 {
-    match scene {
+    // Translucent shadows depend on every point's opacity.
+    let alpha = cloud.alpha.as_deref().map(crc32fast::hash);
+    let placed = match scene {
         Some(s) => s.relative_key(lights, settings),
         None => {
             let (lo, hi) = cloud.cloud.world_bounds();
@@ -40,7 +43,10 @@ pub fn key(
                 settings,
             )
         }
-    }
+    };
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    (placed, alpha).hash(&mut h);
+    h.finish()
 }
 
 /// Makes the shadow texture of `cloud` under `lights` (see the module documentation) and

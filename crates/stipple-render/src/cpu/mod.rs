@@ -36,6 +36,8 @@ pub struct CpuRenderer {
     /// One bit per point, set once a layer's test has peeled it (`PeelTest::done`).
     peel_done: Vec<AtomicU64>,
     acc: Vec<[f32; 4]>,
+    /// Translucent light views: one bit per point, set once a light layer marked it.
+    light_marked: Vec<AtomicU64>,
     /// The splat pass's blended normals and albedo (blend mode).
     blended: crate::passes::splat::cpu::Blended,
     blended_valid: bool,
@@ -92,17 +94,19 @@ impl CpuRenderer {
         }
     }
 
-    /// Adds one light image's marks to `counts` (see [`crate::schedule::light_view`]).
+    /// Adds one light image's marks to `counts` (see [`crate::schedule::light_view`];
+    /// `layers` > 1 peels it for a translucent cloud).
     pub fn light_view(
         &mut self,
         cloud: &PreparedCloud,
         v: &ViewParams,
         light_pipe: &Pipeline,
         params: &shadow_texture::MarkParams,
-        counts: &mut [u32],
+        layers: u32,
+        counts: &mut [[u16; 4]],
     ) {
         let mut x = CpuExec::new(self, cloud, v, light_pipe, Some(counts));
-        match crate::schedule::light_view(&mut x, light_pipe, params) {
+        match crate::schedule::light_view(&mut x, light_pipe, params, layers) {
             Ok(()) => {}
             Err(never) => match never {},
         }
@@ -147,8 +151,8 @@ pub struct CpuExec<'a> {
     front: Option<(Vec<f32>, Vec<u32>)>,
     layers: Vec<Vec<u8>>,
     rgba: Vec<u8>,
-    /// The shadow counts light views mark.
-    counts: Option<&'a mut [u32]>,
+    /// The shadow sums light views mark.
+    counts: Option<&'a mut [[u16; 4]]>,
 }
 
 impl<'a> CpuExec<'a> {
@@ -157,7 +161,7 @@ impl<'a> CpuExec<'a> {
         cloud: &'a PreparedCloud,
         v: &'a ViewParams,
         pipe: &'a Pipeline,
-        counts: Option<&'a mut [u32]>,
+        counts: Option<&'a mut [[u16; 4]]>,
     ) -> CpuExec<'a> {
         CpuExec {
             r,
@@ -423,6 +427,11 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             .counts
             .as_deref_mut()
             .expect("a light view is given the counts it marks");
+        let transmit =
+            (params.mode != shadow_texture::MarkMode::Opaque).then(|| shadow_texture::Transmit {
+                acc: &r.acc,
+                marked: &r.light_marked,
+            });
         timed(&mut self.stats, PassId::ShadowTexture, || {
             let k = shadow_texture::mark(
                 v,
@@ -431,9 +440,32 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 cloud.cloud.normals.as_deref(),
                 params,
                 counts,
+                transmit,
             );
             ((), 1, k)
         });
+        Ok(())
+    }
+
+    fn begin_transmit(&mut self) -> Result<(), Self::Error> {
+        self.begin_peel()?;
+        let words = self.cloud.cloud.len().div_ceil(64);
+        let m = &mut self.r.light_marked;
+        m.resize_with(words, || AtomicU64::new(0));
+        m.truncate(words);
+        for w in m.iter() {
+            w.store(0, Ordering::Relaxed);
+        }
+        Ok(())
+    }
+
+    fn light_surface(&mut self) -> Result<(), Self::Error> {
+        let (r, n) = (&mut *self.r, self.v.pixels());
+        let ga = &r.g.as_ref().expect("made by project").0;
+        r.surface_depth.clear();
+        r.surface_depth.extend_from_slice(&ga.depth);
+        // blend_layer reads a colour per pixel; a light image has none.
+        r.colour.0.resize(n, [0.0; 3]);
         Ok(())
     }
 }

@@ -19,7 +19,8 @@ pub struct Chunk {
     pub albedo: Option<wgpu::Buffer>,
     /// Object index | 8-bit opacity << 8, per point (absent: object 0, opaque).
     pub style: Option<wgpu::Buffer>,
-    /// Shadow texture counts per point (absent: no shadow texture).
+    /// Shadow texture sums per point, two u32 words each (lights 0 | 1 << 16, 2 | 3 << 16;
+    /// absent: no shadow texture).
     pub lit: Option<wgpu::Buffer>,
 }
 
@@ -45,6 +46,9 @@ pub struct GpuCloud {
     /// Depth peeling: one bit per point, set once a layer's test has peeled it (see
     /// `passes::project::cpu::PeelTest::done`); cleared by the first layer.
     pub done: wgpu::Buffer,
+    /// Translucent light views: one bit per point, set once a light layer marked it (see
+    /// `passes::shadow_texture::cpu::Transmit`).
+    pub marked: wgpu::Buffer,
 }
 
 static NEXT_KEY: AtomicU64 = AtomicU64::new(1);
@@ -136,6 +140,12 @@ impl GpuCloud {
             usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let marked = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("light-marked points"),
+            size: (c.len().div_ceil(32).max(1) * 4) as u64,
+            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         ctx.take_errors()?;
         let mut up = GpuCloud {
             key: NEXT_KEY.fetch_add(1, Ordering::Relaxed),
@@ -154,6 +164,7 @@ impl GpuCloud {
             chunks,
             dummy,
             done,
+            marked,
         };
         up.set_lit(ctx, cloud.lit(), cloud.lit_key)?;
         Ok(up)
@@ -186,8 +197,8 @@ impl GpuCloud {
         Ok(())
     }
 
-    /// Writes per-point lit counts into the chunks' buffers (made when missing).
-    pub fn write_counts(&mut self, ctx: &GpuContext, counts: &[u32]) -> Result<(), GpuError> {
+    /// Writes per-point lit sums into the chunks' buffers (made when missing).
+    pub fn write_counts(&mut self, ctx: &GpuContext, counts: &[[u16; 4]]) -> Result<(), GpuError> {
         if counts.len() != self.len {
             return Err(GpuError::TooLarge(format!(
                 "lit counts for {} points, the cloud has {}",

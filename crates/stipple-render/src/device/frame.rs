@@ -209,7 +209,7 @@ impl FrameBuffers {
             id: [s("id a", 4 * n), s("id b", 4 * n)],
             attr_pos: s("pixel positions", 16 * n),
             attr_normal: s("pixel normals", 16 * n),
-            attr_style: s("pixel styles", 8 * n),
+            attr_style: s("pixel styles", 16 * n),
             peel_ref: s("peel reference", 32 * n),
             acc: s("blend accumulator", 16 * n),
             layers_read: None,

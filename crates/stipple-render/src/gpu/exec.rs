@@ -22,8 +22,6 @@ pub(crate) struct Shading {
     pub materials: Option<Box<MaterialTable>>,
     /// Linear RGB.
     pub background: [f32; 3],
-    /// The opacity of pixels that no point covers (see `blend_layers`).
-    pub mean_alpha: f32,
 }
 
 /// One frame or light view being recorded.
@@ -141,7 +139,9 @@ impl PassExec for GpuExec<'_> {
 
     fn blend_layer(&mut self) -> Result<(), GpuError> {
         let bg = self.background();
-        let hole = self.shading.as_ref().map_or(1.0, |s| s.mean_alpha);
+        // As the CPU: a pixel with a surface but no point takes the cloud's mean opacity (a
+        // translucent light view, which has no shading, included).
+        let hole = self.cloud.mean_alpha;
         let (rec, b, cur) = (&mut self.rec, self.b, &self.cur);
         blend_layers::gpu::record_blend(rec, b, cur, Some(hole), bg)
     }
@@ -183,5 +183,20 @@ impl PassExec for GpuExec<'_> {
     fn mark(&mut self, params: &MarkParams) -> Result<(), GpuError> {
         let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
         shadow_texture::gpu::record(rec, b, cur, cloud, params)
+    }
+
+    fn begin_transmit(&mut self) -> Result<(), GpuError> {
+        self.begin_peel()?;
+        self.rec.enc.clear_buffer(&self.cloud.marked, 0, None);
+        Ok(())
+    }
+
+    fn light_surface(&mut self) -> Result<(), GpuError> {
+        let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
+        shade::gpu::record_gather(rec, b, cur, cloud)?;
+        let n4 = 4 * b.f.pixels();
+        rec.enc
+            .copy_buffer_to_buffer(&b.f.depth[cur.g], 0, &b.f.surface, 0, n4);
+        Ok(())
     }
 }

@@ -178,7 +178,6 @@ impl GpuRenderer {
                 block: shade_block,
                 materials: Some(materials),
                 background: pipe.background.map(|c| lut[c as usize]),
-                mean_alpha: cloud.mean_alpha,
             };
             let mut x = GpuExec::new(
                 rec,
@@ -253,6 +252,7 @@ impl GpuRenderer {
         cloud: &GpuCloud,
         marks: &[(ViewParams, crate::passes::shadow_texture::cpu::MarkParams)],
         settings: &crate::shadow::ShadowSettings,
+        layers: u32,
     ) -> Result<(), GpuError> {
         if cloud.chunks.iter().any(|c| c.lit.is_none()) {
             return Err(GpuError::Wgpu(
@@ -272,7 +272,7 @@ impl GpuRenderer {
                     let frame = (&*self.ctx, shared, &f);
                     let mut x = GpuExec::new(rec, frame, cloud, v, projection, None, None);
                     let light_pipe = settings.light_pipeline(mp.fill_gap);
-                    crate::schedule::light_view(&mut x, &light_pipe, mp)?;
+                    crate::schedule::light_view(&mut x, &light_pipe, mp, layers)?;
                     finish(x.rec, shared)?;
                     Ok(())
                 })();
@@ -285,15 +285,18 @@ impl GpuRenderer {
         r
     }
 
-    /// Reads an uploaded cloud's shadow counts back.
-    pub fn read_counts(&self, cloud: &GpuCloud) -> Result<Vec<u32>, GpuError> {
+    /// Reads an uploaded cloud's shadow sums back.
+    pub fn read_counts(&self, cloud: &GpuCloud) -> Result<Vec<[u16; 4]>, GpuError> {
         let mut counts = Vec::with_capacity(cloud.len);
         for c in &cloud.chunks {
             let lit = c.lit.as_ref().ok_or_else(|| {
                 GpuError::Wgpu("read_counts: the cloud has no shadow counts uploaded".into())
             })?;
-            let raw = copy_out(&self.ctx, lit, 4 * c.count as u64)?;
-            counts.extend_from_slice(bytemuck::cast_slice::<u8, u32>(&raw));
+            let raw = copy_out(&self.ctx, lit, 8 * c.count as u64)?;
+            counts
+                .extend(raw.chunks_exact(8).map(|w| {
+                    std::array::from_fn(|l| u16::from_le_bytes([w[2 * l], w[2 * l + 1]]))
+                }));
         }
         Ok(counts)
     }

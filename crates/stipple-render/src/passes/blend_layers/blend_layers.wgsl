@@ -17,7 +17,7 @@ struct Blend {
 @group(0) @binding(1) var<uniform> bp: Blend;
 @group(0) @binding(2) var<storage, read> id: array<u32>;
 @group(0) @binding(3) var<storage, read> surface: array<f32>;
-@group(0) @binding(4) var<storage, read> attr_style: array<vec2<u32>>;
+@group(0) @binding(4) var<storage, read> attr_style: array<vec4<u32>>;
 @group(0) @binding(5) var<storage, read_write> colour: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> acc: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;

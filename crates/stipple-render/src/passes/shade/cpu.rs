@@ -70,8 +70,8 @@ pub struct ShadeInput<'a> {
     pub albedo: Albedo<'a>,
     /// The object of each point (None: every point is object 0).
     pub objects: Option<&'a [u8]>,
-    /// Lit sample counts per point, light l in byte l (None: no shadow textures).
-    pub lit: Option<&'a [u32]>,
+    /// Lit sums per point (see [`crate::LitTexture`]; None: no shadow textures).
+    pub lit: Option<&'a [[u16; 4]]>,
     /// Per-pixel normal and linear albedo that replace the point's (splat blending: the
     /// depth is the blended one and is not corrected).
     pub pixel: Option<(&'a [Vec3], &'a [[f32; 3]])>,
@@ -79,12 +79,12 @@ pub struct ShadeInput<'a> {
 
 /// The lit values m of a point's packed counts under `samples` per light.
 #[inline]
-pub fn lit_values(counts: u32, samples: &[u32; 4]) -> [f32; 4] {
+pub fn lit_values(counts: [u16; 4], samples: &[u32; 4]) -> [f32; 4] {
     std::array::from_fn(|l| {
         if samples[l] == 0 {
             1.0
         } else {
-            ((counts >> (8 * l)) & 0xff) as f32 / samples[l] as f32
+            counts[l] as f32 / (samples[l] * crate::shadow::FULL as u32) as f32
         }
     })
 }
@@ -261,9 +261,12 @@ mod tests {
 
     #[test]
     fn lit_values_unpack_per_light() {
-        let counts = 3 | 10 << 8 | 255 << 24;
+        let full = crate::shadow::FULL;
+        let counts = [3 * full, 10 * full, 0, 255 * full];
         let m = lit_values(counts, &[6, 10, 0, 255]);
         assert_eq!(m, [0.5, 1.0, 1.0, 1.0]);
-        assert_eq!(lit_values(0, &[1, 0, 0, 0])[0], 0.0);
+        assert_eq!(lit_values([0; 4], &[1, 0, 0, 0])[0], 0.0);
+        // A sample through a surface of opacity 0.6 (transmittance 0.4, rounded to 102).
+        assert!((lit_values([102, 0, 0, 0], &[1, 0, 0, 0])[0] - 0.4).abs() < 1e-6);
     }
 }

@@ -23,11 +23,12 @@ struct Gather {
 // xyz = position, w = the albedo word (bit pattern).
 @group(0) @binding(6) var<storage, read_write> attr_pos: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> attr_normal: array<vec4<f32>>;
-// Per point: object | 8-bit opacity << 8; shadow texture counts (light l in byte l).
+// Per point: object | 8-bit opacity << 8; shadow texture sums in two words (lights
+// 0 | 1 << 16, 2 | 3 << 16).
 @group(0) @binding(8) var<storage, read> style: array<u32>;
-@group(0) @binding(9) var<storage, read> lit: array<u32>;
-// Per pixel: (style, lit) of the pixel's point.
-@group(0) @binding(10) var<storage, read_write> attr_style: array<vec2<u32>>;
+@group(0) @binding(9) var<storage, read> lit: array<vec2<u32>>;
+// Per pixel: (style, lit words, 0) of the pixel's point.
+@group(0) @binding(10) var<storage, read_write> attr_style: array<vec4<u32>>;
 
 @compute @workgroup_size(256)
 fn gather(
@@ -52,12 +53,14 @@ fn gather(
     if (gp.has_normals == 1u) {
         attr_normal[i] = vec4<f32>(normals[3u * l], normals[3u * l + 1u], normals[3u * l + 2u], 0.0);
     }
-    var st = vec2<u32>(0xff00u, 0u);
+    var st = vec4<u32>(0xff00u, 0u, 0u, 0u);
     if (gp.has_style == 1u) {
         st.x = style[l];
     }
     if (gp.has_lit == 1u) {
-        st.y = lit[l];
+        let w = lit[l];
+        st.y = w.x;
+        st.z = w.y;
     }
     attr_style[i] = st;
 }

@@ -171,6 +171,52 @@ pub(crate) fn record(
         ctx.queue
             .write_buffer(&pass.materials, 0, bytemuck::cast_slice(&m[..]));
     }
+    let gathers = gather_groups(rec, b, cur, cloud)?;
+    let soff = rec.arena.push(&block)?;
+    let [view, sblock] = b.view_and::<ShadeBlock>();
+    let shade = b.bind(
+        "shade",
+        &pass.shade.bgl,
+        &[
+            view,
+            sblock,
+            Res::Buf(&f.depth[cur.g]),
+            Res::Buf(&f.id[cur.g]),
+            Res::Buf(&f.attr_pos),
+            Res::Buf(&f.attr_normal),
+            Res::Buf(&s.to_linear),
+            Res::Buf(&f.colour[0]),
+            Res::Buf(&f.surface),
+            Res::Buf(&f.attr_style),
+            Res::Buf(&pass.materials),
+        ],
+    );
+    let (fx, fy) = flat_groups(ctx, f.pixels());
+    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    let mut p = rec.timed_pass(q);
+    p.set_pipeline(&pass.gather.pipeline);
+    for (bg, off) in &gathers {
+        p.set_bind_group(0, bg, &[*off]);
+        p.dispatch_workgroups(fx, fy, 1);
+    }
+    if let Some(f) = before_shade {
+        f(&mut p);
+    }
+    p.set_pipeline(&pass.shade.pipeline);
+    p.set_bind_group(0, &shade, &[soff]);
+    p.dispatch_workgroups(gx, gy, 1);
+    drop(p);
+    rec.end(PassId::Shade, 1, vec![], q)
+}
+
+/// The gather step's bind groups and offsets, one per chunk (see gather.wgsl).
+fn gather_groups(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cur: &Cursor,
+    cloud: &GpuCloud,
+) -> Result<Vec<(wgpu::BindGroup, u32)>, GpuError> {
+    let (f, pass) = (b.f, b.pass::<Shade>());
     let mut gathers = Vec::new();
     for c in &cloud.chunks {
         let off = rec.arena.push(&GatherBlock {
@@ -205,39 +251,27 @@ pub(crate) fn record(
         );
         gathers.push((group, off));
     }
-    let soff = rec.arena.push(&block)?;
-    let [view, sblock] = b.view_and::<ShadeBlock>();
-    let shade = b.bind(
-        "shade",
-        &pass.shade.bgl,
-        &[
-            view,
-            sblock,
-            Res::Buf(&f.depth[cur.g]),
-            Res::Buf(&f.id[cur.g]),
-            Res::Buf(&f.attr_pos),
-            Res::Buf(&f.attr_normal),
-            Res::Buf(&s.to_linear),
-            Res::Buf(&f.colour[0]),
-            Res::Buf(&f.surface),
-            Res::Buf(&f.attr_style),
-            Res::Buf(&pass.materials),
-        ],
-    );
-    let (fx, fy) = flat_groups(ctx, f.pixels());
-    let (gx, gy) = grid_2d(ctx, f.width, f.height)?;
+    Ok(gathers)
+}
+
+/// Records gather alone: every pixel's point attributes from geometry image `cur.g` (a
+/// translucent light layer's opacities and planes, which have no shade).
+pub(crate) fn record_gather(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cur: &Cursor,
+    cloud: &GpuCloud,
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let gathers = gather_groups(rec, b, cur, cloud)?;
+    let pass = b.pass::<Shade>();
+    let (fx, fy) = flat_groups(b.ctx, b.f.pixels());
     let mut p = rec.timed_pass(q);
     p.set_pipeline(&pass.gather.pipeline);
     for (bg, off) in &gathers {
         p.set_bind_group(0, bg, &[*off]);
         p.dispatch_workgroups(fx, fy, 1);
     }
-    if let Some(f) = before_shade {
-        f(&mut p);
-    }
-    p.set_pipeline(&pass.shade.pipeline);
-    p.set_bind_group(0, &shade, &[soff]);
-    p.dispatch_workgroups(gx, gy, 1);
     drop(p);
     rec.end(PassId::Shade, 1, vec![], q)
 }

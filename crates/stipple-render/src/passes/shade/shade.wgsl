@@ -7,7 +7,7 @@ struct Shade {
     has_normals: u32,
     // 0: constant albedo, 1: per-point sRGB albedo from gather.
     has_albedo: u32,
-    // 1: a shadow texture is bound (counts in attr_style.y).
+    // 1: a shadow texture is bound (sums in attr_style.yz).
     has_lit: u32,
     base_colour: vec3<f32>,
     max_correction: f32,
@@ -30,7 +30,7 @@ struct Shade {
 @group(0) @binding(6) var<storage, read> to_linear: array<f32, 256>;
 @group(0) @binding(7) var<storage, read_write> colour: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> surface_depth: array<f32>;
-@group(0) @binding(9) var<storage, read> attr_style: array<vec2<u32>>;
+@group(0) @binding(9) var<storage, read> attr_style: array<vec4<u32>>;
 // Material terms by object: ambient, diffuse, specular, shininess.
 @group(0) @binding(10) var<uniform> materials: array<vec4<f32>, 256>;
 
@@ -84,7 +84,8 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (sp.has_lit == 1u) {
         for (var l = 0u; l < 4u; l++) {
             if (sp.samples[l] > 0u) {
-                m[l] = f32((st.y >> (8u * l)) & 0xffu) / f32(sp.samples[l]);
+                let w = select(st.z, st.y, l < 2u);
+                m[l] = f32((w >> (16u * (l % 2u))) & 0xffffu) / f32(sp.samples[l] * 255u);
             }
         }
     }

@@ -6,13 +6,58 @@
 //! reference depth at its pixel plus Δd = d̃' · min(1 / |⟨v, n⟩|, cap) (v: the unit direction
 //! from the light to the point, n: its normal; d̃' alone without normals; d̃' is d̃ widened to
 //! at least three light pixels, see [`light_gap`]), and then its count
-//! for this light goes up by one. With a cube of views, a point is tested only by the face of
+//! for this light goes up by [`FULL`]. With a cube of views, a point is tested only by the face of
 //! its dominant direction, so it is counted once. See `shadow.rs` for the whole algorithm.
+//!
+//! Translucent clouds ([`MarkMode::Layer`], [`MarkMode::Rest`]; see [`crate::translucent`]):
+//! the light image is peeled into layers, and a point not yet marked by this sample that lies
+//! within Δd of layer k's depth gets the light that the layers in front of it let through,
+//! T = Π (1 − α) over layers 1 … k − 1 at its pixel (the blend accumulator's transmittance),
+//! as T · [`FULL`] rounded. After the last layer every point still unmarked gets what is
+//! left at its pixel.
 
 use crate::params::ViewParams;
-use crate::shadow::{dominant_face, ALL_FACES};
+use crate::shadow::{dominant_face, ALL_FACES, FULL};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// What a mark step tests (see the module documentation).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MarkMode {
+    /// An opaque cloud's single light image: points within Δd of it get [`FULL`].
+    #[default]
+    Opaque,
+    /// A peeled layer of a translucent cloud's light image: points within Δd of it that no
+    /// earlier layer marked get the light left at their pixel.
+    Layer,
+    /// After the last layer: every point no layer marked gets the light left at its pixel.
+    Rest,
+}
+
+impl MarkMode {
+    /// The shader's code for the mode.
+    pub fn code(self) -> u32 {
+        match self {
+            MarkMode::Opaque => 0,
+            MarkMode::Layer => 1,
+            MarkMode::Rest => 2,
+        }
+    }
+}
+
+/// A translucent light view's state for [`mark`]: per light pixel the blend accumulator
+/// (transmittance in `.3`), and one bit per point set once this sample has marked it.
+pub struct Transmit<'a> {
+    pub acc: &'a [[f32; 4]],
+    pub marked: &'a [AtomicU64],
+}
+
+/// What a sample that reaches a point through transmittance `t` adds to its sum.
+#[inline]
+pub fn amount(t: f32) -> u16 {
+    (t.clamp(0.0, 1.0) * FULL as f32 + 0.5) as u16
+}
 
 #[derive(Clone, Copy, Debug)]
 pub struct MarkParams {
@@ -24,8 +69,10 @@ pub struct MarkParams {
     pub slope_cap: f32,
     /// The cube face this view marks ([`ALL_FACES`] for a single view).
     pub face: u32,
-    /// Which light's byte to count in (0–3).
+    /// Which light's sum to add to (0–3).
     pub light: u32,
+    /// Opaque, or a translucent layer (set by [`crate::schedule::light_view`]).
+    pub mode: MarkMode,
 }
 
 /// The layer gap on a light image at view depth `z`: d̃, but at least three light pixels.
@@ -59,23 +106,31 @@ pub fn offset(d: Vec3, n: Option<Vec3>, gap: f32, cap: f32) -> f32 {
     }
 }
 
-/// Adds one to the count of every point this view lights. `reference` is the filled depth of
-/// the light image. Returns the points lit.
+/// Adds to the sum of every point this view lights ([`FULL`], or with `transmit` the light
+/// left at its pixel, see the module documentation). `reference` is the filled depth of the
+/// light image. Returns the points marked.
 pub fn mark(
     v: &ViewParams,
     reference: &[f32],
     positions: &[Vec3],
     normals: Option<&[Vec3]>,
     p: &MarkParams,
-    counts: &mut [u32],
+    counts: &mut [[u16; 4]],
+    transmit: Option<Transmit<'_>>,
 ) -> u64 {
     let eye = Vec3::from(v.eye);
-    let add = 1u32 << (8 * p.light);
+    let l = p.light as usize;
     counts
         .par_iter_mut()
         .enumerate()
         .with_min_len(4096)
         .map(|(i, c)| {
+            let (word, bit) = (i / 64, 1u64 << (i % 64));
+            if let Some(t) = &transmit {
+                if t.marked[word].load(Ordering::Relaxed) & bit != 0 {
+                    return 0;
+                }
+            }
             let q = positions[i];
             let d = q - eye;
             if p.face != ALL_FACES && dominant_face(d) != p.face {
@@ -84,14 +139,21 @@ pub fn mark(
             let Some((pix, z)) = crate::passes::project::cpu::project_point(v, q) else {
                 return 0;
             };
-            let gap = light_gap(v, p.gap, z);
-            let dd = offset(d, normals.map(|n| n[i]), gap, p.slope_cap);
-            if z <= reference[pix] + dd {
-                *c += add;
-                1
-            } else {
-                0
+            if p.mode != MarkMode::Rest {
+                let gap = light_gap(v, p.gap, z);
+                let dd = offset(d, normals.map(|n| n[i]), gap, p.slope_cap);
+                if z > reference[pix] + dd {
+                    return 0;
+                }
             }
+            match &transmit {
+                Some(t) => {
+                    t.marked[word].fetch_or(bit, Ordering::Relaxed);
+                    c[l] += amount(t.acc[pix][3]);
+                }
+                None => c[l] += FULL,
+            }
+            1
         })
         .sum()
 }
@@ -130,15 +192,49 @@ mod tests {
         }
         reference[pix] = 2.0;
         assert_eq!(light_gap(&v, 0.1, 2.0), 0.1875);
-        let mut counts = vec![0u32; 3];
         let params = MarkParams {
             gap: 0.1,
             fill_gap: 0.1,
             slope_cap: 16.0,
             face: ALL_FACES,
             light: 1,
+            mode: MarkMode::Opaque,
         };
-        assert_eq!(mark(&v, &reference, &pts, None, &params, &mut counts), 2);
-        assert_eq!(counts, vec![256, 256, 0]);
+        let mut counts = vec![[0u16; 4]; 3];
+        assert_eq!(
+            mark(&v, &reference, &pts, None, &params, &mut counts, None),
+            2
+        );
+        assert_eq!(counts, vec![[0, FULL, 0, 0], [0, FULL, 0, 0], [0; 4]]);
+
+        // Translucent: the first point was marked by an earlier layer, and the pixel lets
+        // 0.3 through; a layer marks the second point only, then the rest takes the third.
+        let mut acc = vec![[0.0, 0.0, 0.0, 1.0]; 64 * 64];
+        acc[pix][3] = 0.3;
+        let marked = vec![AtomicU64::new(1)];
+        let mut counts = vec![[0u16; 4]; 3];
+        let t = || Transmit {
+            acc: &acc,
+            marked: &marked,
+        };
+        let layer = MarkParams {
+            mode: MarkMode::Layer,
+            ..params
+        };
+        assert_eq!(
+            mark(&v, &reference, &pts, None, &layer, &mut counts, Some(t())),
+            1
+        );
+        assert_eq!(counts, vec![[0; 4], [0, 77, 0, 0], [0; 4]]);
+        let rest = MarkParams {
+            mode: MarkMode::Rest,
+            ..params
+        };
+        assert_eq!(
+            mark(&v, &reference, &pts, None, &rest, &mut counts, Some(t())),
+            1
+        );
+        assert_eq!(counts, vec![[0; 4], [0, 77, 0, 0], [0, 77, 0, 0]]);
+        assert_eq!(marked[0].load(Ordering::Relaxed), 0b111);
     }
 }

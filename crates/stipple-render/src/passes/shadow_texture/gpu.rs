@@ -1,5 +1,7 @@
 //! # shadow_texture (GPU twin of `cpu.rs`): shadow_texture.wgsl, one
-//! thread per point of a chunk, adding to the point's count of the light's byte.
+//! thread per point of a chunk, adding to the point's sum for the light (16 bits of its two
+//! words); translucent modes read the light left per pixel (the blend accumulator) and the
+//! cloud's bits of points already marked.
 
 use crate::device::cloud::GpuCloud;
 use crate::device::context::{GpuContext, GpuError};
@@ -16,9 +18,12 @@ pub(crate) struct MarkBlock {
     pub gap: f32,
     pub slope_cap: f32,
     pub face: u32,
-    pub shift: u32,
+    pub light: u32,
     pub has_normals: u32,
     pub slot: u32,
+    /// [`super::cpu::MarkMode::code`].
+    pub mode: u32,
+    pub pad: [u32; 3],
 }
 
 /// The pass's pipeline.
@@ -30,7 +35,9 @@ impl GpuPass for Gpu {
             &ctx.device,
             &crate::device::shaders::SHADOW_TEXTURE_MODULE,
             "mark",
-            &[UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE],
+            &[
+                UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, READ, WRITE,
+            ],
         ))
     }
 }
@@ -58,9 +65,11 @@ pub(crate) fn record(
             gap: mp.gap,
             slope_cap: mp.slope_cap,
             face: mp.face,
-            shift: 8 * mp.light,
+            light: mp.light,
             has_normals: c.normals.is_some() as u32,
             slot,
+            mode: mp.mode.code(),
+            pad: [0; 3],
         })?;
         let [view, block] = b.view_and::<MarkBlock>();
         let group = b.bind_chunk(
@@ -74,6 +83,8 @@ pub(crate) fn record(
                 Res::Buf(&b.f.depth[cur.g]),
                 Res::Buf(lit),
                 Res::Buf(&b.shared.counters),
+                Res::Buf(&b.f.acc),
+                Res::Buf(&cloud.marked),
             ],
         );
         work.push((group, off, flat_groups(b.ctx, c.count as u64)));

@@ -1,4 +1,5 @@
-// shadow_texture (Dobrev §6): count, per point, the light samples that reach it. CPU twin:
+// shadow_texture (Dobrev §6, Gunjee §4.1): add, per point, the light a sample brings (255
+// when it reaches the point, T · 255 behind translucent light layers). CPU twin:
 // cpu/shadow_texture.rs. `reference` is the light image's depth after the hole fills; a
 // point is lit when its light-space depth is at most reference + Δd at its pixel, with
 // Δd = d̃' · min(1 / |⟨v, n⟩|, cap) (d̃' without normals), d̃' = max(d̃, three light pixels). A cube face marks only the points
@@ -11,10 +12,15 @@ struct Mark {
     slope_cap: f32,
     // 0-5: a cube face; 6: every point.
     face: u32,
-    // 8 × the light's index: which byte of the counts.
-    shift: u32,
+    // Which light's 16 bits: word light / 2, shift 16 · (light % 2).
+    light: u32,
     has_normals: u32,
     slot: u32,
+    // 0 opaque, 1 a translucent light layer, 2 the points no layer marked.
+    mode: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -24,8 +30,12 @@ struct Mark {
 @group(0) @binding(4) var<storage, read> reference: array<f32>;
 @group(0) @binding(5) var<storage, read_write> lit: array<u32>;
 @group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>>;
+// Per light pixel the blend accumulator (.w: the light the layers so far let through).
+@group(0) @binding(7) var<storage, read> acc: array<vec4<f32>>;
+// One bit per point of the cloud: marked by an earlier light layer of this sample.
+@group(0) @binding(8) var<storage, read_write> marked: array<atomic<u32>>;
 
-var<workgroup> marked: atomic<u32>;
+var<workgroup> marked_here: atomic<u32>;
 
 // shadow::dominant_face
 fn dominant_face(d: vec3<f32>) -> u32 {
@@ -61,18 +71,28 @@ fn mark(
 ) {
     let local = group_index(wg, groups) * 256u + li;
     if (local < mp.count) {
+        let i = mp.base + local;
+        let bit = 1u << (i % 32u);
+        let skip = mp.mode != 0u && (atomicLoad(&marked[i / 32u]) & bit) != 0u;
         let q = point_at(local);
         let d = q - view.eye;
-        if (mp.face == 6u || dominant_face(d) == mp.face) {
+        if (!skip && (mp.face == 6u || dominant_face(d) == mp.face)) {
             let h = project_point(q);
-            if (h.ok && h.depth <= reference[h.pixel] + offset(d, local, h.depth)) {
-                lit[local] = lit[local] + (1u << mp.shift);
-                atomicAdd(&marked, 1u);
+            if (h.ok && (mp.mode == 2u || h.depth <= reference[h.pixel] + offset(d, local, h.depth))) {
+                // cpu::amount
+                var add = 255u;
+                if (mp.mode != 0u) {
+                    atomicOr(&marked[i / 32u], bit);
+                    add = u32(clamp(acc[h.pixel].w, 0.0, 1.0) * 255.0 + 0.5);
+                }
+                let w = 2u * local + mp.light / 2u;
+                lit[w] = lit[w] + (add << (16u * (mp.light % 2u)));
+                atomicAdd(&marked_here, 1u);
             }
         }
     }
     workgroupBarrier();
     if (li == 0u) {
-        atomicAdd(&counters[mp.slot], atomicLoad(&marked));
+        atomicAdd(&counters[mp.slot], atomicLoad(&marked_here));
     }
 }

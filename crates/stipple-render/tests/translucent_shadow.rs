@@ -1,0 +1,217 @@
+//! Translucent shadow maps (Gunjee §4.1, see `stipple_render::translucent`) on scenes with
+//! known answers, on the CPU and (where an adapter exists; required with
+//! STIPPLE_REQUIRE_GPU=1) the GPU, and their parity.
+
+mod common;
+
+use glam::Vec3;
+use stipple_core::rng::Rng;
+use stipple_core::PointCloud;
+use stipple_render::shadow::ShadowSettings;
+use stipple_render::{alpha8, Light, LitTexture, PreparedCloud, Renderer};
+
+/// A square of side `side` at height 0 (normal +z), `n` jittered-grid points.
+fn plane(n: usize, side: f32, seed: u64) -> Vec<Vec3> {
+    let mut rng = Rng::new(seed);
+    let k = (n as f32).sqrt().ceil() as usize;
+    let mut p = Vec::with_capacity(k * k);
+    for i in 0..k {
+        for j in 0..k {
+            let x = (i as f32 + rng.f32()) / k as f32 - 0.5;
+            let y = (j as f32 + rng.f32()) / k as f32 - 0.5;
+            p.push(Vec3::new(x * side, y * side, 0.0));
+        }
+    }
+    p
+}
+
+/// A plane (opaque) under a sphere shell of opacity `alpha`; returns the cloud and the
+/// number of plane points (they come first).
+fn shell_over_plane(alpha: f32, centre: Vec3, radius: f32) -> (PreparedCloud, usize) {
+    let pp = plane(400_000, 4.0, 3);
+    let (sp, sn) = common::sphere(150_000, centre, radius, 4);
+    let mut c = PointCloud::default();
+    let np = pp.len();
+    c.normals = Some(
+        std::iter::repeat_n(Vec3::Z, np)
+            .chain(sn.iter().copied())
+            .collect(),
+    );
+    c.opacity = Some(
+        std::iter::repeat_n(1.0, np)
+            .chain(std::iter::repeat_n(alpha, sp.len()))
+            .collect(),
+    );
+    c.positions = pp.into_iter().chain(sp).collect();
+    (PreparedCloud::new(c), np)
+}
+
+fn shadows(r: &mut Renderer, c: &PreparedCloud, light: Vec3) -> LitTexture {
+    let light = Light::Point(light.as_dvec3().to_array());
+    r.shadow_texture(
+        c,
+        &[light],
+        &ShadowSettings::default(),
+        None,
+        1,
+        &mut |_, _| {},
+    )
+    .unwrap()
+}
+
+/// The mean lit value of light 0 over the points `which` selects.
+fn mean_lit(lit: &LitTexture, which: impl Iterator<Item = usize>) -> (f64, usize) {
+    let (mut sum, mut n) = (0.0, 0);
+    for i in which {
+        sum += lit.value(i, 0) as f64;
+        n += 1;
+    }
+    (sum / n.max(1) as f64, n)
+}
+
+/// Where the ray from `light` through `p` meets the plane z = 0.
+fn on_floor(light: Vec3, p: Vec3) -> Vec3 {
+    let t = light.z / (light.z - p.z);
+    light + (p - light) * t
+}
+
+#[test]
+fn a_translucent_shell_lets_one_minus_alpha_squared_through() {
+    let (centre, radius) = (Vec3::new(0.1, -0.2, 1.2), 0.5);
+    let light = Vec3::new(0.3, 0.1, 4.0);
+    // The shadow's centre on the floor and a radius well inside it (the shadow of a sphere
+    // seen from a point light is at least as wide as the sphere's own).
+    let core = on_floor(light, centre);
+    let core_r = 0.5 * radius;
+    let mut per_backend: Vec<Vec<LitTexture>> = Vec::new();
+    for mut r in common::backends() {
+        let mut lits = Vec::new();
+        for alpha in [0.3f32, 0.5, 0.8, 1.0] {
+            let (c, np) = shell_over_plane(alpha, centre, radius);
+            let pos = &c.cloud.positions;
+            let lit = shadows(&mut r, &c, light);
+            let a = alpha8(alpha) as f64 / 255.0;
+            let want = (1.0 - a) * (1.0 - a);
+            let (core_m, n) =
+                mean_lit(&lit, (0..np).filter(|&i| (pos[i] - core).length() < core_r));
+            assert!(n > 1000, "{n} floor points in the core");
+            assert!(
+                (core_m - want).abs() <= 0.02,
+                "{}: α {alpha}: the shadow's core gets {core_m:.4} of the light, (1 − α)² = {want:.4}",
+                r.describe()
+            );
+            // Every core point, not only on average (no specks of full light or full shadow).
+            let worst = (0..np)
+                .filter(|&i| (pos[i] - core).length() < core_r)
+                .map(|i| (lit.value(i, 0) as f64 - want).abs())
+                .fold(0.0, f64::max);
+            assert!(
+                worst <= 0.05,
+                "{}: α {alpha}: a core point is {worst:.3} off (1 − α)²",
+                r.describe()
+            );
+            // The floor outside the shadow is lit in full.
+            let (open, n) = mean_lit(
+                &lit,
+                (0..np).filter(|&i| {
+                    let p = pos[i];
+                    (p - core).length() > 3.0 * radius && p.x.abs() < 1.8 && p.y.abs() < 1.8
+                }),
+            );
+            assert!(
+                n > 1000 && open > 0.999,
+                "{}: open floor {open:.4}",
+                r.describe()
+            );
+            // The shell's wall facing the light is lit in full; the far wall's inside gets
+            // what the near wall lets through (1 − α), measured where the ray from the light
+            // crosses the near wall well inside the silhouette.
+            let axis = (centre - light).normalize();
+            let near_cap =
+                (np..pos.len()).filter(|&i| (pos[i] - centre).normalize().dot(axis) < -0.9);
+            let far_cap =
+                (np..pos.len()).filter(|&i| (pos[i] - centre).normalize().dot(axis) > 0.9);
+            let (near_m, _) = mean_lit(&lit, near_cap);
+            let (far_m, _) = mean_lit(&lit, far_cap);
+            assert!(
+                near_m > 0.99,
+                "{}: α {alpha}: near cap {near_m:.4}",
+                r.describe()
+            );
+            assert!(
+                (far_m - (1.0 - a)).abs() <= 0.02,
+                "{}: α {alpha}: far cap {far_m:.4}, 1 − α = {:.4}",
+                r.describe(),
+                1.0 - a
+            );
+            eprintln!(
+                "{}: α {alpha}: core {core_m:.4} (want {want:.4}, worst {worst:.3}), far cap {far_m:.4}",
+                r.describe()
+            );
+            lits.push(lit);
+        }
+        per_backend.push(lits);
+    }
+    if let [cpu, gpu] = &per_backend[..] {
+        for (a, b) in cpu.iter().zip(gpu) {
+            let differ = a
+                .counts
+                .iter()
+                .zip(&b.counts)
+                .filter(|(x, y)| x != y)
+                .count();
+            assert!(
+                differ as f64 <= 1e-3 * a.counts.len() as f64,
+                "translucent shadow parity: {differ} of {} points differ",
+                a.counts.len()
+            );
+        }
+    }
+}
+
+#[test]
+fn a_light_inside_a_translucent_sphere_lights_it_and_dims_the_world_outside() {
+    let (centre, radius) = (Vec3::new(0.0, 0.0, 1.2), 0.5);
+    for mut r in common::backends() {
+        for alpha in [0.4f32, 1.0] {
+            let (c, np) = shell_over_plane(alpha, centre, radius);
+            let pos = &c.cloud.positions;
+            // Off-centre inside the sphere: a cube of light views.
+            let light = centre + Vec3::new(0.1, 0.05, -0.1);
+            let lit = shadows(&mut r, &c, light);
+            let a = alpha8(alpha) as f64 / 255.0;
+            let (inside, _) = mean_lit(&lit, np..pos.len());
+            assert!(
+                inside > 0.99,
+                "{}: α {alpha}: the sphere's inside gets {inside:.4}",
+                r.describe()
+            );
+            let (floor, n) = mean_lit(
+                &lit,
+                (0..np).filter(|&i| pos[i].x.abs() < 1.5 && pos[i].y.abs() < 1.5),
+            );
+            assert!(n > 10_000);
+            // Nowhere does light pass the wall in full, nor is a floor point left dark
+            // (but for a few at the cube's corners, where light pixels are finest).
+            let off = (0..np)
+                .filter(|&i| pos[i].x.abs() < 1.5 && pos[i].y.abs() < 1.5)
+                .filter(|&i| (lit.value(i, 0) as f64 - (1.0 - a)).abs() > 0.05)
+                .count();
+            assert!(
+                off * 1000 < n,
+                "{}: α {alpha}: {off} of {n} floor points are not lit by 1 − α",
+                r.describe()
+            );
+            assert!(
+                (floor - (1.0 - a)).abs() <= 0.02,
+                "{}: α {alpha}: the floor gets {floor:.4}, 1 − α = {:.4}",
+                r.describe(),
+                1.0 - a
+            );
+            eprintln!(
+                "{}: α {alpha}: inside {inside:.4}, floor {floor:.4}",
+                r.describe()
+            );
+        }
+    }
+}
