@@ -84,6 +84,40 @@ impl Renderer {
         }
     }
 
+    /// The points of `cloud` seen by `camera`, back to front in slices of thickness `eps`
+    /// (Gunjee §4.2, see [`passes::bucket_sort`]; `eps` ≤ 0: the smallest splat radius).
+    pub fn bucket_sort(
+        &mut self,
+        cloud: &PreparedCloud,
+        camera: &Camera,
+        eps: f32,
+    ) -> Result<passes::bucket_sort::cpu::Sorted, RenderError> {
+        camera.validate()?;
+        let v = ViewParams::new(camera, cloud.cloud.origin);
+        let eps = if eps > 0.0 && eps.is_finite() {
+            eps
+        } else {
+            cloud
+                .splat_radii()
+                .iter()
+                .copied()
+                .filter(|r| *r > 0.0)
+                .fold(f32::INFINITY, f32::min)
+                .min(f32::MAX)
+        };
+        match &mut self.inner {
+            Inner::Cpu(_) => Ok(passes::bucket_sort::cpu::sort(
+                &v,
+                &cloud.cloud.positions,
+                eps,
+            )),
+            Inner::Gpu { renderer, uploaded } => {
+                let up = upload(renderer, uploaded, cloud)?;
+                Ok(renderer.bucket_sort(up, &v, eps)?)
+            }
+        }
+    }
+
     pub fn render(
         &mut self,
         cloud: &PreparedCloud,

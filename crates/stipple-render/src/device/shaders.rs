@@ -31,6 +31,7 @@ const EDL: &str = include_str!("../passes/edl/edl.wgsl");
 const BLEND_LAYERS: &str = include_str!("../passes/blend_layers/blend_layers.wgsl");
 const SHADOW_TEXTURE: &str = include_str!("../passes/shadow_texture/shadow_texture.wgsl");
 const SPLAT: &str = include_str!("../passes/splat/splat.wgsl");
+const BUCKET_SORT: &str = include_str!("../passes/bucket_sort/bucket_sort.wgsl");
 
 /// A shader module: its name and the files it is made of (after `common.wgsl`).
 #[derive(Clone, Copy, Debug)]
@@ -171,6 +172,12 @@ pub const SPLAT_MODULE: ShaderModule = ShaderModule {
 };
 
 /// Every module the GPU backend compiles (the naga validation test walks this list).
+pub const BUCKET_SORT_MODULE: ShaderModule = ShaderModule {
+    name: "bucket_sort",
+    parts: &[BUCKET_SORT, POINT_PROJECTION],
+    int64: false,
+};
+
 pub const ALL: &[ShaderModule] = &[
     PROJECT64,
     PROJECT32,
@@ -193,6 +200,7 @@ pub const ALL: &[ShaderModule] = &[
     BLEND_LAYERS_MODULE,
     SHADOW_TEXTURE_MODULE,
     SPLAT_MODULE,
+    BUCKET_SORT_MODULE,
 ];
 
 #[cfg(test)]
@@ -333,6 +341,11 @@ mod tests {
                 "SplatBlock",
                 size_of::<p::splat::gpu::SplatBlock>(),
             ),
+            (
+                &BUCKET_SORT_MODULE,
+                "Sort",
+                size_of::<p::bucket_sort::gpu::SortBlock>(),
+            ),
         ];
         let wrong: Vec<String> = blocks
             .iter()
@@ -399,6 +412,7 @@ mod tests {
                 "WG",
                 (p::project::gpu::POINTS_PER_GROUP / 8) as f64,
             ),
+            (&BUCKET_SORT_MODULE, "MAX_K", p::bucket_sort::MAX_K as f64),
         ];
         for &(m, name, rust) in pairs {
             let w = wgsl_const(m, name);

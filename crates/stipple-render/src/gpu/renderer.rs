@@ -301,6 +301,17 @@ impl GpuRenderer {
         Ok(counts)
     }
 
+    /// The points of an uploaded cloud seen in `v`, back to front in slices of thickness
+    /// `eps` (see `passes::bucket_sort`).
+    pub fn bucket_sort(
+        &self,
+        cloud: &GpuCloud,
+        v: &ViewParams,
+        eps: f32,
+    ) -> Result<crate::passes::bucket_sort::cpu::Sorted, GpuError> {
+        crate::passes::bucket_sort::gpu::sort(&self.ctx, &self.shared, cloud, v, eps)
+    }
+
     /// Runs project (and resolve) only: the G-buffer of the nearest points, and points kept.
     pub fn project(
         &mut self,

@@ -4,6 +4,7 @@
 
 pub mod antialias;
 pub mod blend_layers;
+pub mod bucket_sort;
 pub mod depiction;
 pub mod depth_cue;
 pub mod edl;

@@ -1,0 +1,205 @@
+//! # bucket_sort (GPU twin of `cpu.rs`): bucket_sort.wgsl, a compute sort in two
+//! submissions: the depth range first (read back: the slicing is made on the host by the
+//! same code as the CPU's), then the slices, the two levels of buckets and the order.
+
+use super::cpu::Sorted;
+use super::Slicing;
+use crate::device::cloud::GpuCloud;
+use crate::device::context::{GpuContext, GpuError};
+use crate::device::frame::{GpuPass, Shared};
+use crate::device::record::{copy_out, flat_groups};
+use crate::device::util::{self, Pass, Res, READ, UNIFORM, WRITE};
+use crate::params::ViewParams;
+use wgpu::util::DeviceExt;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct SortBlock {
+    pub base: u32,
+    pub count: u32,
+    pub near: f32,
+    pub eps: f32,
+    pub n: u32,
+    pub k: u32,
+    pub pad: [u32; 2],
+}
+
+/// The five kernels.
+pub(crate) struct BucketSort {
+    depth_range: Pass,
+    classify: Pass,
+    scan: Pass,
+    scatter: Pass,
+    refine: Pass,
+}
+
+const SLOTS: [util::Slot; 7] = [UNIFORM, UNIFORM, READ, WRITE, WRITE, WRITE, WRITE];
+
+impl GpuPass for BucketSort {
+    fn new(ctx: &GpuContext, _: &Shared) -> BucketSort {
+        let m = &crate::device::shaders::BUCKET_SORT_MODULE;
+        let p = |entry| Pass::new(&ctx.device, m, entry, &SLOTS);
+        BucketSort {
+            depth_range: p("depth_range"),
+            classify: p("classify"),
+            scan: p("scan"),
+            scatter: p("scatter"),
+            refine: p("refine"),
+        }
+    }
+}
+
+/// Sorts the points of `cloud` seen in `v` back to front in slices of thickness `eps` (see
+/// the module documentation of [`super`]); the order within a slice is the atomics'.
+pub(crate) fn sort(
+    ctx: &GpuContext,
+    shared: &Shared,
+    cloud: &GpuCloud,
+    v: &ViewParams,
+    eps: f32,
+) -> Result<Sorted, GpuError> {
+    let n_points = cloud.len as u64;
+    let max = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    if 4 * n_points > max {
+        return Err(GpuError::TooLarge(format!(
+            "bucket sort of {n_points} points: its index buffers of {} MiB exceed the device's \
+             binding limit of {} MiB",
+            (4 * n_points) >> 20,
+            max >> 20
+        )));
+    }
+    let pass = shared.pass::<BucketSort>(ctx);
+    let d = &ctx.device;
+    let bytes = (4 * n_points).max(16);
+    let key = util::storage(d, "sort keys", bytes);
+    let first = util::storage(d, "sort first level", bytes);
+    let order = util::storage(d, "sort order", bytes);
+    let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("sort view"),
+        contents: bytemuck::bytes_of(v),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let block = |s: &Slicing, base: u32, count: u32| {
+        d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("sort block"),
+            contents: bytemuck::bytes_of(&SortBlock {
+                base,
+                count,
+                near: s.near,
+                eps: s.eps,
+                n: s.n,
+                k: s.k,
+                pad: [0; 2],
+            }),
+            usage: wgpu::BufferUsages::UNIFORM,
+        })
+    };
+    let counts_for = |n: u32| {
+        let mut c = vec![0u32; 2 * n as usize + 3];
+        c[2 * n as usize + 1] = u32::MAX;
+        util::storage_init(d, "sort counts", bytemuck::cast_slice(&c))
+    };
+    let bind = |p: &Pass, block: &wgpu::Buffer, positions: &wgpu::Buffer, counts: &wgpu::Buffer| {
+        p.bind(
+            d,
+            &[
+                Res::Buf(&view),
+                Res::Buf(block),
+                Res::Buf(positions),
+                Res::Buf(&key),
+                Res::Buf(counts),
+                Res::Buf(&first),
+                Res::Buf(&order),
+            ],
+        )
+    };
+    let per_chunk = |enc: &mut wgpu::CommandEncoder,
+                     p: &Pass,
+                     s: &Slicing,
+                     counts: &wgpu::Buffer|
+     -> Vec<wgpu::Buffer> {
+        let mut keep = Vec::new();
+        let mut c = enc.begin_compute_pass(&Default::default());
+        c.set_pipeline(&p.pipeline);
+        for ch in &cloud.chunks {
+            let b = block(s, ch.base, ch.count);
+            let g = bind(p, &b, &ch.positions, counts);
+            c.set_bind_group(0, &g, &[]);
+            let (gx, gy) = flat_groups(ctx, ch.count as u64);
+            c.dispatch_workgroups(gx, gy, 1);
+            keep.push(b);
+        }
+        keep
+    };
+    // 1. Depths and their range.
+    let none = Slicing {
+        near: 0.0,
+        eps: 1.0,
+        n: 1,
+        k: 1,
+    };
+    let counts = counts_for(none.n);
+    let mut enc = d.create_command_encoder(&Default::default());
+    let _blocks = per_chunk(&mut enc, &pass.depth_range, &none, &counts);
+    ctx.queue.submit([enc.finish()]);
+    let raw = copy_out(ctx, &counts, 4 * (2 * none.n as u64 + 3))?;
+    let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
+    let (lo, hi) = (
+        words[2 * none.n as usize + 1],
+        words[2 * none.n as usize + 2],
+    );
+    if lo > hi {
+        return Ok(Sorted {
+            order: Vec::new(),
+            slices: Vec::new(),
+            slicing: Slicing::new(0.0, 0.0, eps),
+        });
+    }
+    let unordered = |b: u32| {
+        f32::from_bits(if b & 0x8000_0000 != 0 {
+            b & 0x7fff_ffff
+        } else {
+            !b
+        })
+    };
+    let s = Slicing::new(unordered(lo), unordered(hi), eps);
+    // 2. Slices, first level, scan, scatter, refine.
+    let counts = counts_for(s.n);
+    let mut enc = d.create_command_encoder(&Default::default());
+    let _b1 = per_chunk(&mut enc, &pass.classify, &s, &counts);
+    let whole = block(&s, 0, 0);
+    {
+        let g = bind(&pass.scan, &whole, &cloud.chunks[0].positions, &counts);
+        let mut c = enc.begin_compute_pass(&Default::default());
+        c.set_pipeline(&pass.scan.pipeline);
+        c.set_bind_group(0, &g, &[]);
+        c.dispatch_workgroups(1, 1, 1);
+    }
+    let _b2 = per_chunk(&mut enc, &pass.scatter, &s, &counts);
+    {
+        let g = bind(&pass.refine, &whole, &cloud.chunks[0].positions, &counts);
+        let mut c = enc.begin_compute_pass(&Default::default());
+        c.set_pipeline(&pass.refine.pipeline);
+        c.set_bind_group(0, &g, &[]);
+        c.dispatch_workgroups(s.n, 1, 1);
+    }
+    ctx.queue.submit([enc.finish()]);
+    let raw = copy_out(ctx, &counts, 4 * (2 * s.n as u64 + 3))?;
+    let kept = bytemuck::pod_collect_to_vec::<u8, u32>(&raw)[2 * s.n as usize] as usize;
+    let order: Vec<u32> = if kept == 0 {
+        Vec::new()
+    } else {
+        bytemuck::pod_collect_to_vec(&copy_out(ctx, &order, 4 * kept as u64)?)
+    };
+    let keys: Vec<u32> = bytemuck::pod_collect_to_vec(&copy_out(ctx, &key, 4 * n_points)?);
+    let slices = order.iter().map(|&i| keys[i as usize]).collect();
+    ctx.take_errors()?;
+    Ok(Sorted {
+        order,
+        slices,
+        slicing: s,
+    })
+}
