@@ -40,6 +40,18 @@ pub struct SourceArgs {
     /// background).
     #[arg(long, value_parser = finite_f64, allow_hyphen_values = true, value_name = "VALUE")]
     pub iso: Option<f64>,
+    /// For a volume: a transfer function instead of an iso-surface (Gunjee et al. §3): every
+    /// sample it gives an opacity above 0 becomes a point with its colour and opacity, lit by
+    /// the volume's gradient. A file with a line `value r g b opacity` per control point
+    /// (colour 0-255, opacity 0-1, linear between points), or the points inline:
+    /// --transfer "300 255 200 150 0; 1200 255 255 255 0.4". See through it with --layers N.
+    #[arg(
+        long,
+        conflicts_with = "iso",
+        allow_hyphen_values = true,
+        value_name = "FILE|POINTS"
+    )]
+    pub transfer: Option<String>,
 }
 
 impl SourceArgs {
@@ -47,7 +59,18 @@ impl SourceArgs {
     pub fn load(&self) -> Result<(PreparedCloud, String)> {
         let (cloud, label) = match &self.input {
             Some(p) => (
-                read_with_options(p, &stipple_io::ReadOptions { iso: self.iso })?,
+                read_with_options(
+                    p,
+                    &stipple_io::ReadOptions {
+                        iso: self.iso,
+                        transfer: self
+                            .transfer
+                            .as_deref()
+                            .map(|t| stipple_io::transfer_function(t, None))
+                            .transpose()
+                            .map_err(|e| anyhow!("--transfer: {e}"))?,
+                    },
+                )?,
                 p.display().to_string(),
             ),
             None => {

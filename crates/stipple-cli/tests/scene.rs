@@ -494,3 +494,102 @@ fn translucent_shadows_from_the_flag_and_the_scene_agree() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A volume through a transfer function (Gunjee §3), from the command line (a file and the
+/// inline form) and from a scene: every sample the function shows becomes a point with its
+/// colour; `--iso` and `--transfer` together, or a bad function, are refused naming the flag.
+#[test]
+fn a_volume_renders_through_a_transfer_function() {
+    let dir = tempdir("transfer");
+    // A 24³ ball, values 0 outside and 200 inside (radius 8 samples).
+    let n = 24usize;
+    let mut data = Vec::with_capacity(n * n * n);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let d = ((x as f64 - 11.5).powi(2)
+                    + (y as f64 - 11.5).powi(2)
+                    + (z as f64 - 11.5).powi(2))
+                .sqrt();
+                data.push(if d < 8.0 { 200u8 } else { 0 });
+            }
+        }
+    }
+    std::fs::write(dir.join("ball_24x24x24_uint8.raw"), &data).unwrap();
+    let inside = data.iter().filter(|&&v| v > 0).count();
+    std::fs::write(
+        dir.join("tf.txt"),
+        "# value r g b opacity\n100 40 200 60 0\n150 40 200 60 0.5\n",
+    )
+    .unwrap();
+    let points = |transfer: &str| {
+        let out = ok(
+            &dir,
+            &[
+                "render",
+                "ball_24x24x24_uint8.raw",
+                "--transfer",
+                transfer,
+                "--size",
+                "32x32",
+                "-o",
+                "n.png",
+                "--backend",
+                "cpu",
+            ],
+        );
+        assert!(out.contains(&format!("from {inside} points")), "{out}");
+    };
+    points("tf.txt");
+    points("100 40 200 60 0; 150 40 200 60 0.5");
+    // A render shows the function's green.
+    ok(
+        &dir,
+        &[
+            "render",
+            "ball_24x24x24_uint8.raw",
+            "--transfer",
+            "tf.txt",
+            "--layers",
+            "3",
+            "--size",
+            "64x64",
+            "-o",
+            "t.png",
+            "--backend",
+            "cpu",
+        ],
+    );
+    let (_, _, rgba) = stipple_io::image::read_png(&dir.join("t.png")).unwrap();
+    let centre = (32 * 64 + 32) * 4;
+    assert!(
+        rgba[centre + 1] > rgba[centre] + 40 && rgba[centre + 1] > rgba[centre + 2] + 40,
+        "the ball is green: {:?}",
+        &rgba[centre..centre + 3]
+    );
+    // A scene names its transfer function relative to itself.
+    std::fs::write(
+        dir.join("s.toml"),
+        "[camera]\nsize = [64, 64]\n[[cloud]]\nfile = \"ball_24x24x24_uint8.raw\"\ntransfer = \"tf.txt\"\n",
+    )
+    .unwrap();
+    ok(
+        &dir,
+        &["render", "s.toml", "-o", "s.png", "--backend", "cpu"],
+    );
+    for (args, says) in [
+        (vec!["--transfer", "tf.txt", "--iso", "100"], "--iso"),
+        (vec!["--transfer", "1 2 3"], "--transfer"),
+        (vec!["--transfer", "0 0 0 0 0"], "no sample has an opacity"),
+    ] {
+        let mut a = vec!["render", "ball_24x24x24_uint8.raw", "-o", "x.png"];
+        a.extend(args);
+        let out = stipple(&dir, &a);
+        assert!(
+            !out.status.success() && text(&out).contains(says),
+            "{a:?}: {}",
+            text(&out)
+        );
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -31,6 +31,172 @@ pub enum VolumeError {
     TooSmall([usize; 3]),
     #[error("the iso-surface would have more than {0} points: choose another value")]
     TooMany(usize),
+    #[error("no sample has an opacity above 0 under the transfer function (the volume's values lie in {lo}..{hi})")]
+    Transparent { lo: f64, hi: f64 },
+    #[error(
+        "the transfer function gives {count} samples an opacity above 0, more than {limit} points"
+    )]
+    TooManySamples { count: usize, limit: usize },
+}
+
+/// A transfer function: control points (value, sRGB colour, opacity), linearly interpolated
+/// between them and held at the ends. Written one point a line, `value r g b opacity` (colour
+/// 0–255, opacity 0–1; `#` starts a comment), or inline with `;` between the points.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TransferFunction {
+    /// Sorted by value, at least one.
+    pub points: Vec<(f64, [f32; 3], f32)>,
+}
+
+/// Why a transfer function cannot be read.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("transfer function, point {point} (`{text}`): {message}")]
+pub struct TransferError {
+    pub point: usize,
+    pub text: String,
+    pub message: String,
+}
+
+impl TransferFunction {
+    /// Parses the text form (see the type's documentation): points on lines or between `;`.
+    pub fn parse(text: &str) -> Result<TransferFunction, TransferError> {
+        let mut points = Vec::new();
+        let items = text
+            .split(['\n', ';'])
+            .map(|l| l.split('#').next().unwrap_or("").trim())
+            .enumerate()
+            .filter(|(_, l)| !l.is_empty());
+        for (i, item) in items {
+            let bad = |message: &str| TransferError {
+                point: i + 1,
+                text: item.chars().take(60).collect(),
+                message: message.into(),
+            };
+            let f: Vec<&str> = item
+                .split(|c: char| c.is_whitespace() || c == ',' || c == ':')
+                .filter(|s| !s.is_empty())
+                .collect();
+            if f.len() != 5 {
+                return Err(bad("expected `value r g b opacity` (five numbers)"));
+            }
+            let num = |s: &str| s.parse::<f64>().ok().filter(|x| x.is_finite());
+            let value = num(f[0]).ok_or_else(|| bad("the value is not a finite number"))?;
+            let mut rgb = [0f32; 3];
+            for (c, s) in rgb.iter_mut().zip(&f[1..4]) {
+                *c = num(s)
+                    .filter(|x| (0.0..=255.0).contains(x))
+                    .ok_or_else(|| bad("colours are 0 to 255"))? as f32;
+            }
+            let a = num(f[4])
+                .filter(|x| (0.0..=1.0).contains(x))
+                .ok_or_else(|| bad("the opacity is 0 to 1"))? as f32;
+            if points.len() >= 4096 {
+                return Err(bad("at most 4096 points"));
+            }
+            points.push((value, rgb, a));
+        }
+        if points.is_empty() {
+            return Err(TransferError {
+                point: 0,
+                text: String::new(),
+                message: "no control points".into(),
+            });
+        }
+        points.sort_by(|a, b| a.0.total_cmp(&b.0));
+        Ok(TransferFunction { points })
+    }
+
+    /// Colour (sRGB, 0–255) and opacity at `v`.
+    pub fn eval(&self, v: f64) -> ([f32; 3], f32) {
+        let p = &self.points;
+        let i = p.partition_point(|q| q.0 <= v);
+        if i == 0 {
+            return (p[0].1, p[0].2);
+        }
+        if i == p.len() {
+            let l = p[p.len() - 1];
+            return (l.1, l.2);
+        }
+        let (a, b) = (p[i - 1], p[i]);
+        let t = ((v - a.0) / (b.0 - a.0)).clamp(0.0, 1.0) as f32;
+        let mix = |x: f32, y: f32| x + (y - x) * t;
+        (
+            [
+                mix(a.1[0], b.1[0]),
+                mix(a.1[1], b.1[1]),
+                mix(a.1[2], b.1[2]),
+            ],
+            mix(a.2, b.2),
+        )
+    }
+}
+
+/// Every sample of `v` whose opacity under `tf` is above zero, as a point at the sample with
+/// the function's colour and opacity and the normal of the gradient (see the module
+/// documentation); at most `limit` points, counted before anything is allocated.
+pub fn transfer_points(
+    v: &Volume,
+    tf: &TransferFunction,
+    limit: usize,
+) -> Result<PointCloud, VolumeError> {
+    let [nx, ny, nz] = v.dims;
+    if nx < 2 || ny < 2 || nz < 2 {
+        return Err(VolumeError::TooSmall(v.dims));
+    }
+    let shown = |x: f32| x.is_finite() && tf.eval(x as f64).1 > 0.0;
+    let count: usize = v.data.par_iter().filter(|&&x| shown(x)).count();
+    if count == 0 {
+        let (lo, hi) = v.range();
+        return Err(VolumeError::Transparent { lo, hi });
+    }
+    if count > limit {
+        return Err(VolumeError::TooManySamples { count, limit });
+    }
+    type Slab = (Vec<DVec3>, Vec<Vec3>, Vec<[u8; 3]>, Vec<f32>);
+    let slabs: Vec<Slab> = (0..nz)
+        .into_par_iter()
+        .map(|z| {
+            let mut s: Slab = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+            for y in 0..ny {
+                for x in 0..nx {
+                    let val = v.at(x, y, z);
+                    if !shown(val) {
+                        continue;
+                    }
+                    let (rgb, a) = tf.eval(val as f64);
+                    s.0.push(v.position(x as f64, y as f64, z as f64));
+                    // Inside a uniform region the gradient vanishes: such a point faces +z.
+                    let g = -v.gradient(x, y, z);
+                    s.1.push(if g.length() > 0.0 {
+                        g.normalize().as_vec3()
+                    } else {
+                        Vec3::Z
+                    });
+                    s.2.push(rgb.map(|c| (c + 0.5) as u8));
+                    s.3.push(a);
+                }
+            }
+            s
+        })
+        .collect();
+    let mut world = Vec::with_capacity(count);
+    let (mut normals, mut colours, mut opacity) = (
+        Vec::with_capacity(count),
+        Vec::with_capacity(count),
+        Vec::with_capacity(count),
+    );
+    for (p, n, c, a) in slabs {
+        world.extend(p);
+        normals.extend(n);
+        colours.extend(c);
+        opacity.extend(a);
+    }
+    let mut cloud = PointCloud::from_world(&world);
+    cloud.normals = Some(normals);
+    cloud.normals_trusted = true;
+    cloud.colors = Some(colours);
+    cloud.opacity = Some(opacity);
+    Ok(cloud)
 }
 
 impl Volume {
@@ -239,6 +405,70 @@ mod tests {
             errs[errs.len() / 2]
         );
         assert!(errs.iter().all(|&e| e < 90.0), "every normal outward");
+    }
+
+    #[test]
+    fn a_transfer_function_keeps_the_samples_it_shows_with_its_colour_and_opacity() {
+        let h = 0.05;
+        let v = ball(40, 0.6, h);
+        // Values are 100 × (0.6 − distance): transparent outside, α 0.2 at the surface rising
+        // to 0.6 at 30 (0.3 inside), red to white.
+        let tf = TransferFunction::parse(
+            "# value r g b opacity\n-0.001 0 0 0 0\n0 255 0 0 0.2\n30: 255, 255, 255, 0.6",
+        )
+        .unwrap();
+        let c = transfer_points(&v, &tf, 1 << 24).unwrap();
+        let inside = v.data.iter().filter(|&&x| x >= 0.0).count();
+        assert_eq!(c.len(), inside);
+        let (col, a) = (c.colors.as_ref().unwrap(), c.opacity.as_ref().unwrap());
+        for i in 0..c.len() {
+            let d = c.world(i).length();
+            assert!(d <= 0.6 + 1e-6, "a point outside the ball at {d}");
+            let val = 100.0 * (0.6 - d);
+            let want = if val >= 30.0 {
+                0.6
+            } else {
+                0.2 + 0.4 * val / 30.0
+            };
+            assert!(
+                (a[i] as f64 - want).abs() < 2e-3,
+                "opacity {} at value {val}",
+                a[i]
+            );
+            assert_eq!(col[i][0], 255);
+            let g = (255.0 * (val / 30.0).min(1.0) + 0.5) as i32;
+            assert!(
+                (col[i][1] as i32 - g).abs() <= 1,
+                "green {} at value {val}",
+                col[i][1]
+            );
+        }
+        // Inline form, sorted; errors name the point.
+        let tf = TransferFunction::parse("10 0 0 0 1; 5 255 255 255 0").unwrap();
+        assert_eq!(tf.eval(7.5), ([127.5; 3], 0.5));
+        assert_eq!(tf.eval(-1.0).1, 0.0);
+        assert_eq!(tf.eval(99.0).1, 1.0);
+        for (bad, says) in [
+            ("", "no control points"),
+            ("1 2 3", "five numbers"),
+            ("0 0 0 0 0; x 1 1 1 1", "point 2"),
+            ("0 300 0 0 1", "0 to 255"),
+            ("0 0 0 0 1.5", "0 to 1"),
+            ("inf 0 0 0 1", "finite"),
+        ] {
+            let e = TransferFunction::parse(bad).unwrap_err().to_string();
+            assert!(e.contains(says), "{bad:?}: {e}");
+        }
+        // Nothing shown, or too many: errors before any allocation.
+        let none = TransferFunction::parse("0 0 0 0 0").unwrap();
+        assert!(matches!(
+            transfer_points(&v, &none, 10),
+            Err(VolumeError::Transparent { .. })
+        ));
+        assert!(matches!(
+            transfer_points(&v, &tf, 10),
+            Err(VolumeError::TooManySamples { .. })
+        ));
     }
 
     #[test]

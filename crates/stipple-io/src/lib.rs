@@ -82,6 +82,39 @@ pub struct ReadOptions {
     /// Volumes (.nrrd, .nii, .nii.gz, .raw): the iso-value whose surface becomes points
     /// (None: Otsu's threshold of the volume, see `stipple_core::volume`).
     pub iso: Option<f64>,
+    /// Volumes: a transfer function instead of an iso-surface: every sample it shows becomes
+    /// a point with its colour and opacity (see `stipple_core::volume::transfer_points`).
+    pub transfer: Option<stipple_core::volume::TransferFunction>,
+}
+
+/// A transfer function given as a file (`value r g b opacity` per line) or inline (points
+/// between `;`): a path to an existing file is read (at most 1 MiB), anything else parsed.
+pub fn transfer_function(
+    spec: &str,
+    base: Option<&Path>,
+) -> Result<stipple_core::volume::TransferFunction, String> {
+    let path = match base {
+        Some(b) => b.join(spec),
+        None => Path::new(spec).to_path_buf(),
+    };
+    if path.is_file() {
+        let len = std::fs::metadata(&path)
+            .map_err(|e| format!("{}: {e}", path.display()))?
+            .len();
+        if len > 1 << 20 {
+            return Err(format!(
+                "{}: {len} bytes, a transfer function is at most 1 MiB",
+                path.display()
+            ));
+        }
+        let text =
+            std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        return stipple_core::volume::TransferFunction::parse(&text)
+            .map_err(|e| format!("{}: {e}", path.display()));
+    }
+    stipple_core::volume::TransferFunction::parse(spec).map_err(|e| {
+        format!("{e} (`{spec}` is not a file, so it was read as the points themselves)")
+    })
 }
 
 /// The most points an iso-surface may have.
@@ -121,9 +154,14 @@ pub fn read_cloud_with(path: &Path, opt: &ReadOptions) -> Result<PointCloud, IoE
     let gz = head.starts_with(&[0x1f, 0x8b]);
     let cloud = if volume_io::is_volume(path) && !head.starts_with(b"ply") {
         let v = volume_io::read_volume(path)?;
-        let iso = opt.iso.unwrap_or_else(|| stipple_core::volume::otsu(&v));
-        stipple_core::volume::iso_points(&v, iso, MAX_ISO_POINTS)
-            .map_err(|e| IoError::invalid(path, e.to_string()))?
+        match &opt.transfer {
+            Some(tf) => stipple_core::volume::transfer_points(&v, tf, MAX_ISO_POINTS),
+            None => {
+                let iso = opt.iso.unwrap_or_else(|| stipple_core::volume::otsu(&v));
+                stipple_core::volume::iso_points(&v, iso, MAX_ISO_POINTS)
+            }
+        }
+        .map_err(|e| IoError::invalid(path, e.to_string()))?
     } else if head.starts_with(b"ply") || (gz && gz_holds_ply(path)?) {
         ply::read_ply(path)?
     } else if head.starts_with(b"LASF") {

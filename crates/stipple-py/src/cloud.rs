@@ -482,7 +482,13 @@ pub fn read(py: Python<'_>, path: PathBuf, iso: Option<f64>) -> PyResult<Cloud> 
     let cloud = crate::run_detached(
         py,
         move || {
-            let c = stipple_io::read_cloud_with(&path, &stipple_io::ReadOptions { iso })?;
+            let c = stipple_io::read_cloud_with(
+                &path,
+                &stipple_io::ReadOptions {
+                    iso,
+                    ..Default::default()
+                },
+            )?;
             Ok::<_, stipple_io::IoError>(PreparedCloud::new(c))
         },
         || false,

@@ -85,6 +85,9 @@ pub struct CloudSpec {
     /// A volume file (.nrrd, .nii, .nii.gz, .raw): the value whose iso-surface becomes
     /// points (default: Otsu's threshold).
     pub iso: Option<f64>,
+    /// A volume file: a transfer function instead of an iso-surface (a file relative to the
+    /// scene file, or the points inline: `value r g b opacity` separated by `;`).
+    pub transfer: Option<String>,
     /// A mesh file (a PLY with faces, .obj, .stl): sample its faces at this spacing (in the
     /// file's units) instead of taking its vertices.
     pub sample: Option<f64>,
@@ -327,7 +330,16 @@ fn source(
             } else {
                 dir.join(f)
             };
-            let opt = stipple_io::ReadOptions { iso: c.iso };
+            let transfer = c
+                .transfer
+                .as_deref()
+                .map(|t| stipple_io::transfer_function(t, Some(dir)))
+                .transpose()
+                .map_err(|e| format!("transfer: {e}"))?;
+            let opt = stipple_io::ReadOptions {
+                iso: c.iso,
+                transfer,
+            };
             let mut cloud = host.read(&p, &opt)?;
             if let Some(spacing) = c.sample {
                 let name = p.display();
@@ -810,6 +822,7 @@ samples = 8
             opacity: Some(0.5),
             material: MaterialSpec::default(),
             iso: None,
+            transfer: None,
             sample: None,
         };
         let spec = SceneFile {
