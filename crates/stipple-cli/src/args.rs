@@ -413,7 +413,9 @@ pub struct SplatArgs {
     /// whose centre is nearest the pixel, relative to its radius, wins: sharp cells, each
     /// shaded with its point's normal) or deferred (Zhang & Pajarola's single-pass deferred
     /// blending: splats graph-coloured into groups, one pass, per-pixel compositing; see
-    /// --splat-c).
+    /// --splat-c) or sorted (Gunjee et al.: every splat bucket-sorted back to front and
+    /// blended over the ones behind it with its own opacity: volumes through --transfer,
+    /// particle clouds; CPU only so far).
     #[arg(
         long = "splat",
         default_value = "blend",

@@ -141,7 +141,13 @@ fn layer<X: PassExec>(
             x.geometry(pass, gap)?;
         }
     }
-    x.shade()?;
+    // Sorted splats are shaded per point and blended as they are drawn.
+    if !pipe
+        .splat
+        .is_some_and(|s| s.mode == crate::SplatMode::Sorted)
+    {
+        x.shade()?;
+    }
     for pass in &pipe.colour {
         x.colour(pass)?;
     }

@@ -21,6 +21,7 @@ pub enum PassId {
     Compose,
     Output,
     ShadowTexture,
+    BucketSort,
 }
 
 impl PassId {
@@ -45,6 +46,7 @@ impl PassId {
             PassId::Compose => "compose",
             PassId::Output => "output",
             PassId::ShadowTexture => "shadow_texture",
+            PassId::BucketSort => "bucket_sort",
         }
     }
 }
@@ -96,6 +98,7 @@ mod tests {
             PassId::Compose,
             PassId::Output,
             PassId::ShadowTexture,
+            PassId::BucketSort,
         ];
         let mut n: Vec<&str> = all.iter().map(|p| p.name()).collect();
         n.sort();

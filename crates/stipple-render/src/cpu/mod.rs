@@ -212,6 +212,63 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let vis = &r.vis;
 
         r.blended_valid = false;
+        if let Some(sp) = splat.filter(|s| s.mode == crate::SplatMode::Sorted) {
+            // The images shade would size (the colour passes read them).
+            let n = v.pixels();
+            r.colour.0.resize(n, [0.0; 3]);
+            r.colour.1.resize(n, [0.0; 3]);
+            r.surface_depth.resize(n, 0.0);
+            r.depth_b.resize(n, 0.0);
+            let radii = cloud.splat_radii();
+            // The paper's slice thickness: the smallest splat.
+            let eps = radii
+                .iter()
+                .copied()
+                .filter(|&x| x > 0.0)
+                .fold(f32::INFINITY, f32::min)
+                * sp.scale;
+            let params = cloud.shade_params(pipe, cloud.layer_gap(pipe));
+            let input = ShadeInput {
+                positions: &c.positions,
+                normals: c.normals.as_deref().filter(|_| pipe.lighting),
+                albedo: cloud.albedo(pipe),
+                objects: cloud.objects.as_ref().map(|o| &o.index[..]),
+                lit: cloud.lit().map(|l| &l.counts[..]),
+                pixel: None,
+            };
+            let sorted = timed(stats, PassId::BucketSort, || {
+                let s = crate::passes::bucket_sort::cpu::sort(v, &c.positions, eps);
+                let k = s.order.len() as u64;
+                (s, 1, k)
+            });
+            let colours = timed(stats, PassId::Shade, || {
+                let forward = (v.perspective == 0).then(|| glam::Vec3::from(v.forward));
+                let col = shade::shade_points(glam::Vec3::from(v.eye), forward, &input, &params);
+                (col, 1, 0)
+            });
+            let si = crate::passes::splat::sorted::SortedInput {
+                positions: &c.positions,
+                radii: &radii,
+                scale: sp.scale,
+                alpha: cloud.alpha.as_deref(),
+                colour: &colours,
+            };
+            let (col, sd) = (&mut r.colour.0, &mut r.surface_depth);
+            timed(stats, PassId::Splat, || {
+                let f = crate::passes::splat::sorted::composite(
+                    v,
+                    &si,
+                    &sorted.order,
+                    params.background,
+                    col,
+                    &mut ga.depth,
+                    &mut ga.id,
+                );
+                ((), 1, f)
+            });
+            sd.copy_from_slice(&ga.depth);
+            return Ok(Some(sorted.order.len() as u64));
+        }
         if let Some(sp) = splat {
             let radii = cloud.splat_radii();
             let epsilon = cloud.splat_epsilon(sp);

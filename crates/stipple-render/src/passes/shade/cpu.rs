@@ -124,6 +124,64 @@ pub fn falloff(d0: f32, d2: f32) -> f32 {
     }
 }
 
+/// Shades every point as seen from `eye` (local; `forward` for an orthographic view, else
+/// None): linear RGB per point, as [`shade`] shades a pixel showing it (its own normal and
+/// position: no ray, no depth correction). For splats blended in order (Gunjee §4.2), which
+/// blend shaded colours.
+pub fn shade_points(
+    eye: Vec3,
+    forward: Option<Vec3>,
+    input: &ShadeInput,
+    p: &ShadeParams,
+) -> Vec<[f32; 3]> {
+    let lut = srgb_to_linear_table();
+    input
+        .positions
+        .par_iter()
+        .enumerate()
+        .with_min_len(4096)
+        .map(|(id, &q)| {
+            let albedo = match input.albedo {
+                Albedo::Colours(c) => c[id].map(|x| lut[x as usize]),
+                Albedo::Intensity(t, s) => [lut[intensity_grey(t[id], s) as usize]; 3],
+                Albedo::Constant(c) => c,
+            };
+            let t = &p.materials[input.objects.map_or(0, |o| o[id] as usize)];
+            let m = input
+                .lit
+                .map_or([1.0; 4], |lit| lit_values(lit[id], &p.samples));
+            let Some(normals) = input.normals else {
+                return match input.lit {
+                    Some(_) => {
+                        let n = p.lights.len().max(1);
+                        let mean = m[..n].iter().sum::<f32>() / n as f32;
+                        albedo.map(|a| a * (t.ambient + (1.0 - t.ambient) * mean))
+                    }
+                    None => albedo,
+                };
+            };
+            let to_eye = match forward {
+                Some(f) => -f,
+                None => (eye - q).normalize_or_zero(),
+            };
+            let mut dirs = [Vec3::ZERO; 4];
+            let mut m = m;
+            for ((d, light), m) in dirs.iter_mut().zip(&p.lights).zip(&mut m) {
+                *d = match *light {
+                    LocalLight::Headlight => to_eye,
+                    LocalLight::Directional(d) => d,
+                    LocalLight::Point(lp) => {
+                        let lv = lp - q;
+                        *m *= falloff(p.falloff, lv.length_squared());
+                        lv.normalize_or_zero()
+                    }
+                };
+            }
+            phong(albedo, normals[id], to_eye, &dirs[..p.lights.len()], &m, t)
+        })
+        .collect()
+}
+
 /// Shades every pixel: `colour` gets linear RGB (background colour where no point is),
 /// `surface_depth` the view depth of the surface (+inf on background).
 pub fn shade(

@@ -7,6 +7,10 @@
 //! `SplatGpu::record` and `SplatGpu::record_resolve`.
 
 use crate::device::cloud::GpuCloud;
+
+/// What a GPU frame of sorted splats says.
+pub const SORTED_ON_GPU: &str = "sorted splats (--splat sorted, Gunjee §4.2) have no GPU \
+     twin yet: render them with --backend cpu";
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::shaders::SPLAT_MODULE;
 use crate::device::util::{self, Arena, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
@@ -366,6 +370,9 @@ impl SplatGpu {
                     crate::SplatMode::Voronoi => 0,
                     crate::SplatMode::Blend => 1,
                     crate::SplatMode::Deferred => 2,
+                    crate::SplatMode::Sorted => {
+                        return Err(GpuError::Unsupported(SORTED_ON_GPU.into()))
+                    }
                 },
                 pad: 0,
             })?;

@@ -63,6 +63,7 @@
 
 pub mod cpu;
 pub mod gpu;
+pub mod sorted;
 
 use crate::params::ViewParams;
 use glam::Vec3;
@@ -85,6 +86,10 @@ pub enum SplatMode {
     /// the Voronoi distance), then per pixel the compositing of Fig. 5 over the groups.
     /// Equals `Blend` where no two splats of a group overlap a pixel.
     Deferred,
+    /// Gunjee et al. §4.2: the points bucket-sorted back to front and drawn as Gaussian
+    /// splats with the "over" operator, each with its own opacity and shading ([`sorted`]):
+    /// for volumes, transfer functions and particle clouds. CPU only so far.
+    Sorted,
 }
 
 /// Settings of the splat pass.
