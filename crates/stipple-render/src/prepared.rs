@@ -226,6 +226,18 @@ impl PreparedCloud {
             if s.mode == SplatMode::Deferred {
                 s.depth_range = Some(self.depth_range(v));
             }
+            if s.mode == SplatMode::Sorted {
+                // The bucket sort's slices: over the bounds' depths, as thick as the smallest
+                // splat (Gunjee §4.2's ε).
+                s.depth_range = Some(self.depth_range(v));
+                let least = self
+                    .splat_radii()
+                    .iter()
+                    .copied()
+                    .filter(|&r| r > 0.0)
+                    .fold(f32::INFINITY, f32::min);
+                s.epsilon = Some(least * s.scale);
+            }
         }
         p
     }

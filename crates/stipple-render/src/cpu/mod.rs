@@ -237,7 +237,14 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 pixel: None,
             };
             let sorted = timed(stats, PassId::BucketSort, || {
-                let s = crate::passes::bucket_sort::cpu::sort(v, &c.positions, eps);
+                use crate::passes::bucket_sort::{cpu, Slicing};
+                // The resolved pipeline's slices (as the GPU's), else the points' own range.
+                let s = match (sp.depth_range, sp.epsilon) {
+                    (Some((lo, hi)), Some(e)) => {
+                        cpu::sort_in(v, &c.positions, Slicing::new(lo, hi, e))
+                    }
+                    _ => cpu::sort(v, &c.positions, eps),
+                };
                 let k = s.order.len() as u64;
                 (s, 1, k)
             });

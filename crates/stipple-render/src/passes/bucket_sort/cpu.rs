@@ -33,7 +33,8 @@ pub fn cull(v: &ViewParams, positions: &[Vec3]) -> (Vec<Option<f32>>, Option<(f3
     (depth, range)
 }
 
-/// Sorts the points of `positions` seen in `v` back to front in slices of thickness `eps`.
+/// Sorts the points of `positions` seen in `v` back to front in slices of thickness `eps`
+/// over the depths of the points kept.
 pub fn sort(v: &ViewParams, positions: &[Vec3], eps: f32) -> Sorted {
     let (depth, range) = cull(v, positions);
     let Some((near, far)) = range else {
@@ -43,7 +44,16 @@ pub fn sort(v: &ViewParams, positions: &[Vec3], eps: f32) -> Sorted {
             slicing: Slicing::new(0.0, 0.0, eps),
         };
     };
-    let slicing = Slicing::new(near, far, eps);
+    in_slices(&depth, Slicing::new(near, far, eps))
+}
+
+/// Sorts the points of `positions` seen in `v` back to front in the slices `slicing` (over
+/// a range at least as wide as the kept points' depths, e.g. the bounds').
+pub fn sort_in(v: &ViewParams, positions: &[Vec3], slicing: Slicing) -> Sorted {
+    in_slices(&cull(v, positions).0, slicing)
+}
+
+fn in_slices(depth: &[Option<f32>], slicing: Slicing) -> Sorted {
     // The slice of each kept point, u32::MAX for the others.
     let key: Vec<u32> = depth
         .par_iter()

@@ -49,15 +49,16 @@ impl GpuPass for BucketSort {
     }
 }
 
-/// Sorts the points of `cloud` seen in `v` back to front in slices of thickness `eps` (see
-/// the module documentation of [`super`]); the order within a slice is the atomics'.
-pub(crate) fn sort(
-    ctx: &GpuContext,
-    shared: &Shared,
-    cloud: &GpuCloud,
-    v: &ViewParams,
-    eps: f32,
-) -> Result<Sorted, GpuError> {
+/// A recorded sort's buffers: `order` holds the kept points' indices back to front and
+/// `counts[2 n]` how many were kept (see bucket_sort.wgsl).
+pub(crate) struct SortBuffers {
+    pub key: wgpu::Buffer,
+    pub order: wgpu::Buffer,
+    pub counts: wgpu::Buffer,
+}
+
+/// The index buffers' size for `cloud`, or the error when they exceed a binding.
+fn index_bytes(ctx: &GpuContext, cloud: &GpuCloud) -> Result<u64, GpuError> {
     let n_points = cloud.len as u64;
     let max = ctx
         .limits
@@ -71,19 +72,13 @@ pub(crate) fn sort(
             max >> 20
         )));
     }
-    let pass = shared.pass::<BucketSort>(ctx);
-    let d = &ctx.device;
-    let bytes = (4 * n_points).max(16);
-    let key = util::storage(d, "sort keys", bytes);
-    let first = util::storage(d, "sort first level", bytes);
-    let order = util::storage(d, "sort order", bytes);
-    let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("sort view"),
-        contents: bytemuck::bytes_of(v),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let block = |s: &Slicing, base: u32, count: u32| {
-        d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+    Ok((4 * n_points).max(16))
+}
+
+/// A uniform block of the sort's kernels.
+fn block(ctx: &GpuContext, s: &Slicing, base: u32, count: u32) -> wgpu::Buffer {
+    ctx.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("sort block"),
             contents: bytemuck::bytes_of(&SortBlock {
                 base,
@@ -96,44 +91,118 @@ pub(crate) fn sort(
             }),
             usage: wgpu::BufferUsages::UNIFORM,
         })
-    };
-    let counts_for = |n: u32| {
-        let mut c = vec![0u32; 2 * n as usize + 3];
-        c[2 * n as usize + 1] = u32::MAX;
-        util::storage_init(d, "sort counts", bytemuck::cast_slice(&c))
-    };
-    let bind = |p: &Pass, block: &wgpu::Buffer, positions: &wgpu::Buffer, counts: &wgpu::Buffer| {
+}
+
+/// The counters of a sort with `n` first-level buckets (the depth range's least at its
+/// largest value).
+fn counts_for(ctx: &GpuContext, n: u32) -> wgpu::Buffer {
+    let mut c = vec![0u32; 2 * n as usize + 3];
+    c[2 * n as usize + 1] = u32::MAX;
+    util::storage_init(&ctx.device, "sort counts", bytemuck::cast_slice(&c))
+}
+
+/// Records the kernels of `names` over every chunk (per-point kernels), or once over one
+/// group or `s.n` groups (scan, refine).
+#[allow(clippy::too_many_arguments)]
+fn record_kernels(
+    ctx: &GpuContext,
+    pass: &BucketSort,
+    enc: &mut wgpu::CommandEncoder,
+    cloud: &GpuCloud,
+    view: &wgpu::Buffer,
+    s: &Slicing,
+    bufs: (&wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer, &wgpu::Buffer),
+    names: &[&str],
+) {
+    let (key, counts, first, order) = bufs;
+    let bind = |p: &Pass, block: &wgpu::Buffer, positions: &wgpu::Buffer| {
         p.bind(
-            d,
+            &ctx.device,
             &[
-                Res::Buf(&view),
+                Res::Buf(view),
                 Res::Buf(block),
                 Res::Buf(positions),
-                Res::Buf(&key),
+                Res::Buf(key),
                 Res::Buf(counts),
-                Res::Buf(&first),
-                Res::Buf(&order),
+                Res::Buf(first),
+                Res::Buf(order),
             ],
         )
     };
-    let per_chunk = |enc: &mut wgpu::CommandEncoder,
-                     p: &Pass,
-                     s: &Slicing,
-                     counts: &wgpu::Buffer|
-     -> Vec<wgpu::Buffer> {
-        let mut keep = Vec::new();
+    for name in names {
+        let (p, per_point) = match *name {
+            "depth_range" => (&pass.depth_range, true),
+            "classify" => (&pass.classify, true),
+            "scatter" => (&pass.scatter, true),
+            "scan" => (&pass.scan, false),
+            _ => (&pass.refine, false),
+        };
         let mut c = enc.begin_compute_pass(&Default::default());
         c.set_pipeline(&p.pipeline);
-        for ch in &cloud.chunks {
-            let b = block(s, ch.base, ch.count);
-            let g = bind(p, &b, &ch.positions, counts);
-            c.set_bind_group(0, &g, &[]);
-            let (gx, gy) = flat_groups(ctx, ch.count as u64);
-            c.dispatch_workgroups(gx, gy, 1);
-            keep.push(b);
+        if per_point {
+            for ch in &cloud.chunks {
+                let b = block(ctx, s, ch.base, ch.count);
+                c.set_bind_group(0, &bind(p, &b, &ch.positions), &[]);
+                let (gx, gy) = flat_groups(ctx, ch.count as u64);
+                c.dispatch_workgroups(gx, gy, 1);
+            }
+        } else {
+            let b = block(ctx, s, 0, 0);
+            c.set_bind_group(0, &bind(p, &b, &cloud.chunks[0].positions), &[]);
+            let groups = if *name == "scan" { 1 } else { s.n };
+            c.dispatch_workgroups(groups, 1, 1);
         }
-        keep
-    };
+    }
+}
+
+/// Records a whole sort of the points seen in the view of `view` (a uniform [`ViewParams`]
+/// buffer) with slicing `s` given by the host (a range at least as wide as the points').
+pub(crate) fn record_sort(
+    ctx: &GpuContext,
+    shared: &Shared,
+    enc: &mut wgpu::CommandEncoder,
+    cloud: &GpuCloud,
+    view: &wgpu::Buffer,
+    s: Slicing,
+) -> Result<SortBuffers, GpuError> {
+    let bytes = index_bytes(ctx, cloud)?;
+    let pass = shared.pass::<BucketSort>(ctx);
+    let d = &ctx.device;
+    let key = util::storage(d, "sort keys", bytes);
+    let first = util::storage(d, "sort first level", bytes);
+    let order = util::storage(d, "sort order", bytes);
+    let counts = counts_for(ctx, s.n);
+    record_kernels(
+        ctx,
+        &pass,
+        enc,
+        cloud,
+        view,
+        &s,
+        (&key, &counts, &first, &order),
+        &["depth_range", "classify", "scan", "scatter", "refine"],
+    );
+    Ok(SortBuffers { key, order, counts })
+}
+
+/// Sorts the points of `cloud` seen in `v` back to front in slices of thickness `eps` (see
+/// the module documentation of [`super`]); the order within a slice is the atomics'. The
+/// depth range is read back first, so the slices are the CPU's.
+pub(crate) fn sort(
+    ctx: &GpuContext,
+    shared: &Shared,
+    cloud: &GpuCloud,
+    v: &ViewParams,
+    eps: f32,
+) -> Result<Sorted, GpuError> {
+    let bytes = index_bytes(ctx, cloud)?;
+    let pass = shared.pass::<BucketSort>(ctx);
+    let d = &ctx.device;
+    let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("sort view"),
+        contents: bytemuck::bytes_of(v),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
     // 1. Depths and their range.
     let none = Slicing {
         near: 0.0,
@@ -141,9 +210,23 @@ pub(crate) fn sort(
         n: 1,
         k: 1,
     };
-    let counts = counts_for(none.n);
+    let (key, first, order) = (
+        util::storage(d, "sort keys", bytes),
+        util::storage(d, "sort first level", bytes),
+        util::storage(d, "sort order", bytes),
+    );
+    let counts = counts_for(ctx, none.n);
     let mut enc = d.create_command_encoder(&Default::default());
-    let _blocks = per_chunk(&mut enc, &pass.depth_range, &none, &counts);
+    record_kernels(
+        ctx,
+        &pass,
+        &mut enc,
+        cloud,
+        &view,
+        &none,
+        (&key, &counts, &first, &order),
+        &["depth_range"],
+    );
     ctx.queue.submit([enc.finish()]);
     let raw = copy_out(ctx, &counts, 4 * (2 * none.n as u64 + 3))?;
     let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
@@ -167,34 +250,18 @@ pub(crate) fn sort(
     };
     let s = Slicing::new(unordered(lo), unordered(hi), eps);
     // 2. Slices, first level, scan, scatter, refine.
-    let counts = counts_for(s.n);
     let mut enc = d.create_command_encoder(&Default::default());
-    let _b1 = per_chunk(&mut enc, &pass.classify, &s, &counts);
-    let whole = block(&s, 0, 0);
-    {
-        let g = bind(&pass.scan, &whole, &cloud.chunks[0].positions, &counts);
-        let mut c = enc.begin_compute_pass(&Default::default());
-        c.set_pipeline(&pass.scan.pipeline);
-        c.set_bind_group(0, &g, &[]);
-        c.dispatch_workgroups(1, 1, 1);
-    }
-    let _b2 = per_chunk(&mut enc, &pass.scatter, &s, &counts);
-    {
-        let g = bind(&pass.refine, &whole, &cloud.chunks[0].positions, &counts);
-        let mut c = enc.begin_compute_pass(&Default::default());
-        c.set_pipeline(&pass.refine.pipeline);
-        c.set_bind_group(0, &g, &[]);
-        c.dispatch_workgroups(s.n, 1, 1);
-    }
+    let bufs = record_sort(ctx, shared, &mut enc, cloud, &view, s)?;
     ctx.queue.submit([enc.finish()]);
-    let raw = copy_out(ctx, &counts, 4 * (2 * s.n as u64 + 3))?;
+    let raw = copy_out(ctx, &bufs.counts, 4 * (2 * s.n as u64 + 3))?;
     let kept = bytemuck::pod_collect_to_vec::<u8, u32>(&raw)[2 * s.n as usize] as usize;
     let order: Vec<u32> = if kept == 0 {
         Vec::new()
     } else {
-        bytemuck::pod_collect_to_vec(&copy_out(ctx, &order, 4 * kept as u64)?)
+        bytemuck::pod_collect_to_vec(&copy_out(ctx, &bufs.order, 4 * kept as u64)?)
     };
-    let keys: Vec<u32> = bytemuck::pod_collect_to_vec(&copy_out(ctx, &key, 4 * n_points)?);
+    let keys: Vec<u32> =
+        bytemuck::pod_collect_to_vec(&copy_out(ctx, &bufs.key, 4 * cloud.len as u64)?);
     let slices = order.iter().map(|&i| keys[i as usize]).collect();
     ctx.take_errors()?;
     Ok(Sorted {

@@ -136,6 +136,21 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         hit = o + dir * (depth - shift);
     }
     let to_eye = -unit;
+    colour[k] = vec4<f32>(phong_lights(albedo, n, to_eye, hit, m, mat), 1.0);
+    surface_depth[k] = depth;
+}
+
+// shade::phong over the frame's lights, for a point at `hit` with normal `n_in` (turned to
+// the eye), lit values `m` and material (ambient, diffuse, specular, shininess) `mat`.
+fn phong_lights(
+    albedo: vec3<f32>,
+    n_in: vec3<f32>,
+    to_eye: vec3<f32>,
+    hit: vec3<f32>,
+    m: array<f32, 4>,
+    mat: vec4<f32>,
+) -> vec3<f32> {
+    var n = n_in;
     // shade::phong, over the lights
     if (dot3(n, to_eye) < 0.0) {
         n = -n;
@@ -172,6 +187,5 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             sp_sum = sp_sum + strength * mat.z * powi(max(dot3(r, to_eye), 0.0), i32(mat.w));
         }
     }
-    colour[k] = vec4<f32>(albedo * kk + sp_sum, 1.0);
-    surface_depth[k] = depth;
+    return albedo * kk + sp_sum;
 }
