@@ -415,7 +415,7 @@ pub struct SplatArgs {
     /// blending: splats graph-coloured into groups, one pass, per-pixel compositing; see
     /// --splat-c) or sorted (Gunjee et al.: every splat bucket-sorted back to front and
     /// blended over the ones behind it with its own opacity: volumes through --transfer,
-    /// particle clouds; CPU only so far).
+    /// particle clouds).
     #[arg(
         long = "splat",
         default_value = "blend",

@@ -129,11 +129,6 @@ impl Renderer {
             return Err(RenderError::EmptyCloud);
         }
         pipe.validate()?;
-        if self.is_gpu() && pipe.splat.is_some_and(|s| s.mode == SplatMode::Sorted) {
-            return Err(
-                gpu::GpuError::Unsupported(passes::splat::gpu::SORTED_ON_GPU.into()).into(),
-            );
-        }
         let t0 = std::time::Instant::now();
         let v = ViewParams::new(camera, cloud.cloud.origin);
         let pipe = &cloud.resolve(pipe, &v);

@@ -32,6 +32,7 @@ const BLEND_LAYERS: &str = include_str!("../passes/blend_layers/blend_layers.wgs
 const SHADOW_TEXTURE: &str = include_str!("../passes/shadow_texture/shadow_texture.wgsl");
 const SPLAT: &str = include_str!("../passes/splat/splat.wgsl");
 const BUCKET_SORT: &str = include_str!("../passes/bucket_sort/bucket_sort.wgsl");
+const SORTED: &str = include_str!("../passes/splat/sorted.wgsl");
 
 /// A shader module: its name and the files it is made of (after `common.wgsl`).
 #[derive(Clone, Copy, Debug)]
@@ -178,6 +179,12 @@ pub const BUCKET_SORT_MODULE: ShaderModule = ShaderModule {
     int64: false,
 };
 
+pub const SORTED_MODULE: ShaderModule = ShaderModule {
+    name: "sorted splats",
+    parts: &[SHADE, SORTED],
+    int64: false,
+};
+
 pub const ALL: &[ShaderModule] = &[
     PROJECT64,
     PROJECT32,
@@ -201,6 +208,7 @@ pub const ALL: &[ShaderModule] = &[
     SHADOW_TEXTURE_MODULE,
     SPLAT_MODULE,
     BUCKET_SORT_MODULE,
+    SORTED_MODULE,
 ];
 
 #[cfg(test)]
@@ -346,6 +354,11 @@ mod tests {
                 "Sort",
                 size_of::<p::bucket_sort::gpu::SortBlock>(),
             ),
+            (
+                &SORTED_MODULE,
+                "SortedChunk",
+                size_of::<p::splat::sorted_gpu::SortedChunk>(),
+            ),
         ];
         let wrong: Vec<String> = blocks
             .iter()
@@ -413,6 +426,21 @@ mod tests {
                 (p::project::gpu::POINTS_PER_GROUP / 8) as f64,
             ),
             (&BUCKET_SORT_MODULE, "MAX_K", p::bucket_sort::MAX_K as f64),
+            (
+                &SORTED_MODULE,
+                "MAX_FOOTPRINT",
+                p::splat::MAX_FOOTPRINT as f64,
+            ),
+            (
+                &SORTED_MODULE,
+                "SORTED_MAX_ALPHA",
+                p::splat::sorted::MAX_ALPHA as f64,
+            ),
+            (
+                &SORTED_MODULE,
+                "SORTED_ID_WEIGHT",
+                p::splat::sorted::ID_WEIGHT as f64,
+            ),
         ];
         for &(m, name, rust) in pairs {
             let w = wgsl_const(m, name);

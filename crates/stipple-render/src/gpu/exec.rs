@@ -82,6 +82,20 @@ impl PassExec for GpuExec<'_> {
         self.cur = Cursor::default();
         let (rec, b, cloud) = (&mut self.rec, self.b, self.cloud);
         match (splat, self.projection, &b.f.targets) {
+            (Some(sp), _, _) if sp.mode == crate::SplatMode::Sorted => {
+                let sg = self.splat.as_deref().ok_or_else(|| {
+                    GpuError::Wgpu("sorted splats asked for where splats are not set up".into())
+                })?;
+                let s = self.shading.as_mut().ok_or_else(|| {
+                    GpuError::Wgpu("sorted splats recorded in a light view".into())
+                })?;
+                // The material table (once a frame: shade, which takes it otherwise, is not
+                // run for sorted splats).
+                let materials = s.materials.take().ok_or_else(|| {
+                    GpuError::Wgpu("sorted splats: the frame's materials were taken".into())
+                })?;
+                splat::sorted_gpu::record(rec, b, sg, cloud, *sp, &s.block, &materials)?
+            }
             (Some(sp), _, _) => {
                 let sg = self.splat.as_deref_mut().ok_or_else(|| {
                     GpuError::Wgpu("splats asked for where the splat pass is not set up".into())

@@ -8,9 +8,6 @@
 
 use crate::device::cloud::GpuCloud;
 
-/// What a GPU frame of sorted splats says.
-pub const SORTED_ON_GPU: &str = "sorted splats (--splat sorted, Gunjee §4.2) have no GPU \
-     twin yet: render them with --backend cpu";
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::shaders::SPLAT_MODULE;
 use crate::device::util::{self, Arena, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
@@ -91,6 +88,17 @@ pub(crate) struct SplatGpu {
 }
 
 impl SplatGpu {
+    /// The uploaded per-chunk shape buffers of `cloud` ((radius, bend…), clip planes: three
+    /// vec4 per point) and whether they hold shapes.
+    pub(crate) fn shapes(&self, cloud: &GpuCloud) -> Result<(&[Buffer], bool), GpuError> {
+        match &self.radii {
+            Some((k, r, s)) if *k == cloud.key => Ok((r, *s)),
+            _ => Err(GpuError::Wgpu(
+                "splat: the cloud's radii were not uploaded".into(),
+            )),
+        }
+    }
+
     pub fn new(ctx: &GpuContext) -> SplatGpu {
         let d = &ctx.device;
         let bgl = util::layout(
@@ -371,7 +379,9 @@ impl SplatGpu {
                     crate::SplatMode::Blend => 1,
                     crate::SplatMode::Deferred => 2,
                     crate::SplatMode::Sorted => {
-                        return Err(GpuError::Unsupported(SORTED_ON_GPU.into()))
+                        return Err(GpuError::Wgpu(
+                            "sorted splats are drawn by sorted_gpu, not the splat pass".into(),
+                        ))
                     }
                 },
                 pad: 0,

@@ -64,6 +64,7 @@
 pub mod cpu;
 pub mod gpu;
 pub mod sorted;
+pub(crate) mod sorted_gpu;
 
 use crate::params::ViewParams;
 use glam::Vec3;
@@ -88,7 +89,7 @@ pub enum SplatMode {
     Deferred,
     /// Gunjee et al. §4.2: the points bucket-sorted back to front and drawn as Gaussian
     /// splats with the "over" operator, each with its own opacity and shading ([`sorted`]):
-    /// for volumes, transfer functions and particle clouds. CPU only so far.
+    /// for volumes, transfer functions and particle clouds.
     Sorted,
 }
 

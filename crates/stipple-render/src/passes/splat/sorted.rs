@@ -26,8 +26,12 @@
 //! the pixel is at least 0.1.
 //!
 //! The CPU draws bands of rows in parallel: each band takes, in order, the splats that reach
-//! it, so every pixel sees its splats in the sorted order. The GPU has no twin yet (an error
-//! says so).
+//! it, so every pixel sees its splats in the sorted order. The GPU (`sorted_gpu.rs`,
+//! `sorted.wgsl`) sorts with the bucket sort's kernels and draws one 16×16 tile per
+//! workgroup, one pixel per thread, the splats in order through workgroup memory. Both take
+//! the slices over the cloud's depth range from its bounds (the pipeline's `depth_range`)
+//! and the slice thickness `epsilon`, both set when the pipeline is resolved; within a
+//! slice the CPU keeps the points' order and the GPU its atomics' order.
 
 use crate::gbuffer::BACKGROUND;
 use crate::params::ViewParams;
@@ -57,10 +61,10 @@ pub fn expected_overlap() -> f32 {
 }
 
 /// The most opaque a splat may be (α = 1 shares a finite optical depth).
-const MAX_ALPHA: f32 = 0.999;
+pub(crate) const MAX_ALPHA: f32 = 0.999;
 
 /// A weight below which a fragment sets no depth or id.
-const ID_WEIGHT: f32 = 0.1;
+pub(crate) const ID_WEIGHT: f32 = 0.1;
 
 /// Draws the points of `order` (back to front) over `background`; writes linear colour,
 /// depth and id per pixel. Returns the fragments drawn.
