@@ -43,6 +43,24 @@ pub struct CpuRenderer {
     blended_valid: bool,
 }
 
+/// What shade reads of `cloud` under `pipe` (`pixel`: the splat pass's blended normals and
+/// albedo).
+fn shade_input<'a>(
+    cloud: &'a PreparedCloud,
+    pipe: &Pipeline,
+    pixel: Option<(&'a [glam::Vec3], &'a [[f32; 3]])>,
+) -> ShadeInput<'a> {
+    let c = &cloud.cloud;
+    ShadeInput {
+        positions: &c.positions,
+        normals: c.normals.as_deref().filter(|_| pipe.lighting),
+        albedo: cloud.albedo(pipe),
+        objects: cloud.objects.as_ref().map(|o| &o.index[..]),
+        lit: cloud.lit().map(|l| &l.counts[..]),
+        pixel,
+    }
+}
+
 fn timed<T>(stats: &mut Vec<PassStat>, pass: PassId, f: impl FnOnce() -> (T, u32, u64)) -> T {
     let t0 = Instant::now();
     let (r, iterations, count) = f();
@@ -228,14 +246,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 .fold(f32::INFINITY, f32::min)
                 * sp.scale;
             let params = cloud.shade_params(pipe, cloud.layer_gap(pipe));
-            let input = ShadeInput {
-                positions: &c.positions,
-                normals: c.normals.as_deref().filter(|_| pipe.lighting),
-                albedo: cloud.albedo(pipe),
-                objects: cloud.objects.as_ref().map(|o| &o.index[..]),
-                lit: cloud.lit().map(|l| &l.counts[..]),
-                pixel: None,
-            };
+            let input = shade_input(cloud, pipe, None);
             let sorted = timed(stats, PassId::BucketSort, || {
                 use crate::passes::bucket_sort::{cpu, Slicing};
                 // The resolved pipeline's slices (as the GPU's), else the points' own range.
@@ -363,23 +374,16 @@ impl crate::schedule::PassExec for CpuExec<'_> {
     fn shade(&mut self) -> Result<(), Self::Error> {
         let (r, cloud, v, pipe) = (&mut *self.r, self.cloud, self.v, self.pipe);
         let n = v.pixels();
-        let c = &cloud.cloud;
         let ga = &r.g.as_ref().expect("made by project").0;
         r.colour.0.resize(n, [0.0; 3]);
         r.colour.1.resize(n, [0.0; 3]);
         r.surface_depth.resize(n, 0.0);
         r.depth_b.resize(n, 0.0);
         let params = cloud.shade_params(pipe, cloud.layer_gap(pipe));
-        let input = ShadeInput {
-            positions: &c.positions,
-            normals: c.normals.as_deref().filter(|_| pipe.lighting),
-            albedo: cloud.albedo(pipe),
-            objects: cloud.objects.as_ref().map(|o| &o.index[..]),
-            lit: cloud.lit().map(|l| &l.counts[..]),
-            pixel: r
-                .blended_valid
-                .then(|| (&r.blended.normal[..], &r.blended.albedo[..])),
-        };
+        let pixel = r
+            .blended_valid
+            .then(|| (&r.blended.normal[..], &r.blended.albedo[..]));
+        let input = shade_input(cloud, pipe, pixel);
         let (ca, sd) = (&mut r.colour.0, &mut r.surface_depth);
         timed(&mut self.stats, PassId::Shade, || {
             shade::shade(v, ga, &input, &params, ca, sd);

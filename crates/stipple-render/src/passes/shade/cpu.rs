@@ -109,6 +109,33 @@ pub fn phong(albedo: [f32; 3], n: Vec3, v: Vec3, l: &[Vec3], m: &[f32; 4], t: &T
     albedo.map(|a| a * k + s)
 }
 
+/// [`phong`] over the frame's lights for a surface at `hit` (directions towards each light,
+/// point lights' falloff applied to their lit values `m`); shade.wgsl's `phong_lights`.
+#[inline]
+fn phong_lights(
+    p: &ShadeParams,
+    albedo: [f32; 3],
+    n: Vec3,
+    to_eye: Vec3,
+    hit: Vec3,
+    mut m: [f32; 4],
+    t: &Terms,
+) -> [f32; 3] {
+    let mut dirs = [Vec3::ZERO; 4];
+    for ((d, light), m) in dirs.iter_mut().zip(&p.lights).zip(&mut m) {
+        *d = match *light {
+            LocalLight::Headlight => to_eye,
+            LocalLight::Directional(d) => d,
+            LocalLight::Point(lp) => {
+                let lv = lp - hit;
+                *m *= falloff(p.falloff, lv.length_squared());
+                lv.normalize_or_zero()
+            }
+        };
+    }
+    phong(albedo, n, to_eye, &dirs[..p.lights.len()], &m, t)
+}
+
 /// A point light's strength at squared distance `d2`: (d₀ / d)² with `d0` > 0, else 1.
 #[inline]
 pub fn falloff(d0: f32, d2: f32) -> f32 {
@@ -164,20 +191,7 @@ pub fn shade_points(
                 Some(f) => -f,
                 None => (eye - q).normalize_or_zero(),
             };
-            let mut dirs = [Vec3::ZERO; 4];
-            let mut m = m;
-            for ((d, light), m) in dirs.iter_mut().zip(&p.lights).zip(&mut m) {
-                *d = match *light {
-                    LocalLight::Headlight => to_eye,
-                    LocalLight::Directional(d) => d,
-                    LocalLight::Point(lp) => {
-                        let lv = lp - q;
-                        *m *= falloff(p.falloff, lv.length_squared());
-                        lv.normalize_or_zero()
-                    }
-                };
-            }
-            phong(albedo, normals[id], to_eye, &dirs[..p.lights.len()], &m, t)
+            phong_lights(p, albedo, normals[id], to_eye, q, m, t)
         })
         .collect()
 }
@@ -254,21 +268,7 @@ pub fn shade(
                 } else {
                     o + dir * (depth - (o - Vec3::from(v.eye)).dot(Vec3::from(v.forward)))
                 };
-                let to_eye = -unit;
-                let mut dirs = [Vec3::ZERO; 4];
-                let mut m = m;
-                for ((d, light), m) in dirs.iter_mut().zip(&p.lights).zip(&mut m) {
-                    *d = match *light {
-                        LocalLight::Headlight => to_eye,
-                        LocalLight::Directional(d) => d,
-                        LocalLight::Point(lp) => {
-                            let lv = lp - hit;
-                            *m *= falloff(p.falloff, lv.length_squared());
-                            lv.normalize_or_zero()
-                        }
-                    };
-                }
-                crow[i] = phong(albedo, n, to_eye, &dirs[..p.lights.len()], &m, t);
+                crow[i] = phong_lights(p, albedo, n, -unit, hit, m, t);
                 drow[i] = depth;
             }
         });
