@@ -464,10 +464,16 @@ impl Cloud {
 }
 
 /// Reads a cloud file: every format `stipple render` reads (PLY, LAS/LAZ/COPC, XYZ, PCD, E57,
-/// OBJ/STL vertices, volumes as their iso-surface with `iso`).
+/// OBJ/STL vertices, volumes as their iso-surface with `iso`, or through a transfer function
+/// with `transfer`, as `--transfer` takes it: a file or the points inline).
 #[pyfunction]
-#[pyo3(signature = (path, iso=None))]
-pub fn read(py: Python<'_>, path: PathBuf, iso: Option<f64>) -> PyResult<Cloud> {
+#[pyo3(signature = (path, iso=None, transfer=None))]
+pub fn read(
+    py: Python<'_>,
+    path: PathBuf,
+    iso: Option<f64>,
+    transfer: Option<String>,
+) -> PyResult<Cloud> {
     if stipple_lod::is_tree(&path) || stipple_scene::is_scene(&path) {
         return Err(value_error(format!(
             "{}: a tree or a scene file, not a cloud: pass its path to stipple.render or \
@@ -478,17 +484,22 @@ pub fn read(py: Python<'_>, path: PathBuf, iso: Option<f64>) -> PyResult<Cloud> 
     if iso.is_some_and(|v| !v.is_finite()) {
         return Err(value_error("iso: must be finite"));
     }
+    if iso.is_some() && transfer.is_some() {
+        return Err(value_error(
+            "iso and transfer: a volume is drawn as an iso-surface or through a transfer \
+             function, not both",
+        ));
+    }
+    let transfer = transfer
+        .as_deref()
+        .map(|t| stipple_io::transfer_function(t, None))
+        .transpose()
+        .map_err(|e| value_error(format!("transfer: {e}")))?;
     let label = path.display().to_string();
     let cloud = crate::run_detached(
         py,
         move || {
-            let c = stipple_io::read_cloud_with(
-                &path,
-                &stipple_io::ReadOptions {
-                    iso,
-                    ..Default::default()
-                },
-            )?;
+            let c = stipple_io::read_cloud_with(&path, &stipple_io::ReadOptions { iso, transfer })?;
             Ok::<_, stipple_io::IoError>(PreparedCloud::new(c))
         },
         || false,

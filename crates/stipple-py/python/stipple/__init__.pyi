@@ -66,11 +66,14 @@ class Cloud:
         """Writes .ply, .las, .laz or .xyz (with estimated normals and radii). An existing
         file is kept (FileExistsError) unless overwrite=True."""
 
-def read(path: _Path, iso: float | None = None) -> Cloud:
+def read(path: _Path, iso: float | None = None, transfer: str | None = None) -> Cloud:
     """Reads any cloud file the command line reads: PLY (.ply, .ply.gz), LAS/LAZ/COPC,
     XYZ/TXT/CSV, PCD, E57, OBJ/STL (vertices), and volumes (.nrrd, .nii, .nii.gz, raw) as
-    their iso-surface at ``iso`` (default: Otsu's threshold). A missing file raises
-    FileNotFoundError, a malformed one ValueError naming the file."""
+    their iso-surface at ``iso`` (default: Otsu's threshold), or through the transfer
+    function ``transfer`` (as ``--transfer``: a file of ``value r g b opacity`` lines, or the
+    points inline separated by ``;``): every sample it shows becomes a point with its colour
+    and opacity. A missing file raises FileNotFoundError, a malformed one (or a bad
+    function) ValueError naming it."""
 
 def demo(name: str = "plane-objects", points: int | None = None, seed: int = 1) -> Cloud:
     """A built-in demo scene: plane-objects, sphere, torus, nested-tori."""

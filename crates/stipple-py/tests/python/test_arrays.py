@@ -148,3 +148,20 @@ def test_demo_scenes():
     assert len(c) == 1000
     with pytest.raises(ValueError, match="unknown scene"):
         stipple.demo("teapot")
+
+
+def test_a_volume_through_a_transfer_function(tmp_path):
+    # A 12-cube ball of value 200 in a background of 0 (radius 4 samples).
+    n = 12
+    z, y, x = np.mgrid[0:n, 0:n, 0:n]
+    inside = (x - 5.5) ** 2 + (y - 5.5) ** 2 + (z - 5.5) ** 2 < 16
+    vol = tmp_path / "ball_12x12x12_uint8.raw"
+    (inside.astype(np.uint8) * 200).tofile(vol)
+    cloud = stipple.read(vol, transfer="100 40 200 60 0; 150 40 200 60 0.5")
+    assert len(cloud) == int(inside.sum())
+    assert np.all(cloud.colors == np.array([40, 200, 60], dtype=np.uint8))
+    assert np.allclose(cloud.opacity, 0.5, atol=1 / 255)
+    with pytest.raises(ValueError, match="transfer"):
+        stipple.read(vol, transfer="1 2 3")
+    with pytest.raises(ValueError, match="iso and transfer"):
+        stipple.read(vol, iso=100.0, transfer="0 0 0 0 1")
