@@ -29,12 +29,7 @@ fn bench(c: &mut Criterion) {
     let cam = stipple_core::Camera::framing(lo, hi, 1024, 1024, 40.0);
     let v = ViewParams::new(&cam, cloud.cloud.origin);
     let pts = &cloud.cloud.positions;
-    let min_radius = cloud
-        .splat_radii()
-        .iter()
-        .copied()
-        .filter(|r| *r > 0.0)
-        .fold(f32::INFINITY, f32::min);
+    let min_radius = cloud.least_splat_radius();
     let mut g = c.benchmark_group("sort_dragon");
     g.sample_size(20);
     g.throughput(Throughput::Elements(pts.len() as u64));

@@ -230,13 +230,7 @@ impl PreparedCloud {
                 // The bucket sort's slices: over the bounds' depths, as thick as the smallest
                 // splat (Gunjee §4.2's ε).
                 s.depth_range = Some(self.depth_range(v));
-                let least = self
-                    .splat_radii()
-                    .iter()
-                    .copied()
-                    .filter(|&r| r > 0.0)
-                    .fold(f32::INFINITY, f32::min);
-                s.epsilon = Some(least * s.scale);
+                s.epsilon = Some(self.least_splat_radius() * s.scale);
             }
         }
         p
@@ -277,6 +271,16 @@ impl PreparedCloud {
                 self.cloud.len()
             ]),
         }
+    }
+
+    /// The smallest positive splat radius, unscaled (the bucket sort's slice thickness,
+    /// Gunjee §4.2's ε); +inf when no radius is positive.
+    pub fn least_splat_radius(&self) -> f32 {
+        self.splat_radii()
+            .iter()
+            .copied()
+            .filter(|&r| r > 0.0)
+            .fold(f32::INFINITY, f32::min)
     }
 
     /// The ε of the splat pass's ε-z test: the pipeline's own, else the median scaled radius.

@@ -97,13 +97,7 @@ impl Renderer {
         let eps = if eps > 0.0 && eps.is_finite() {
             eps
         } else {
-            cloud
-                .splat_radii()
-                .iter()
-                .copied()
-                .filter(|r| *r > 0.0)
-                .fold(f32::INFINITY, f32::min)
-                .min(f32::MAX)
+            cloud.least_splat_radius().min(f32::MAX)
         };
         match &mut self.inner {
             Inner::Cpu(_) => Ok(passes::bucket_sort::cpu::sort(

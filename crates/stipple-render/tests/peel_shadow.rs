@@ -16,16 +16,7 @@ use stipple_render::{
 
 /// A square of side `side` at height z (normal +z), `n` jittered-grid points.
 fn plane(n: usize, side: f32, z: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = Rng::new(seed);
-    let k = (n as f32).sqrt().ceil() as usize;
-    let mut p = Vec::with_capacity(k * k);
-    for i in 0..k {
-        for j in 0..k {
-            let x = (i as f32 + rng.f32()) / k as f32 - 0.5;
-            let y = (j as f32 + rng.f32()) / k as f32 - 0.5;
-            p.push(Vec3::new(x * side, y * side, z));
-        }
-    }
+    let p = common::jittered_square(n, side, z, seed);
     let n = vec![Vec3::Z; p.len()];
     (p, n)
 }

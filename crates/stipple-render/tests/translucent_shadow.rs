@@ -5,30 +5,14 @@
 mod common;
 
 use glam::Vec3;
-use stipple_core::rng::Rng;
 use stipple_core::PointCloud;
 use stipple_render::shadow::ShadowSettings;
 use stipple_render::{alpha8, Light, LitTexture, PreparedCloud, Renderer};
 
-/// A square of side `side` at height 0 (normal +z), `n` jittered-grid points.
-fn plane(n: usize, side: f32, seed: u64) -> Vec<Vec3> {
-    let mut rng = Rng::new(seed);
-    let k = (n as f32).sqrt().ceil() as usize;
-    let mut p = Vec::with_capacity(k * k);
-    for i in 0..k {
-        for j in 0..k {
-            let x = (i as f32 + rng.f32()) / k as f32 - 0.5;
-            let y = (j as f32 + rng.f32()) / k as f32 - 0.5;
-            p.push(Vec3::new(x * side, y * side, 0.0));
-        }
-    }
-    p
-}
-
 /// A plane (opaque) under a sphere shell of opacity `alpha`; returns the cloud and the
 /// number of plane points (they come first).
 fn shell_over_plane(alpha: f32, centre: Vec3, radius: f32) -> (PreparedCloud, usize) {
-    let pp = plane(400_000, 4.0, 3);
+    let pp = common::jittered_square(400_000, 4.0, 0.0, 3);
     let (sp, sn) = common::sphere(150_000, centre, radius, 4);
     let mut c = PointCloud::default();
     let np = pp.len();

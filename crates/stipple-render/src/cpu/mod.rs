@@ -238,24 +238,17 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             r.surface_depth.resize(n, 0.0);
             r.depth_b.resize(n, 0.0);
             let radii = cloud.splat_radii();
-            // The paper's slice thickness: the smallest splat.
-            let eps = radii
-                .iter()
-                .copied()
-                .filter(|&x| x > 0.0)
-                .fold(f32::INFINITY, f32::min)
-                * sp.scale;
             let params = cloud.shade_params(pipe, cloud.layer_gap(pipe));
             let input = shade_input(cloud, pipe, None);
+            // The resolved pipeline's slices (as the GPU's): the bounds' depths, as thick as
+            // the smallest splat (`PreparedCloud::resolve`).
+            let (lo, hi) = sp.depth_range.unwrap_or_else(|| cloud.depth_range(v));
+            let eps = sp
+                .epsilon
+                .unwrap_or_else(|| cloud.least_splat_radius() * sp.scale);
+            let slicing = crate::passes::bucket_sort::Slicing::new(lo, hi, eps);
             let sorted = timed(stats, PassId::BucketSort, || {
-                use crate::passes::bucket_sort::{cpu, Slicing};
-                // The resolved pipeline's slices (as the GPU's), else the points' own range.
-                let s = match (sp.depth_range, sp.epsilon) {
-                    (Some((lo, hi)), Some(e)) => {
-                        cpu::sort_in(v, &c.positions, Slicing::new(lo, hi, e))
-                    }
-                    _ => cpu::sort(v, &c.positions, eps),
-                };
+                let s = crate::passes::bucket_sort::cpu::sort_in(v, &c.positions, slicing);
                 let k = s.order.len() as u64;
                 (s, 1, k)
             });

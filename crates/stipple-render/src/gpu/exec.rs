@@ -83,7 +83,7 @@ impl PassExec for GpuExec<'_> {
         let (rec, b, cloud) = (&mut self.rec, self.b, self.cloud);
         match (splat, self.projection, &b.f.targets) {
             (Some(sp), _, _) if sp.mode == crate::SplatMode::Sorted => {
-                let sg = self.splat.as_deref().ok_or_else(|| {
+                let sg = self.splat.as_deref_mut().ok_or_else(|| {
                     GpuError::Wgpu("sorted splats asked for where splats are not set up".into())
                 })?;
                 let s = self.shading.as_mut().ok_or_else(|| {

@@ -40,6 +40,21 @@ pub fn backends() -> Vec<Renderer> {
     r
 }
 
+/// A square of side `side` at height z (in the xy plane), ⌈√n⌉² jittered-grid points.
+pub fn jittered_square(n: usize, side: f32, z: f32, seed: u64) -> Vec<Vec3> {
+    let mut rng = Rng::new(seed);
+    let k = (n as f32).sqrt().ceil() as usize;
+    let mut p = Vec::with_capacity(k * k);
+    for i in 0..k {
+        for j in 0..k {
+            let x = (i as f32 + rng.f32()) / k as f32 - 0.5;
+            let y = (j as f32 + rng.f32()) / k as f32 - 0.5;
+            p.push(Vec3::new(x * side, y * side, z));
+        }
+    }
+    p
+}
+
 /// `n` points uniformly on a sphere, with outward normals.
 pub fn sphere(n: usize, centre: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
     let mut rng = Rng::new(seed);

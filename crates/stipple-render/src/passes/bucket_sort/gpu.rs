@@ -49,12 +49,37 @@ impl GpuPass for BucketSort {
     }
 }
 
-/// A recorded sort's buffers: `order` holds the kept points' indices back to front and
-/// `counts[2 n]` how many were kept (see bucket_sort.wgsl).
+/// A sort's buffers, made once for a cloud and reused by every sort of it: after a sort,
+/// `order` holds the kept points' indices back to front and `counts[2 n]` how many were kept
+/// (see bucket_sort.wgsl).
 pub(crate) struct SortBuffers {
     pub key: wgpu::Buffer,
+    first: wgpu::Buffer,
     pub order: wgpu::Buffer,
+    /// Room for the counters of [`super::MAX_N`] first-level buckets.
     pub counts: wgpu::Buffer,
+}
+
+impl SortBuffers {
+    pub fn new(ctx: &GpuContext, cloud: &GpuCloud) -> Result<SortBuffers, GpuError> {
+        let bytes = index_bytes(ctx, cloud)?;
+        let d = &ctx.device;
+        Ok(SortBuffers {
+            key: util::storage(d, "sort keys", bytes),
+            first: util::storage(d, "sort first level", bytes),
+            order: util::storage(d, "sort order", bytes),
+            counts: util::storage(d, "sort counts", 4 * (2 * super::MAX_N as u64 + 3)),
+        })
+    }
+
+    /// Sets the counters of a sort with `n` first-level buckets (zero, and the depth range's
+    /// least at its largest value), before the next submission.
+    fn reset_counts(&self, ctx: &GpuContext, n: u32) {
+        let mut c = vec![0u32; 2 * n as usize + 3];
+        c[2 * n as usize + 1] = u32::MAX;
+        ctx.queue
+            .write_buffer(&self.counts, 0, bytemuck::cast_slice(&c));
+    }
 }
 
 /// The index buffers' size for `cloud`, or the error when they exceed a binding.
@@ -91,14 +116,6 @@ fn block(ctx: &GpuContext, s: &Slicing, base: u32, count: u32) -> wgpu::Buffer {
             }),
             usage: wgpu::BufferUsages::UNIFORM,
         })
-}
-
-/// The counters of a sort with `n` first-level buckets (the depth range's least at its
-/// largest value).
-fn counts_for(ctx: &GpuContext, n: u32) -> wgpu::Buffer {
-    let mut c = vec![0u32; 2 * n as usize + 3];
-    c[2 * n as usize + 1] = u32::MAX;
-    util::storage_init(&ctx.device, "sort counts", bytemuck::cast_slice(&c))
 }
 
 /// Records the kernels of `names` over every chunk (per-point kernels), or once over one
@@ -156,7 +173,8 @@ fn record_kernels(
 }
 
 /// Records a whole sort of the points seen in the view of `view` (a uniform [`ViewParams`]
-/// buffer) with slicing `s` given by the host (a range at least as wide as the points').
+/// buffer) with slicing `s` given by the host (a range at least as wide as the points'),
+/// into `bufs` (made for `cloud`). Only one sort may be recorded per submission.
 pub(crate) fn record_sort(
     ctx: &GpuContext,
     shared: &Shared,
@@ -164,14 +182,10 @@ pub(crate) fn record_sort(
     cloud: &GpuCloud,
     view: &wgpu::Buffer,
     s: Slicing,
-) -> Result<SortBuffers, GpuError> {
-    let bytes = index_bytes(ctx, cloud)?;
+    bufs: &SortBuffers,
+) {
     let pass = shared.pass::<BucketSort>(ctx);
-    let d = &ctx.device;
-    let key = util::storage(d, "sort keys", bytes);
-    let first = util::storage(d, "sort first level", bytes);
-    let order = util::storage(d, "sort order", bytes);
-    let counts = counts_for(ctx, s.n);
+    bufs.reset_counts(ctx, s.n);
     record_kernels(
         ctx,
         &pass,
@@ -179,10 +193,9 @@ pub(crate) fn record_sort(
         cloud,
         view,
         &s,
-        (&key, &counts, &first, &order),
+        (&bufs.key, &bufs.counts, &bufs.first, &bufs.order),
         &["depth_range", "classify", "scan", "scatter", "refine"],
     );
-    Ok(SortBuffers { key, order, counts })
 }
 
 /// Sorts the points of `cloud` seen in `v` back to front in slices of thickness `eps` (see
@@ -195,7 +208,7 @@ pub(crate) fn sort(
     v: &ViewParams,
     eps: f32,
 ) -> Result<Sorted, GpuError> {
-    let bytes = index_bytes(ctx, cloud)?;
+    let bufs = SortBuffers::new(ctx, cloud)?;
     let pass = shared.pass::<BucketSort>(ctx);
     let d = &ctx.device;
     let view = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -210,12 +223,7 @@ pub(crate) fn sort(
         n: 1,
         k: 1,
     };
-    let (key, first, order) = (
-        util::storage(d, "sort keys", bytes),
-        util::storage(d, "sort first level", bytes),
-        util::storage(d, "sort order", bytes),
-    );
-    let counts = counts_for(ctx, none.n);
+    bufs.reset_counts(ctx, none.n);
     let mut enc = d.create_command_encoder(&Default::default());
     record_kernels(
         ctx,
@@ -224,11 +232,11 @@ pub(crate) fn sort(
         cloud,
         &view,
         &none,
-        (&key, &counts, &first, &order),
+        (&bufs.key, &bufs.counts, &bufs.first, &bufs.order),
         &["depth_range"],
     );
     ctx.queue.submit([enc.finish()]);
-    let raw = copy_out(ctx, &counts, 4 * (2 * none.n as u64 + 3))?;
+    let raw = copy_out(ctx, &bufs.counts, 4 * (2 * none.n as u64 + 3))?;
     let words: Vec<u32> = bytemuck::pod_collect_to_vec(&raw);
     let (lo, hi) = (
         words[2 * none.n as usize + 1],
@@ -251,7 +259,7 @@ pub(crate) fn sort(
     let s = Slicing::new(unordered(lo), unordered(hi), eps);
     // 2. Slices, first level, scan, scatter, refine.
     let mut enc = d.create_command_encoder(&Default::default());
-    let bufs = record_sort(ctx, shared, &mut enc, cloud, &view, s)?;
+    record_sort(ctx, shared, &mut enc, cloud, &view, s, &bufs);
     ctx.queue.submit([enc.finish()]);
     let raw = copy_out(ctx, &bufs.counts, 4 * (2 * s.n as u64 + 3))?;
     let kept = bytemuck::pod_collect_to_vec::<u8, u32>(&raw)[2 * s.n as usize] as usize;

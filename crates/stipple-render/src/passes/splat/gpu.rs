@@ -85,9 +85,56 @@ pub(crate) struct SplatGpu {
     /// (radius, A, B, C) per point, per chunk of the cloud uploaded last (keyed by its
     /// upload key), and whether it has shapes.
     radii: Option<(u64, Vec<Buffer>, bool)>,
+    /// Sorted splats: the bucket sort's buffers and the per-point splats (two vec4 each) of
+    /// the cloud uploaded last (keyed by its upload key), made on its first sorted frame.
+    sorted: Option<(u64, crate::passes::bucket_sort::gpu::SortBuffers, Buffer)>,
 }
 
 impl SplatGpu {
+    /// Makes the sorted splats' buffers for `cloud` unless they are there already (they are
+    /// kept from frame to frame).
+    pub(crate) fn make_sorted_buffers(
+        &mut self,
+        ctx: &GpuContext,
+        cloud: &GpuCloud,
+    ) -> Result<(), GpuError> {
+        if self.sorted.as_ref().is_some_and(|s| s.0 == cloud.key) {
+            return Ok(());
+        }
+        self.sorted = None;
+        let bytes = 32 * cloud.len as u64;
+        let limit = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        if bytes > limit {
+            return Err(GpuError::TooLarge(format!(
+                "sorted splats of {} points: their per-point buffer of {} MiB exceeds the \
+                 device's binding limit of {} MiB",
+                cloud.len,
+                bytes >> 20,
+                limit >> 20
+            )));
+        }
+        let sort = crate::passes::bucket_sort::gpu::SortBuffers::new(ctx, cloud)?;
+        let splats = util::storage(&ctx.device, "sorted splats", bytes);
+        self.sorted = Some((cloud.key, sort, splats));
+        Ok(())
+    }
+
+    /// The sorted splats' buffers of `cloud` (see [`SplatGpu::make_sorted_buffers`]).
+    pub(crate) fn sorted_buffers(
+        &self,
+        cloud: &GpuCloud,
+    ) -> Result<(&crate::passes::bucket_sort::gpu::SortBuffers, &Buffer), GpuError> {
+        match &self.sorted {
+            Some((k, s, b)) if *k == cloud.key => Ok((s, b)),
+            _ => Err(GpuError::Wgpu(
+                "sorted splats: the cloud's buffers were not made".into(),
+            )),
+        }
+    }
+
     /// The uploaded per-chunk shape buffers of `cloud` ((radius, bend…), clip planes: three
     /// vec4 per point) and whether they hold shapes.
     pub(crate) fn shapes(&self, cloud: &GpuCloud) -> Result<(&[Buffer], bool), GpuError> {
@@ -175,6 +222,7 @@ impl SplatGpu {
             bgl,
             scratch: None,
             radii: None,
+            sorted: None,
         }
     }
 

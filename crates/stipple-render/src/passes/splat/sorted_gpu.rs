@@ -3,7 +3,9 @@
 //! bounds), then sorted.wgsl: `sorted_points` per chunk (splat and shaded colour per point,
 //! as `shade::cpu::shade_points`) and `sorted_composite` per 16×16 tile (the splats in
 //! sorted order through workgroup memory, "over" per pixel). All in the frame's command
-//! buffer; nothing is read back.
+//! buffer; nothing is read back. The sort's buffers and the per-point splats are made once
+//! per cloud and kept in [`SplatGpu`] from frame to frame; the uniform blocks are still made
+//! per frame.
 //!
 //! Cost: every tile walks every splat in order (a bounds test for those that miss it), in
 //! dispatches of [`BATCH`] splats; there is no per-tile binning yet, which is what the CPU's
@@ -16,7 +18,7 @@ use crate::device::cloud::GpuCloud;
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::frame::{Binder, GpuPass, Shared};
 use crate::device::record::{flat_groups, Rec};
-use crate::device::util::{self, Pass, Res, Slot, READ, UNIFORM, WRITE};
+use crate::device::util::{Pass, Res, Slot, READ, UNIFORM, WRITE};
 use crate::passes::bucket_sort::Slicing;
 use crate::passes::shade::gpu::{MaterialTable, ShadeBlock};
 use crate::stats::PassId;
@@ -86,7 +88,7 @@ impl GpuPass for SortedGpu {
 pub(crate) fn record(
     rec: &mut Rec<'_>,
     b: Binder<'_>,
-    splat: &SplatGpu,
+    splat: &mut SplatGpu,
     cloud: &GpuCloud,
     s: crate::SplatSettings,
     block: &ShadeBlock,
@@ -94,33 +96,23 @@ pub(crate) fn record(
 ) -> Result<(), GpuError> {
     let (ctx, f) = (b.ctx, b.f);
     let d = &ctx.device;
-    let limit = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
-    if 32 * cloud.len as u64 > limit {
-        return Err(GpuError::TooLarge(format!(
-            "sorted splats of {} points: their per-point buffer of {} MiB exceeds the \
-             device's binding limit of {} MiB",
-            cloud.len,
-            (32 * cloud.len as u64) >> 20,
-            limit >> 20
-        )));
-    }
     let (lo, hi) = s.depth_range.ok_or_else(|| {
         GpuError::Wgpu("sorted splats: the pipeline was not resolved for the view".into())
     })?;
     let slicing = Slicing::new(lo, hi, s.epsilon.unwrap_or(0.0));
     let q = rec.section();
-    let sorted = crate::passes::bucket_sort::gpu::record_sort(
+    splat.make_sorted_buffers(ctx, cloud)?;
+    let (shapes, _) = splat.shapes(cloud)?;
+    let (sorted, splats) = splat.sorted_buffers(cloud)?;
+    crate::passes::bucket_sort::gpu::record_sort(
         ctx,
         b.shared,
         &mut rec.enc,
         cloud,
         &b.shared.view,
         slicing,
-    )?;
-    let (shapes, _) = splat.shapes(cloud)?;
+        sorted,
+    );
     let pass = b.shared.pass::<SortedGpu>(ctx);
     let uniform = |label, bytes: &[u8]| {
         d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -131,7 +123,6 @@ pub(crate) fn record(
     };
     let sp = uniform("sorted shade", bytemuck::bytes_of(block));
     let mats = uniform("sorted materials", bytemuck::cast_slice(&materials[..]));
-    let splats = util::storage(d, "sorted splats", 32 * cloud.len as u64);
     let overlap = expected_overlap() * s.scale * s.scale;
     {
         let mut c = rec.enc.begin_compute_pass(&Default::default());
@@ -174,7 +165,7 @@ pub(crate) fn record(
                     Res::Buf(&or_dummy(&ch.style)),
                     Res::Buf(&or_dummy(&ch.lit)),
                     Res::Buf(shape),
-                    Res::Buf(&splats),
+                    Res::Buf(splats),
                 ],
             );
             c.set_bind_group(0, &g, &[]);
@@ -220,7 +211,7 @@ pub(crate) fn record(
                 Res::Skip,
                 Res::Skip,
                 Res::Skip,
-                Res::Buf(&splats),
+                Res::Buf(splats),
                 Res::Buf(&sorted.order),
                 Res::Buf(&sorted.counts),
                 Res::Buf(&comp),
