@@ -94,7 +94,7 @@ pub fn render_prepared(
         tree,
         label,
     } = *view;
-    if let Some(line) = a.colour.apply(cloud, label)? {
+    for line in a.colour.apply(cloud, label)? {
         note(&line);
     }
     let peeled = crate::look::layers(&a.look, scene) > 1;

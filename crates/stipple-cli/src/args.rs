@@ -1031,17 +1031,19 @@ pub fn parse_scene(s: &str) -> std::result::Result<stipple_core::demo::DemoScene
     })
 }
 
-/// Colour by attribute (`render` and `bench`).
+/// Colour by attribute and lookup tables (`render`, and Python's `render`).
 #[derive(clap::Args, Clone, Default)]
-#[command(next_help_heading = "Colour by attribute (Gunjee et al. §3)")]
+#[command(next_help_heading = "Colour by attribute, lookup tables (Gunjee et al. §3)")]
 pub struct ColourArgs {
     /// Colour the points by an attribute instead of the file's colours: elevation (Z for
     /// LiDAR and clouds flat in Z, else Y), intensity, classification (the ASPRS class
     /// palette: ground brown, vegetation greens, buildings orange, water blue, …), return
     /// (the LiDAR return number: first returns light grey, second amber, third orange, fourth
-    /// red, later purple: canopy against open ground), or a world coordinate x, y, z.
-    #[arg(long, visible_alias = "color-by", value_name = "ATTR")]
-    pub colour_by: Option<stipple_core::colour_map::Attribute>,
+    /// red, later purple: canopy against open ground), a world coordinate x, y, z, or any
+    /// scalar field of the file by name (a PLY or PCD property such as curvature or
+    /// confidence; `stipple info` lists them).
+    #[arg(long, visible_alias = "color-by", value_name = "ATTR", value_parser = parse_colour_by)]
+    pub colour_by: Option<stipple_core::colour_map::ColourBy>,
     /// Colour map for --colour-by: viridis (perceptually uniform, colour-blind safe),
     /// turbo (rainbow, for detail), grey, inferno.
     #[arg(
@@ -1055,6 +1057,29 @@ pub struct ColourArgs {
     /// percentiles of the attribute, so outliers do not flatten the rest).
     #[arg(long, value_parser = parse_range, value_name = "LO,HI", requires = "colour_by", allow_hyphen_values = true)]
     pub range: Option<(f64, f64)>,
+    /// A lookup table (TOML): per value of an integer attribute (classification, return, or a
+    /// field such as a material id), the colour, opacity, splat size, Phong material of
+    /// those points, or `show = false` to leave them out; applied after --colour-by. See
+    /// docs/lookup.md and examples/classes.toml.
+    #[arg(long, value_name = "FILE")]
+    pub lookup: Option<std::path::PathBuf>,
+}
+
+/// `--colour-by`: a built-in attribute's name, else a scalar field's.
+fn parse_colour_by(s: &str) -> std::result::Result<stipple_core::colour_map::ColourBy, String> {
+    use clap::ValueEnum;
+    use stipple_core::colour_map::{Attribute, ColourBy};
+    if let Ok(a) = Attribute::from_str(s, true) {
+        return Ok(ColourBy::Attribute(a));
+    }
+    let t = s.trim();
+    if t.is_empty() || t.len() > 128 || t.chars().any(char::is_control) {
+        return Err(format!(
+            "`{s}`: name an attribute (elevation, intensity, classification, return, x, y, z) \
+             or a scalar field of the file"
+        ));
+    }
+    Ok(ColourBy::Field(t.to_string()))
 }
 
 fn parse_range(s: &str) -> std::result::Result<(f64, f64), String> {
@@ -1072,39 +1097,70 @@ fn parse_range(s: &str) -> std::result::Result<(f64, f64), String> {
 }
 
 impl ColourArgs {
-    /// Replaces the cloud's colours as asked; the line to print, if any. `what` names the
-    /// input in errors.
+    /// Colours the cloud and applies the lookup table as asked; the lines to print. `what`
+    /// names the input in errors.
     pub fn apply(
         &self,
         cloud: &mut stipple_render::PreparedCloud,
         what: &str,
+    ) -> anyhow::Result<Vec<String>> {
+        let mut lines = Vec::new();
+        if let Some(line) = self.colour(cloud, what)? {
+            lines.push(line);
+        }
+        if let Some(path) = &self.lookup {
+            let table = stipple_io::lookup_table(path).map_err(|e| anyhow!("--lookup {e}"))?;
+            let taken = std::mem::replace(
+                cloud,
+                stipple_render::PreparedCloud::new(Default::default()),
+            );
+            let (c, applied) = taken
+                .with_lookup(&table, &stipple_render::Material::default())
+                .map_err(|e| anyhow!("{what}: --lookup {}: {e}", path.display()))?;
+            *cloud = c;
+            lines.push(stipple_core::lookup::summary(path, &table, &applied));
+        }
+        Ok(lines)
+    }
+
+    fn colour(
+        &self,
+        cloud: &mut stipple_render::PreparedCloud,
+        what: &str,
     ) -> anyhow::Result<Option<String>> {
-        use stipple_core::colour_map::{colour_by, elevation_is_z, Attribute};
-        let Some(attr) = self.colour_by else {
+        use stipple_core::colour_map::{colour_by_any, elevation_is_z, Attribute, ColourBy};
+        let Some(by) = &self.colour_by else {
             return Ok(None);
         };
-        let (colours, (lo, hi)) = colour_by(&cloud.cloud, attr, self.colour_map, self.range)
+        let (colours, (lo, hi)) = colour_by_any(&cloud.cloud, by, self.colour_map, self.range)
             .map_err(|e| anyhow!("{what}: --colour-by: {e}"))?;
         cloud.cloud.colors = Some(colours);
         use clap::ValueEnum;
         let value_name = |v: Option<clap::builder::PossibleValue>| {
             v.map_or(String::new(), |v| v.get_name().to_string())
         };
-        let name = match attr {
-            Attribute::Elevation if elevation_is_z(&cloud.cloud) => "elevation (z)".to_string(),
-            Attribute::Elevation => "elevation (y)".to_string(),
-            a => value_name(a.to_possible_value()),
+        let name = match by {
+            ColourBy::Attribute(Attribute::Elevation) if elevation_is_z(&cloud.cloud) => {
+                "elevation (z)".to_string()
+            }
+            ColourBy::Attribute(Attribute::Elevation) => "elevation (y)".to_string(),
+            ColourBy::Attribute(a) => value_name(a.to_possible_value()),
+            ColourBy::Field(f) => {
+                let name = cloud.cloud.field(f).map_or(f.as_str(), |x| x.name.as_str());
+                format!("the field `{name}`")
+            }
         };
-        Ok(Some(if attr == Attribute::Classification {
-            "colouring by classification (ASPRS class palette)".to_string()
-        } else if attr == Attribute::Return {
-            "colouring by return number (first light grey, second amber, third orange, fourth \
+        Ok(Some(
+            if *by == ColourBy::Attribute(Attribute::Classification) {
+                "colouring by classification (ASPRS class palette)".to_string()
+            } else if *by == ColourBy::Attribute(Attribute::Return) {
+                "colouring by return number (first light grey, second amber, third orange, fourth \
              red, later purple)"
-                .to_string()
-        } else {
-            // Three significant digits of the range's width.
-            let decimals = (3.0 - (hi - lo).log10().floor()).clamp(0.0, 9.0) as usize;
-            format!(
+                    .to_string()
+            } else {
+                // Three significant digits of the range's width.
+                let decimals = (3.0 - (hi - lo).log10().floor()).clamp(0.0, 9.0) as usize;
+                format!(
                 "colouring by {name}: {lo:.decimals$} … {hi:.decimals$} over the {} colour map{}",
                 value_name(self.colour_map.to_possible_value()),
                 if self.range.is_none() {
@@ -1113,6 +1169,7 @@ impl ColourArgs {
                     ""
                 }
             )
-        }))
+            },
+        ))
     }
 }

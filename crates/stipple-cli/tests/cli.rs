@@ -794,6 +794,134 @@ fn colour_by_attribute_maps_values_through_the_colour_map() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// A PLY's extra properties are scalar fields: `--colour-by segment` maps one through the
+/// colour map, and `--lookup` colours, hides and sets the opacity of the points by its
+/// integer value (three bands of a plane: red, hidden, blue); bad tables and keys are
+/// errors naming the file.
+#[test]
+fn scalar_fields_colour_and_index_lookup_tables() {
+    let dir = tempdir("lookup");
+    let mut s = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 14400\nproperty float x\nproperty float y\n\
+         property float z\nproperty uchar segment\nproperty float w\nend_header\n",
+    );
+    for j in 0..120 {
+        for i in 0..120 {
+            s.push_str(&format!(
+                "{} {} 0 {} 0.5\n",
+                i as f32 / 119.0 * 2.0 - 1.0,
+                j as f32 / 119.0 * 2.0 - 1.0,
+                1 + i / 40
+            ));
+        }
+    }
+    std::fs::write(dir.join("plane.ply"), s).unwrap();
+    std::fs::write(
+        dir.join("t.toml"),
+        "key = \"segment\"\n[value.1]\nname = \"left\"\ncolour = [255, 0, 0]\n\
+         [value.2]\nshow = false\n[value.3]\ncolor = [0, 0, 255]\n",
+    )
+    .unwrap();
+    let view = [
+        "--size",
+        "64",
+        "--backend",
+        "cpu",
+        "--eye",
+        "0,0,3",
+        "--target",
+        "0,0,0",
+        "--up",
+        "0,1,0",
+        "--no-lighting",
+        "--background",
+        "0,0,0",
+    ];
+    let render = |extra: &[&str], out: &str| {
+        let mut a = vec!["render", "plane.ply", "-o", out];
+        a.extend(view);
+        a.extend(extra);
+        let o = stipple(&dir, &a);
+        assert!(o.status.success(), "{extra:?}: {}", text(&o));
+        let (w, _, rgba) = stipple_io::image::read_png(&dir.join(out)).unwrap();
+        (text(&o), move |x: usize, y: usize| {
+            let i = 4 * (y * w as usize + x);
+            [rgba[i], rgba[i + 1], rgba[i + 2]]
+        })
+    };
+    let (out, px) = render(
+        &[
+            "--colour-by",
+            "segment",
+            "--colour-map",
+            "grey",
+            "--range",
+            "1,3",
+        ],
+        "g.png",
+    );
+    assert!(out.contains("the field `segment`"), "{out}");
+    let (l, m, r) = (px(14, 32)[0], px(32, 32)[0], px(50, 32)[0]);
+    assert!(l + 60 < m && m + 60 < r, "{l} {m} {r}");
+    let (out, px) = render(&["--lookup", "t.toml"], "l.png");
+    assert!(
+        out.contains("by segment") && out.contains("1 left 4800"),
+        "{out}"
+    );
+    assert!(out.contains("4800 points hidden"), "{out}");
+    let [r, g, b] = px(14, 32);
+    assert!(r > 200 && g < 40 && b < 40, "left {r} {g} {b}");
+    assert_eq!(
+        px(32, 32),
+        [0, 0, 0],
+        "the hidden band shows the background"
+    );
+    let [r, g, b] = px(50, 32);
+    assert!(b > 200 && r < 40 && g < 40, "right {r} {g} {b}");
+    for (table, want) in [
+        (
+            "key = \"segment\"\n[value.x]\n",
+            "t.toml: `[value.x]`: the key must be an integer",
+        ),
+        ("key = \"segment\"\n[value.1]\nopacity = 3\n", "opacity 3"),
+        ("key = \"segment\"\nbogus = 1\n", "unknown field `bogus`"),
+        (
+            "key = \"labels\"\n",
+            "no `labels` to look up (it has: position, segment, w)",
+        ),
+        ("key = \"w\"\n", "w = 0.5, not an integer"),
+        (
+            "key = \"segment\"\n[default]\nshow = false\n",
+            "hides every point",
+        ),
+    ] {
+        std::fs::write(dir.join("t.toml"), table).unwrap();
+        let mut a = vec!["render", "plane.ply", "--lookup", "t.toml", "-o", "bad.png"];
+        a.extend(view);
+        let o = stipple(&dir, &a);
+        assert!(!o.status.success(), "{table:?} accepted");
+        assert!(text(&o).contains(want), "{table:?}: {}", text(&o));
+        assert!(!dir.join("bad.png").exists());
+    }
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "plane.ply",
+            "--lookup",
+            "none.toml",
+            "-o",
+            "bad.png",
+        ],
+    );
+    assert!(
+        !o.status.success() && text(&o).contains("none.toml"),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}
+
 /// `stipple convert` samples a mesh's faces to points: a cube's surface at the spacing
 /// asked for, every point on a face with its outward normal; the input is only read, and
 /// clouds without faces, existing outputs and impossible spacings are clear errors.

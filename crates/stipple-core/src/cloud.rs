@@ -139,6 +139,10 @@ pub struct PointCloud {
     pub opacity: Option<Vec<f32>>,
     /// Splat radius per point, world units (PLY `radius`; see [`crate::normals`]).
     pub radius: Option<Vec<f32>>,
+    /// The file's other per-point values by name (scalar fields: a PLY or PCD property such
+    /// as `curvature`, `confidence` or a material id), at most [`MAX_FIELDS`], for colouring
+    /// by and lookup tables (see [`crate::colour_map`], [`crate::lookup`]).
+    pub fields: Vec<Field>,
     /// Triangles from the source file (kept for ground-truth rendering and later conversions).
     pub faces: Vec<[u32; 3]>,
     /// The source says +Z is up (LAS/LAZ/COPC: georeferenced, Z is elevation); the default
@@ -152,6 +156,56 @@ pub struct PointCloud {
     /// so renders keep them as they are instead of checking their consistency over a
     /// neighbour graph (which can turn whole nested surfaces round where they touch).
     pub normals_trusted: bool,
+}
+
+/// Scalar fields a cloud keeps from its file (further ones are skipped): a file with
+/// thousands of properties must not multiply its memory by thousands.
+pub const MAX_FIELDS: usize = 32;
+
+/// One scalar field: a value per point, stored as `f32` offsets from `offset` so that large
+/// values with a small spread (GPS times, ids in the millions) keep their precision.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Field {
+    /// The name the file gave it.
+    pub name: String,
+    pub offset: f64,
+    /// `value(i) = offset + values[i]`; NaN where a point has no value (a merged cloud's
+    /// points from a file without this field).
+    pub values: Vec<f32>,
+}
+
+impl Field {
+    /// A field from values in f64 (the offset: the first finite value).
+    pub fn new(name: impl Into<String>, values: &[f64]) -> Field {
+        let offset = values
+            .iter()
+            .copied()
+            .find(|v| v.is_finite())
+            .unwrap_or(0.0);
+        Field {
+            name: name.into(),
+            offset,
+            values: values.iter().map(|&v| (v - offset) as f32).collect(),
+        }
+    }
+
+    /// Point `i`'s value.
+    #[inline]
+    pub fn value(&self, i: usize) -> f64 {
+        self.offset + self.values[i] as f64
+    }
+
+    /// Whether `name` names this field: equal ignoring ASCII case, and ignoring the
+    /// `scalar_` prefix CloudCompare writes (`scalar_Curvature` is `curvature`).
+    pub fn is_named(&self, name: &str) -> bool {
+        fn strip(s: &str) -> &str {
+            match s.get(..7) {
+                Some(p) if p.eq_ignore_ascii_case("scalar_") && s.len() > 7 => &s[7..],
+                _ => s,
+            }
+        }
+        strip(&self.name).eq_ignore_ascii_case(strip(name))
+    }
 }
 
 /// A sensor's pose in world coordinates: its position, viewing direction and image up.
@@ -234,6 +288,9 @@ impl PointCloud {
         check("return_number", self.return_number.as_ref().map(Vec::len))?;
         check("opacity", self.opacity.as_ref().map(Vec::len))?;
         check("radius", self.radius.as_ref().map(Vec::len))?;
+        for f in &self.fields {
+            check("a scalar field", Some(f.values.len()))?;
+        }
         for (face, tri) in self.faces.iter().enumerate() {
             if let Some(&vertex) = tri.iter().find(|&&v| v as usize >= n) {
                 return Err(CloudError::BadFace {
@@ -246,8 +303,8 @@ impl PointCloud {
         Ok(())
     }
 
-    /// Names of the columns present, positions first.
-    pub fn attributes(&self) -> Vec<&'static str> {
+    /// Names of the columns present, positions first, scalar fields last.
+    pub fn attributes(&self) -> Vec<String> {
         let mut a = vec!["position"];
         if self.normals.is_some() {
             a.push("normal");
@@ -270,7 +327,14 @@ impl PointCloud {
         if self.radius.is_some() {
             a.push("radius");
         }
+        let mut a: Vec<String> = a.into_iter().map(String::from).collect();
+        a.extend(self.fields.iter().map(|f| f.name.clone()));
         a
+    }
+
+    /// The scalar field named `name` (see [`Field::is_named`]).
+    pub fn field(&self, name: &str) -> Option<&Field> {
+        self.fields.iter().find(|f| f.is_named(name))
     }
 
     /// Bounds in the local frame.
@@ -289,6 +353,57 @@ impl PointCloud {
             self.origin + b.min.as_dvec3(),
             self.origin + b.max.as_dvec3(),
         )
+    }
+
+    /// Keeps the points whose flag in `keep` is set (one flag per point), in order, with every
+    /// column; faces through a point left out go, the others are re-indexed.
+    pub fn retain(&mut self, keep: &[bool]) {
+        use crate::lookup::retain;
+        let n = self.len();
+        assert_eq!(keep.len(), n, "one flag per point");
+        retain(&mut self.positions, keep);
+        if let Some(c) = self.normals.as_mut() {
+            retain(c, keep);
+        }
+        if let Some(c) = self.colors.as_mut() {
+            retain(c, keep);
+        }
+        if let Some(c) = self.intensity.as_mut() {
+            retain(c, keep);
+        }
+        if let Some(c) = self.classification.as_mut() {
+            retain(c, keep);
+        }
+        if let Some(c) = self.return_number.as_mut() {
+            retain(c, keep);
+        }
+        if let Some(c) = self.opacity.as_mut() {
+            retain(c, keep);
+        }
+        if let Some(c) = self.radius.as_mut() {
+            retain(c, keep);
+        }
+        for f in &mut self.fields {
+            retain(&mut f.values, keep);
+        }
+        if !self.faces.is_empty() {
+            let mut new = vec![u32::MAX; n];
+            let mut k = 0u32;
+            for (i, &kp) in keep.iter().enumerate() {
+                if kp {
+                    new[i] = k;
+                    k += 1;
+                }
+            }
+            self.faces = self
+                .faces
+                .iter()
+                .filter_map(|f| {
+                    let g = f.map(|v| new.get(v as usize).copied().unwrap_or(u32::MAX));
+                    g.iter().all(|&v| v != u32::MAX).then_some(g)
+                })
+                .collect();
+        }
     }
 
     /// Appends another cloud, re-expressing its positions relative to this cloud's origin.
@@ -321,6 +436,27 @@ impl PointCloud {
         match (self.radius.as_mut(), &other.radius) {
             (Some(a), Some(b)) => a.extend_from_slice(b),
             _ => self.radius = None,
+        }
+        // Scalar fields by name; points without one get NaN (no value).
+        for f in &mut self.fields {
+            match other.fields.iter().find(|g| g.name == f.name) {
+                Some(g) => {
+                    let d = (g.offset - f.offset) as f32;
+                    f.values.extend(g.values.iter().map(|&v| v + d));
+                }
+                None => f.values.extend(std::iter::repeat_n(f32::NAN, n1)),
+            }
+        }
+        for g in &other.fields {
+            if self.fields.len() < MAX_FIELDS && !self.fields.iter().any(|f| f.name == g.name) {
+                let mut values = vec![f32::NAN; n0];
+                values.extend_from_slice(&g.values);
+                self.fields.push(Field {
+                    name: g.name.clone(),
+                    offset: g.offset,
+                    values,
+                });
+            }
         }
         self.faces
             .extend(other.faces.iter().map(|f| f.map(|v| v + n0 as u32)));

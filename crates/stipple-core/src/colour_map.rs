@@ -53,6 +53,8 @@ pub enum ColourMap {
 pub enum ColourError {
     #[error("the cloud has no {0} values to colour by")]
     Missing(&'static str),
+    #[error("the cloud has no attribute or scalar field `{name}` to colour by (it has: {have})")]
+    NoField { name: String, have: String },
     #[error("colour range {0}..{1}: it must be finite with the low end below the high end")]
     Range(f64, f64),
     #[error("the cloud has no points")]
@@ -149,28 +151,69 @@ pub fn values(cloud: &PointCloud, attr: Attribute) -> Result<Vec<f64>, ColourErr
         Attribute::X => axis(0),
         Attribute::Y => axis(1),
         Attribute::Z => axis(2),
-        Attribute::Intensity => cloud
-            .intensity
-            .as_ref()
-            .ok_or(ColourError::Missing("intensity"))?
-            .iter()
-            .map(|&v| v as f64)
-            .collect(),
-        Attribute::Classification => cloud
-            .classification
-            .as_ref()
-            .ok_or(ColourError::Missing("classification"))?
-            .iter()
-            .map(|&v| v as f64)
-            .collect(),
-        Attribute::Return => cloud
-            .return_number
-            .as_ref()
-            .ok_or(ColourError::Missing("return-number"))?
-            .iter()
-            .map(|&v| v as f64)
-            .collect(),
+        Attribute::Intensity => match &cloud.intensity {
+            Some(v) => v.iter().map(|&v| v as f64).collect(),
+            None => field_values(cloud, "intensity").ok_or(ColourError::Missing("intensity"))?,
+        },
+        Attribute::Classification => match &cloud.classification {
+            Some(v) => v.iter().map(|&v| v as f64).collect(),
+            None => field_values(cloud, "classification")
+                .ok_or(ColourError::Missing("classification"))?,
+        },
+        Attribute::Return => match &cloud.return_number {
+            Some(v) => v.iter().map(|&v| v as f64).collect(),
+            None => {
+                field_values(cloud, "return_number").ok_or(ColourError::Missing("return-number"))?
+            }
+        },
     })
+}
+
+/// The values of the scalar field `name` (see [`crate::cloud::Field::is_named`]).
+fn field_values(cloud: &PointCloud, name: &str) -> Option<Vec<f64>> {
+    let f = cloud.field(name)?;
+    Some((0..cloud.len()).map(|i| f.value(i)).collect())
+}
+
+/// What to colour by: a built-in attribute or a scalar field of the file, by name.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ColourBy {
+    Attribute(Attribute),
+    /// A scalar field (a PLY or PCD property stipple has no column for).
+    Field(String),
+}
+
+impl ColourBy {
+    /// The name as the user gave it, for messages.
+    pub fn name(&self) -> String {
+        match self {
+            ColourBy::Attribute(a) => format!("{a:?}").to_lowercase(),
+            ColourBy::Field(f) => f.clone(),
+        }
+    }
+}
+
+/// Colours every point by `by` (see [`colour_by`]); a field takes a colour map like a
+/// built-in value.
+pub fn colour_by_any(
+    cloud: &PointCloud,
+    by: &ColourBy,
+    map: ColourMap,
+    range: Option<(f64, f64)>,
+) -> Result<Coloured, ColourError> {
+    match by {
+        ColourBy::Attribute(a) => colour_by(cloud, *a, map, range),
+        ColourBy::Field(name) => {
+            if cloud.positions.is_empty() {
+                return Err(ColourError::Empty);
+            }
+            let v = field_values(cloud, name).ok_or_else(|| ColourError::NoField {
+                name: name.clone(),
+                have: cloud.attributes().join(", "),
+            })?;
+            map_values(&v, map, range)
+        }
+    }
 }
 
 /// Whether "elevation" is world Z for this cloud: the source says Z is up, or the cloud is
@@ -227,10 +270,19 @@ pub fn colour_by(
         let colour = |r: f64| PALETTE[(r.max(1.0) as usize - 1).min(PALETTE.len() - 1)];
         return Ok((v.iter().map(|&r| colour(r)).collect(), (1.0, 5.0)));
     }
+    map_values(&v, map, range)
+}
+
+/// Values through `map` over `range` (None: [`robust_range`]).
+fn map_values(
+    v: &[f64],
+    map: ColourMap,
+    range: Option<(f64, f64)>,
+) -> Result<Coloured, ColourError> {
     let (lo, hi) = match range {
         Some((lo, hi)) if lo.is_finite() && hi.is_finite() && lo < hi => (lo, hi),
         Some((lo, hi)) => return Err(ColourError::Range(lo, hi)),
-        None => robust_range(&v),
+        None => robust_range(v),
     };
     let inv = 1.0 / (hi - lo);
     Ok((
@@ -335,5 +387,29 @@ mod tests {
             colour_by(&PointCloud::default(), Attribute::X, ColourMap::Grey, None).err(),
             Some(ColourError::Empty)
         );
+    }
+
+    #[test]
+    fn scalar_fields_colour_by_name_and_stand_in_for_missing_columns() {
+        use crate::cloud::Field;
+        let mut c = PointCloud::from_world(&[DVec3::ZERO, DVec3::X, DVec3::Y]);
+        c.fields
+            .push(Field::new("scalar_Curvature", &[0.0, 0.5, 1.0]));
+        c.fields
+            .push(Field::new("Classification", &[2.0, 6.0, 2.0]));
+        let by = ColourBy::Field("curvature".into());
+        let (col, r) = colour_by_any(&c, &by, ColourMap::Grey, Some((0.0, 1.0))).unwrap();
+        assert_eq!(r, (0.0, 1.0));
+        assert_eq!(col, vec![[0, 0, 0], [128, 128, 128], [255, 255, 255]]);
+        // A PLY's classification property colours by class like a LAS file's.
+        let (col, _) = colour_by(&c, Attribute::Classification, ColourMap::Grey, None).unwrap();
+        assert_eq!(col[1], class_colour(6));
+        let e = colour_by_any(&c, &ColourBy::Field("gps".into()), ColourMap::Grey, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`gps`") && e.contains("scalar_Curvature"), "{e}");
+        // Large values with a small spread keep their precision (GPS times).
+        let f = Field::new("t", &[4.0e8, 4.0e8 + 0.25]);
+        assert_eq!(f.value(1) - f.value(0), 0.25);
     }
 }

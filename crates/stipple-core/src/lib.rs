@@ -7,6 +7,7 @@ pub mod cloud;
 pub mod colour_map;
 pub mod demo;
 pub mod grouping;
+pub mod lookup;
 pub mod mesh;
 pub mod normals;
 pub mod rng;

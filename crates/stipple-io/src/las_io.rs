@@ -3,6 +3,11 @@
 //! Scaled integer coordinates become f64 world coordinates, stored relative to an origin at
 //! the centre of the header bounds. RGB is 16-bit in the format; files that store 8-bit values
 //! in it (maximum ≤ 255) are read as 8-bit, others are shifted down by 8 bits.
+//!
+//! Extra bytes (LAS 1.4 §2.5.11; the "Extra Bytes" VLR describes them) become scalar fields
+//! by their names, scaled and offset as the descriptor says: single numbers of the ten
+//! standard types; undocumented bytes and the deprecated two- and three-value types are
+//! skipped.
 
 use crate::IoError;
 use glam::DVec3;
@@ -289,6 +294,15 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         ..Default::default()
     };
     let mut rgb16: Option<Vec<[u16; 3]>> = fmt.has_color.then(|| Vec::with_capacity(cap));
+    let extra = extra_fields(&header, fmt.extra_bytes as usize);
+    cloud.fields = extra
+        .iter()
+        .map(|e| stipple_core::cloud::Field {
+            name: e.name.clone(),
+            offset: f64::NAN,
+            values: Vec::with_capacity(cap),
+        })
+        .collect();
     let mut read: u64 = 0;
     // The first batch is in `batches.data` already.
     let mut first = true;
@@ -319,6 +333,19 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         if let (Some(dst), Some(src)) = (rgb16.as_mut(), pd.rgb()) {
             dst.extend(src.map(|(r, g, b)| [r, g, b]));
         }
+        if !extra.is_empty() {
+            let rec = pd.record_len();
+            let start = rec - fmt.extra_bytes as usize;
+            for r in pd.raw_bytes().chunks_exact(rec) {
+                for (e, f) in extra.iter().zip(&mut cloud.fields) {
+                    let v = e.value(&r[start..]);
+                    if f.offset.is_nan() && v.is_finite() {
+                        f.offset = v;
+                    }
+                    f.values.push((v - f.offset) as f32);
+                }
+            }
+        }
         read = batches.read;
     }
     if let Some(rgb) = rgb16 {
@@ -326,7 +353,94 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         let shift = if max > 255 { 8 } else { 0 };
         cloud.colors = Some(rgb.iter().map(|c| c.map(|v| (v >> shift) as u8)).collect());
     }
+    for f in &mut cloud.fields {
+        if f.offset.is_nan() {
+            f.offset = 0.0;
+        }
+    }
     Ok(cloud)
+}
+
+/// One extra-bytes value of a record: its name, where it starts in the extra bytes, its
+/// type (1–10: u8, i8, u16, i16, u32, i32, u64, i64, f32, f64) and scale and offset.
+struct ExtraField {
+    name: String,
+    at: usize,
+    ty: u8,
+    scale: f64,
+    offset: f64,
+}
+
+/// The extra-bytes fields the header describes (at most `MAX_FIELDS`, each within the
+/// record's `extra` bytes).
+fn extra_fields(header: &las::Header, extra: usize) -> Vec<ExtraField> {
+    let Some(vlr) = header
+        .all_vlrs()
+        .find(|v| v.user_id.trim_end_matches('\0') == "LASF_Spec" && v.record_id == 4)
+    else {
+        return Vec::new();
+    };
+    let mut out = Vec::new();
+    let mut at = 0usize;
+    for d in vlr.data.chunks_exact(192) {
+        let (ty, options) = (d[2], d[3]);
+        let base = |t: u8| [1usize, 1, 2, 2, 4, 4, 8, 8, 4, 8][(t as usize - 1) % 10];
+        let size = match ty {
+            0 => options as usize,
+            1..=10 => base(ty),
+            11..=20 => 2 * base(ty - 10),
+            21..=30 => 3 * base(ty - 20),
+            _ => break,
+        };
+        let f64_at = |o: usize| f64::from_le_bytes(d[o..o + 8].try_into().unwrap());
+        if (1..=10).contains(&ty)
+            && at + size <= extra
+            && out.len() < stipple_core::cloud::MAX_FIELDS
+        {
+            let name: String = String::from_utf8_lossy(&d[4..36])
+                .trim_end_matches('\0')
+                .trim()
+                .to_string();
+            let scale = if options & 8 != 0 { f64_at(112) } else { 1.0 };
+            let offset = if options & 16 != 0 { f64_at(136) } else { 0.0 };
+            out.push(ExtraField {
+                name: if name.is_empty() {
+                    format!("extra_{}", out.len())
+                } else {
+                    name
+                },
+                at,
+                ty,
+                scale: if scale.is_finite() && scale != 0.0 {
+                    scale
+                } else {
+                    1.0
+                },
+                offset: if offset.is_finite() { offset } else { 0.0 },
+            });
+        }
+        at += size;
+    }
+    out
+}
+
+impl ExtraField {
+    fn value(&self, b: &[u8]) -> f64 {
+        let b = &b[self.at..];
+        let raw = match self.ty {
+            1 => b[0] as f64,
+            2 => b[0] as i8 as f64,
+            3 => u16::from_le_bytes([b[0], b[1]]) as f64,
+            4 => i16::from_le_bytes([b[0], b[1]]) as f64,
+            5 => u32::from_le_bytes(b[..4].try_into().unwrap()) as f64,
+            6 => i32::from_le_bytes(b[..4].try_into().unwrap()) as f64,
+            7 => u64::from_le_bytes(b[..8].try_into().unwrap()) as f64,
+            8 => i64::from_le_bytes(b[..8].try_into().unwrap()) as f64,
+            9 => f32::from_le_bytes(b[..4].try_into().unwrap()) as f64,
+            _ => f64::from_le_bytes(b[..8].try_into().unwrap()),
+        };
+        raw * self.scale + self.offset
+    }
 }
 
 /// Writes a LAS (or, with `compress`, LAZ) 1.2 file with point format 2 (RGB), 0.1 mm scale.

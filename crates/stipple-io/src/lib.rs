@@ -117,6 +117,33 @@ pub fn transfer_function(
     })
 }
 
+/// Reads a lookup table (see [`stipple_core::lookup`]): TOML, or JSON when the name ends in
+/// `.json`; at most 1 MiB. Errors name the file and say what is wrong.
+pub fn lookup_table(path: &Path) -> Result<stipple_core::lookup::LookupTable, String> {
+    let at = |e: &dyn std::fmt::Display| format!("{}: {e}", path.display());
+    let meta = std::fs::metadata(path).map_err(|e| at(&e))?;
+    if !meta.is_file() {
+        return Err(at(&"not a regular file"));
+    }
+    if meta.len() > 1 << 20 {
+        return Err(at(&format!(
+            "{} bytes, a lookup table is at most 1 MiB",
+            meta.len()
+        )));
+    }
+    let text = std::fs::read_to_string(path).map_err(|e| at(&e))?;
+    let json = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"));
+    let t: stipple_core::lookup::LookupTable = if json {
+        serde_json::from_str(&text).map_err(|e| at(&e))?
+    } else {
+        toml::from_str(&text).map_err(|e| at(&e.to_string().trim_end()))?
+    };
+    t.validate().map_err(|e| at(&e))?;
+    Ok(t)
+}
+
 /// The most points an iso-surface may have.
 pub const MAX_ISO_POINTS: usize = 1 << 28;
 

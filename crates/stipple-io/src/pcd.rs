@@ -1,8 +1,9 @@
 //! PCD (the Point Cloud Library's format, v0.6/v0.7): `DATA ascii`, `binary` (one record
 //! per point) and `binary_compressed` (LZF-compressed, each field's values stored together).
 //! Fields read: `x y z` (required), `normal_x normal_y normal_z`, `rgb` (a float whose bits
-//! are 0x00RRGGBB, as PCL writes it) or `rgba` (a 32-bit integer), and `intensity`; others
-//! are skipped. Points with a non-finite coordinate (the invalid pixels of an organised cloud,
+//! are 0x00RRGGBB, as PCL writes it) or `rgba` (a 32-bit integer), and `intensity`; other
+//! single-valued fields (`curvature`, `label`, …) are kept as scalar fields (at most
+//! `MAX_FIELDS`), fields of several values (histograms) are skipped. Points with a non-finite coordinate (the invalid pixels of an organised cloud,
 //! e.g. a Kinect frame) are dropped, as PCL's own tools do.
 //!
 //! Sizes are checked before anything is allocated: the header's point count against the
@@ -345,6 +346,23 @@ fn collect(
                 .collect(),
         );
     }
+    let used = |f: usize| {
+        [Some(ix), Some(iy), Some(iz), colour, intensity].contains(&Some(f))
+            || normal.is_some_and(|n| n.contains(&f))
+    };
+    for (f, field) in fields.iter().enumerate() {
+        if used(f)
+            || field.count != 1
+            || field.name.starts_with('_')
+            || cloud.fields.len() >= stipple_core::cloud::MAX_FIELDS
+        {
+            continue;
+        }
+        let v: Vec<f64> = keep.iter().map(|&i| value(f, i)).collect();
+        cloud
+            .fields
+            .push(stipple_core::cloud::Field::new(field.name.clone(), &v));
+    }
     if let Some(f) = intensity {
         let v: Vec<f64> = keep.iter().map(|&i| value(f, i)).collect();
         let max = v
@@ -506,6 +524,25 @@ mod tests {
         assert_eq!(c.colors.as_ref().unwrap()[1], [0xff, 0x80, 0x10]);
         assert_eq!(c.normals.as_ref().unwrap()[1], Vec3::Y);
         assert!((c.world(1) - DVec3::new(1.0, 2.0, 3.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn single_valued_extra_fields_are_kept_by_name() {
+        let mut s = header(
+            "x y z curvature label _ fpfh",
+            "4 4 4 4 4 1 4",
+            "F F F F U U F",
+            2,
+            "ascii",
+        );
+        // `fpfh` has 3 values per point (COUNT 1 1 1 1 1 1 3), `_` is padding.
+        s = s.replace("COUNT 1 1 1 1 1 1 1", "COUNT 1 1 1 1 1 1 3");
+        s.push_str("0 0 0 0.5 7 0 1 2 3\n1 1 1 0.25 9 0 4 5 6\n");
+        let c = parse_pcd(s.as_bytes()).unwrap();
+        let names: Vec<&str> = c.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["curvature", "label"]);
+        assert_eq!(c.field("label").unwrap().value(1), 9.0);
+        assert_eq!(c.field("curvature").unwrap().value(1), 0.25);
     }
 
     /// A compressor for tests: literal runs only (valid LZF).

@@ -240,6 +240,8 @@ struct VertexMap {
     alpha: Option<usize>,
     intensity: Option<usize>,
     radius: Option<usize>,
+    /// Other scalar properties (kept as scalar fields, at most `MAX_FIELDS`).
+    other: Vec<usize>,
 }
 
 impl VertexMap {
@@ -259,7 +261,14 @@ impl VertexMap {
                 "alpha" | "a" | "diffuse_alpha" => &mut m.alpha,
                 "intensity" | "scalar_intensity" => &mut m.intensity,
                 "radius" | "scalar_radius" => &mut m.radius,
-                _ => continue,
+                _ => {
+                    if matches!(p, Property::Scalar { .. })
+                        && m.other.len() < stipple_core::cloud::MAX_FIELDS
+                    {
+                        m.other.push(k);
+                    }
+                    continue;
+                }
             };
             if matches!(p, Property::List { .. }) {
                 return Err(format!(
@@ -621,6 +630,7 @@ fn read_elements(
     let mut alpha: Option<Vec<f32>> = None;
     let mut radius: Option<Vec<f32>> = None;
     let mut intensity_raw: Option<(Vec<f64>, Scalar)> = None;
+    let mut fields: Vec<(usize, stipple_core::cloud::Field)> = Vec::new();
     let mut faces: Vec<[u32; 3]> = Vec::new();
     let mut seen_vertex = false;
     for el in &h.elements {
@@ -657,6 +667,16 @@ fn read_elements(
             if let Some(k) = m.intensity {
                 intensity_raw = Some((Vec::with_capacity(cap), scalar_ty(el, k)));
             }
+            for &k in &m.other {
+                fields.push((
+                    k,
+                    stipple_core::cloud::Field {
+                        name: el.props[k].name().to_string(),
+                        offset: f64::NAN,
+                        values: Vec::with_capacity(cap),
+                    },
+                ));
+            }
             let [x, y, z] = m.xyz.map(Option::unwrap);
             for i in 0..el.count {
                 src.record(el, &mut vals, None)
@@ -683,6 +703,13 @@ fn read_elements(
                 }
                 if let Some((v, _)) = intensity_raw.as_mut() {
                     v.push(vals[m.intensity.unwrap()]);
+                }
+                for (k, f) in &mut fields {
+                    let v = vals[*k];
+                    if f.offset.is_nan() && v.is_finite() {
+                        f.offset = v;
+                    }
+                    f.values.push((v - f.offset) as f32);
                 }
                 if let Some(r) = radius.as_mut() {
                     let v = vals[m.radius.unwrap()] as f32;
@@ -727,6 +754,15 @@ fn read_elements(
     cloud.colors = colors;
     cloud.opacity = alpha;
     cloud.radius = radius;
+    cloud.fields = fields
+        .into_iter()
+        .map(|(_, mut f)| {
+            if f.offset.is_nan() {
+                f.offset = 0.0;
+            }
+            f
+        })
+        .collect();
     cloud.intensity = intensity_raw.map(|(v, ty)| {
         let max = v.iter().cloned().fold(0.0, f64::max);
         let scale = if matches!(ty, Scalar::F32 | Scalar::F64) && max <= 1.0 {
@@ -799,6 +835,20 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
     if c.radius.is_some() {
         writeln!(w, "property float radius")?;
     }
+    // Scalar fields: as doubles where their offset needs the precision (GPS times).
+    let wide: Vec<bool> = c.fields.iter().map(|f| f.offset.abs() > 1e4).collect();
+    for (f, &wide) in c.fields.iter().zip(&wide) {
+        let name: String = f
+            .name
+            .chars()
+            .map(|ch| if ch.is_ascii_graphic() { ch } else { '_' })
+            .collect();
+        writeln!(
+            w,
+            "property {} {name}",
+            if wide { "double" } else { "float" }
+        )?;
+    }
     if !c.faces.is_empty() {
         writeln!(w, "element face {}", c.faces.len())?;
         writeln!(w, "property list uchar int vertex_indices")?;
@@ -846,6 +896,13 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
             if let Some(r) = rad {
                 write!(w, " {r}")?;
             }
+            for (f, &wide) in c.fields.iter().zip(&wide) {
+                if wide {
+                    write!(w, " {}", f.value(i))?;
+                } else {
+                    write!(w, " {}", f.value(i) as f32)?;
+                }
+            }
             writeln!(w)?;
         } else {
             if double {
@@ -874,6 +931,13 @@ pub fn write_ply_to(w: &mut impl Write, c: &PointCloud, enc: Encoding) -> std::i
             }
             if let Some(r) = rad {
                 put!(r);
+            }
+            for (f, &wide) in c.fields.iter().zip(&wide) {
+                if wide {
+                    put!(f.value(i));
+                } else {
+                    put!(f.value(i) as f32);
+                }
             }
         }
     }

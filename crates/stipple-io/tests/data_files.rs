@@ -87,6 +87,28 @@ fn lidar_keeps_millimetre_precision() {
     assert!(c.origin.x.abs() > 1e5, "LiDAR origin kept in f64");
 }
 
+/// LAS extra bytes become scalar fields by the names their VLR gives: the IGN tile's
+/// `Deviation` (an unsigned 16-bit value, no scale) equals the raw bytes the `las` crate
+/// hands out per point.
+#[test]
+fn las_extra_bytes_become_scalar_fields() {
+    let Some(dir) = data_dir() else { return };
+    let path = dir.join("lidar/ign_lidarhd_extrabytes_698k.laz");
+    let c = stipple_io::read_cloud(&path).unwrap();
+    let f = c.field("deviation").expect("the Deviation field");
+    assert_eq!(f.name, "Deviation");
+    let mut r = las::Reader::from_path(&path).unwrap();
+    let mut distinct = std::collections::BTreeSet::new();
+    let data = r.read_points(5000).unwrap();
+    for (i, p) in data.points().enumerate() {
+        let p = p.unwrap();
+        let raw = u16::from_le_bytes([p.extra_bytes[0], p.extra_bytes[1]]) as f64;
+        assert_eq!(f.value(i), raw, "point {i}");
+        distinct.insert(raw as u64);
+    }
+    assert!(distinct.len() > 1, "the values vary");
+}
+
 /// The E57 bunny (two scans placed by their poses) covers what the PLY bunny does.
 #[test]
 fn the_e57_bunny_matches_the_ply_bunny() {

@@ -17,6 +17,19 @@ fn cloud() -> PointCloud {
     c.intensity = Some((0..500).map(|i| (i * 97 % 65536) as u16).collect());
     c.opacity = Some((0..500).map(|i| (i % 256) as f32 / 255.0).collect());
     c.faces = vec![[0, 1, 2], [3, 4, 5]];
+    c.fields = vec![
+        stipple_core::cloud::Field::new(
+            "curvature",
+            &(0..500).map(|i| i as f64 * 0.01).collect::<Vec<_>>(),
+        ),
+        // GPS times: large values a quarter-second apart must survive.
+        stipple_core::cloud::Field::new(
+            "gps_time",
+            &(0..500)
+                .map(|i| 4.0e8 + i as f64 * 0.25)
+                .collect::<Vec<_>>(),
+        ),
+    ];
     c
 }
 
@@ -45,6 +58,13 @@ fn ply_round_trips_in_every_encoding() {
         assert_eq!(r.colors, c.colors, "{enc:?}");
         assert_eq!(r.intensity, c.intensity, "{enc:?}");
         assert_eq!(r.faces, c.faces, "{enc:?}");
+        assert_eq!(r.fields.len(), 2, "{enc:?}");
+        for (f, g) in c.fields.iter().zip(&r.fields) {
+            assert_eq!(f.name, g.name);
+            for i in 0..c.len() {
+                assert!((f.value(i) - g.value(i)).abs() < 1e-6, "{} {i}", f.name);
+            }
+        }
         let (n0, n1) = (c.normals.as_ref().unwrap(), r.normals.as_ref().unwrap());
         assert!(n0.iter().zip(n1).all(|(a, b)| (*a - *b).length() < 1e-5));
         let (a0, a1) = (c.opacity.as_ref().unwrap(), r.opacity.as_ref().unwrap());

@@ -370,6 +370,8 @@ impl Cloud {
                 attrs.push(name);
             }
         }
+        let mut attrs: Vec<String> = attrs.into_iter().map(String::from).collect();
+        attrs.extend(c.fields.iter().map(|f| f.name.clone()));
         d.set_item("attributes", attrs)?;
         d.set_item("z_up", c.z_up)?;
         d.set_item("source", h.label.clone())?;
@@ -432,6 +434,27 @@ impl Cloud {
     fn radius<'py>(&self, py: Python<'py>) -> Option<Bound<'py, PyArray1<f32>>> {
         let r = lock(&self.held).prepared.cloud.radius.clone();
         r.map(|r| PyArray1::from_vec(py, r))
+    }
+
+    /// The file's scalar fields (PLY/PCD properties and LAS extra bytes stipple has no
+    /// column for: curvature, confidence, a material id, …): a dict of name → float64 (N,)
+    /// (copies; NaN where a merged cloud's point has no value). `render(colour_by=NAME)` and
+    /// lookup tables take these names.
+    #[getter]
+    fn fields<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let cols: Vec<(String, Vec<f64>)> = {
+            let h = lock(&self.held);
+            let c = &h.prepared.cloud;
+            c.fields
+                .iter()
+                .map(|f| (f.name.clone(), (0..c.len()).map(|i| f.value(i)).collect()))
+                .collect()
+        };
+        let d = PyDict::new(py);
+        for (name, v) in cols {
+            d.set_item(name, PyArray1::from_vec(py, v))?;
+        }
+        Ok(d)
     }
 
     /// The f64 world origin the positions are stored relative to.

@@ -207,6 +207,7 @@ fn render_now(
             // Options that change the cloud (colours, opacity, shadows) change a copy, so the
             // cloud stays as the caller gave it; the normals a render estimates are kept.
             let changes_cloud = a.colour.colour_by.is_some()
+                || a.colour.lookup.is_some()
                 || a.look.opacity.is_some()
                 || a.look.shadows
                 || scene.is_some();

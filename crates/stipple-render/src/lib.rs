@@ -56,6 +56,8 @@ pub enum RenderError {
     Shadow(#[from] shadow::ShadowError),
     #[error(transparent)]
     Objects(#[from] ObjectError),
+    #[error("lookup table: {0}")]
+    Lookup(#[from] stipple_core::lookup::LookupError),
 }
 
 /// An [`ObjectTable`] that does not fit its cloud.

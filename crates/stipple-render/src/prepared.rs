@@ -52,6 +52,9 @@ pub struct PreparedCloud {
     pub mean_alpha: f32,
     /// Objects and their materials (None: one object with the pipeline's material).
     pub objects: Option<ObjectTable>,
+    /// A factor on each point's splat radius (a lookup table's `size`; see
+    /// [`PreparedCloud::with_lookup`]). None: 1 for every point.
+    pub size: Option<Vec<f32>>,
     /// Surface shape per point relative to the cloud's normals (quadric splats; see
     /// `stipple_core::normals::shapes`), from [`PreparedCloud::prepare_surface`]. None: flat
     /// splats. Valid only for the normals it was fitted to.
@@ -107,6 +110,7 @@ impl PreparedCloud {
             alpha,
             mean_alpha,
             objects: None,
+            size: None,
             shapes: None,
             groups: Default::default(),
             bounds: Default::default(),
@@ -134,6 +138,7 @@ impl PreparedCloud {
             alpha: self.alpha.clone(),
             mean_alpha: self.mean_alpha,
             objects: self.objects.clone(),
+            size: self.size.clone(),
             shapes: self.shapes.clone(),
             // Both are kept per key: made again for the new one on first use.
             groups: Default::default(),
@@ -261,16 +266,93 @@ impl PreparedCloud {
 
     /// Splat radii, unscaled: the cloud's own (PLY `radius`, or from
     /// [`PreparedCloud::prepare_surface`]), else [`FALLBACK_RADIUS`] × the point spacing for
-    /// every point.
+    /// every point; times each point's [`PreparedCloud::size`] factor.
     pub fn splat_radii(&self) -> std::borrow::Cow<'_, [f32]> {
-        match &self.cloud.radius {
-            Some(r) => std::borrow::Cow::Borrowed(r),
-            None => std::borrow::Cow::Owned(vec![
-                FALLBACK_RADIUS
-                    * self.spacing.max(f32::MIN_POSITIVE);
-                self.cloud.len()
-            ]),
+        let fallback = FALLBACK_RADIUS * self.spacing.max(f32::MIN_POSITIVE);
+        match (&self.cloud.radius, &self.size) {
+            (Some(r), None) => std::borrow::Cow::Borrowed(r),
+            (None, None) => std::borrow::Cow::Owned(vec![fallback; self.cloud.len()]),
+            (r, Some(s)) => std::borrow::Cow::Owned(
+                s.iter()
+                    .enumerate()
+                    .map(|(i, &f)| f * r.as_ref().map_or(fallback, |r| r[i]))
+                    .collect(),
+            ),
         }
+    }
+
+    /// Applies a lookup table (Gunjee §3; see [`stipple_core::lookup`]): colours (points
+    /// without one from the table or the file take `base`'s colour), opacities, splat size
+    /// factors and materials per key value, and leaves out hidden points. Materials
+    /// override `base` (or each object's own in a scene): every object and material of the
+    /// table that meet become an object of their own, at most [`MAX_OBJECTS`]. The shadow
+    /// texture is dropped (make it after); the rest is prepared again.
+    pub fn with_lookup(
+        mut self,
+        table: &stipple_core::lookup::LookupTable,
+        base: &Material,
+    ) -> Result<(PreparedCloud, stipple_core::lookup::Applied), RenderError> {
+        let fallback = base.base_colour.map(srgb::linear_to_srgb8);
+        let mut cloud = std::mem::take(&mut self.cloud);
+        let mut size = self.size.take();
+        let a = stipple_core::lookup::apply(&mut cloud, table, fallback, &mut size)?;
+        let mut objects = self.objects.take();
+        if let Some(o) = objects.as_mut() {
+            if !a.kept.is_empty() {
+                stipple_core::lookup::retain(&mut o.index, &a.kept);
+            }
+        }
+        if !a.overrides.is_empty() {
+            let (index, materials) = match objects {
+                Some(o) => (o.index, o.materials),
+                None => (vec![0; cloud.len()], vec![*base]),
+            };
+            // (object, slot) → new object.
+            let mut pair = vec![u16::MAX; 256 * 256];
+            let mut new_index = Vec::with_capacity(index.len());
+            let mut new_materials: Vec<Material> = Vec::new();
+            for (&o, &s) in index.iter().zip(&a.material_slot) {
+                let at = o as usize * 256 + s as usize;
+                let k = match pair[at] {
+                    k if k != u16::MAX => k as usize,
+                    _ => {
+                        if new_materials.len() >= MAX_OBJECTS {
+                            return Err(ObjectError::Count(new_materials.len() + 1).into());
+                        }
+                        let mut m = materials[o as usize];
+                        if s > 0 {
+                            let ov = a.overrides[s as usize - 1];
+                            m.ambient = ov.ambient.unwrap_or(m.ambient);
+                            m.diffuse = ov.diffuse.unwrap_or(m.diffuse);
+                            m.specular = ov.specular.unwrap_or(m.specular);
+                            m.shininess = ov.shininess.unwrap_or(m.shininess);
+                        }
+                        new_materials.push(m);
+                        pair[at] = (new_materials.len() - 1) as u16;
+                        new_materials.len() - 1
+                    }
+                };
+                new_index.push(k as u8);
+            }
+            objects = Some(ObjectTable {
+                index: new_index,
+                materials: new_materials,
+            });
+        }
+        let mut p = if a.kept.is_empty() {
+            PreparedCloud::with_spacing(cloud, self.spacing)
+        } else {
+            PreparedCloud::new(cloud)
+        };
+        if a.kept.is_empty() {
+            p.shapes = self.shapes.take();
+        }
+        p.size = size;
+        let p = match objects {
+            Some(o) => p.with_objects(o)?,
+            None => p,
+        };
+        Ok((p, a))
     }
 
     /// The smallest positive splat radius, unscaled (the bucket sort's slice thickness,

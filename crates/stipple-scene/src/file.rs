@@ -91,6 +91,10 @@ pub struct CloudSpec {
     /// A mesh file (a PLY with faces, .obj, .stl): sample its faces at this spacing (in the
     /// file's units) instead of taking its vertices.
     pub sample: Option<f64>,
+    /// A lookup table file (relative to the scene file; see `stipple_core::lookup`): colour,
+    /// opacity (times the cloud's `opacity`), splat size, material or visibility per value
+    /// of an integer attribute of this cloud.
+    pub lookup: Option<PathBuf>,
 }
 
 #[derive(Deserialize, Debug, Default, Clone)]
@@ -205,6 +209,10 @@ pub fn build(
     let mut parts = Vec::new();
     let mut materials = Vec::new();
     let mut objects = Vec::new();
+    // Per part: the object of each point (lookup tables' materials add objects), and the
+    // splat size factors a lookup table set.
+    let mut part_index: Vec<Vec<u8>> = Vec::new();
+    let mut sizes: Vec<Option<Vec<f32>>> = Vec::new();
     for (k, c) in spec.clouds.iter().enumerate() {
         let what = |m: String| err(format!("cloud {}: {m}", k + 1));
         let (cloud, name) = source(c, &dir, host).map_err(what)?;
@@ -227,8 +235,57 @@ pub fn build(
         let m = material(&c.material).map_err(what)?;
         let t = transform(c);
         objects.push((content_hash(&cloud), t));
-        parts.push(place(cloud, &t, c.colour, opacity, &m));
+        let mut placed = place(cloud, &t, c.colour, opacity, &m);
+        let base = materials.len();
         materials.push(m);
+        let mut size = None;
+        let mut index = vec![base as u8; placed.len()];
+        if let Some(lk) = &c.lookup {
+            let f = dir.join(lk);
+            let mut table =
+                stipple_io::lookup_table(&f).map_err(|e| what(format!("lookup {e}")))?;
+            for e in table.value.values_mut().chain([&mut table.default]) {
+                e.opacity = e.opacity.map(|o| o * opacity);
+            }
+            let fallback = m.base_colour.map(stipple_render::srgb::linear_to_srgb8);
+            let a = stipple_core::lookup::apply(&mut placed, &table, fallback, &mut size)
+                .map_err(|e| what(format!("lookup {}: {e}", f.display())))?;
+            if materials.len() + a.overrides.len() > MAX_OBJECTS {
+                return Err(what(format!(
+                    "its lookup table's materials make more than {MAX_OBJECTS} objects"
+                )));
+            }
+            for o in &a.overrides {
+                materials.push(Material {
+                    ambient: o.ambient.unwrap_or(m.ambient),
+                    diffuse: o.diffuse.unwrap_or(m.diffuse),
+                    specular: o.specular.unwrap_or(m.specular),
+                    shininess: o.shininess.unwrap_or(m.shininess),
+                    ..m
+                });
+            }
+            index = if a.material_slot.is_empty() {
+                vec![base as u8; placed.len()]
+            } else {
+                a.material_slot
+                    .iter()
+                    .map(|&s| (base + s as usize) as u8)
+                    .collect()
+            };
+            host.note(&stipple_core::lookup::summary(&f, &table, &a));
+            if !a.kept.is_empty() {
+                // Hidden points make another object for the shadow cache.
+                let mut h = std::collections::hash_map::DefaultHasher::new();
+                (objects[k].0, &a.kept).hash(&mut h);
+                objects[k].0 = h.finish();
+            }
+        }
+        if materials.len() > MAX_OBJECTS {
+            return Err(what(format!("more than {MAX_OBJECTS} objects")));
+        }
+        part_index.push(index);
+        sizes.push(size);
+        parts.push(placed);
     }
     let unit = {
         let (lo, hi) = parts[0].world_bounds();
@@ -248,8 +305,16 @@ pub fn build(
     }
     let mut index = Vec::new();
     let mut merged = PointCloud::default();
+    let any_size = sizes.iter().any(Option::is_some);
+    let mut size = Vec::new();
     for (k, p) in parts.iter().enumerate() {
-        index.extend(std::iter::repeat_n(k as u8, p.len()));
+        index.extend_from_slice(&part_index[k]);
+        if any_size {
+            match &sizes[k] {
+                Some(s) => size.extend_from_slice(s),
+                None => size.extend(std::iter::repeat_n(1.0, p.len())),
+            }
+        }
         if k == 0 {
             merged = p.clone();
         } else {
@@ -257,9 +322,12 @@ pub fn build(
         }
     }
     merged.faces.clear();
-    let cloud = PreparedCloud::new(merged)
+    let mut cloud = PreparedCloud::new(merged)
         .with_objects(ObjectTable { index, materials })
         .map_err(|e| err(e.to_string()))?;
+    if any_size {
+        cloud.size = Some(size);
+    }
     let centre = {
         let (lo, hi) = cloud.cloud.world_bounds();
         (lo + hi) * 0.5
@@ -690,6 +758,70 @@ mod tests {
         d
     }
 
+    /// A cloud's lookup table (by a PLY property) sets colours, opacities (times the
+    /// cloud's), splat sizes and materials (objects of their own beside the other cloud's)
+    /// and hides points; a bad table names the cloud and the file.
+    #[test]
+    fn lookup_tables_give_points_their_look_per_value() {
+        let d = tmp("lookup");
+        let mut ply = String::from(
+            "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\n\
+             property float z\nproperty int material\nend_header\n",
+        );
+        for i in 0..6 {
+            ply.push_str(&format!("{i} 0 0 {}\n", i % 3));
+        }
+        write(&d, "c.ply", &ply);
+        write(
+            &d,
+            "t.toml",
+            "key = \"material\"\n[value.0]\ncolour = [1, 2, 3]\nopacity = 0.5\n\
+             material = { specular = 0.9 }\n[value.1]\nshow = false\n[value.2]\nsize = 3\n",
+        );
+        let p = write(
+            &d,
+            "s.toml",
+            r#"
+[[cloud]]
+demo = "sphere"
+points = 100
+
+[[cloud]]
+file = "c.ply"
+lookup = "t.toml"
+opacity = 0.5
+material = { ambient = 0.05 }
+"#,
+        );
+        let (c, _) = load(&p).unwrap();
+        assert_eq!(c.cloud.len(), 104, "two points hidden");
+        let o = c.objects.as_ref().unwrap();
+        assert_eq!(o.materials.len(), 3);
+        let (plain, shiny) = (&o.materials[1], &o.materials[2]);
+        assert_eq!(
+            (plain.ambient, plain.specular),
+            (0.05, Material::default().specular)
+        );
+        assert_eq!((shiny.ambient, shiny.specular), (0.05, 0.9));
+        // The file's points in order: material 0, 2, 0, 2.
+        assert_eq!(&o.index[100..], &[2, 1, 2, 1]);
+        let colours = c.cloud.colors.as_ref().unwrap();
+        assert_eq!(colours[100], [1, 2, 3]);
+        let alpha = c.alpha.as_ref().unwrap();
+        assert_eq!((alpha[0], alpha[100], alpha[101]), (255, 64, 128));
+        let size = c.size.as_ref().unwrap();
+        assert_eq!((size[0], size[100], size[101]), (1.0, 1.0, 3.0));
+        let radii = c.splat_radii();
+        assert!((radii[101] / radii[100] - 3.0).abs() < 1e-5);
+        write(&d, "t.toml", "key = \"segment\"\n");
+        let e = load(&p).err().unwrap().to_string();
+        assert!(
+            e.contains("cloud 2: lookup") && e.contains("`segment`"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(d).ok();
+    }
+
     #[test]
     fn a_scene_merges_placed_clouds_with_their_objects() {
         let d = tmp("merge");
@@ -824,6 +956,7 @@ samples = 8
             iso: None,
             transfer: None,
             sample: None,
+            lookup: None,
         };
         let spec = SceneFile {
             clouds: vec![cloud("sphere", -2.0), cloud("torus", 2.0)],

@@ -353,3 +353,28 @@ def test_gpu_backend_matches_the_cli_where_there_is_one(cli, tmp_path, sheet_fil
             *cli_camera_args(CAM))
     assert np.array_equal(r.image, read_png(png))
     assert "cpu" not in r.backend.split(":")[0]
+
+
+def test_scalar_fields_read_and_lookup_tables_render(tmp_path):
+    rows = [(x / 39.0, y / 39.0, 0.0, 1 + x // 20) for y in range(40) for x in range(40)]
+    head = ("ply\nformat ascii 1.0\nelement vertex %d\nproperty float x\nproperty float y\n"
+            "property float z\nproperty ushort segment\nend_header\n" % len(rows))
+    path = tmp_path / "bands.ply"
+    path.write_text(head + "".join("%r %r %r %d\n" % r for r in rows))
+    c = stipple.read(path)
+    assert set(c.fields) == {"segment"} and "segment" in c.info()["attributes"]
+    assert np.array_equal(c.fields["segment"], np.array([r[3] for r in rows], dtype=np.float64))
+    table = tmp_path / "t.toml"
+    table.write_text('key = "segment"\n[value.1]\ncolour = [255, 0, 0]\n[value.2]\nshow = false\n')
+    cam = stipple.Camera(eye=(0.5, 0.5, 3.0), target=(0.5, 0.5, 0.0), up=(0.0, 1.0, 0.0), fov=30.0,
+                         size=(64, 64))
+    f = stipple.render(c, cam, backend="cpu", lookup=str(table), no_lighting=True,
+                     background=(0, 0, 0))
+    img = f.image[..., :3].astype(int)
+    left, right = img[16:48, 14:30], img[16:48, 36:]
+    assert (left[..., 0] > 200).all() and (left[..., 1] < 40).all()
+    assert right.max() == 0, "the hidden half shows the background"
+    assert len(c) == len(rows), "the cloud stays as given"
+    table.write_text('key = "nope"\n')
+    with pytest.raises(ValueError, match="nope"):
+        stipple.render(c, cam, backend="cpu", lookup=str(table))
