@@ -179,6 +179,16 @@ impl Renderer {
             .unwrap_or_else(|| cloud.layer_gap(&Pipeline::default()));
         let bounds = cloud.bounds();
         let layers = crate::translucent::light_layers(cloud, settings);
+        let coloured = layers > 1 && crate::translucent::coloured(cloud);
+        if coloured && lit.rb.is_none() {
+            // Samples taken grey so far (none, for a texture made here) count in every channel.
+            lit.rb = Some(
+                lit.counts
+                    .iter()
+                    .map(|c| [c[0], c[0], c[1], c[1], c[2], c[2], c[3], c[3]])
+                    .collect(),
+            );
+        }
         let mut todo = Vec::new();
         for (l, light) in lights.iter().enumerate() {
             let target = shadow::light_samples(light).min(max_samples);
@@ -195,6 +205,7 @@ impl Renderer {
         if let Inner::Gpu { renderer, uploaded } = &mut self.inner {
             let up = upload(renderer, uploaded, cloud)?;
             up.write_counts(renderer.context(), &lit.counts)?;
+            up.write_rb(renderer.context(), lit.rb.as_deref())?;
             // The GPU copy now holds counts the cloud does not: rewrite it next frame.
             up.lit_key = 0;
         }
@@ -213,6 +224,7 @@ impl Renderer {
                     face: view.face,
                     light: l as u32,
                     mode: Default::default(),
+                    coloured,
                 }
             };
             match &mut self.inner {
@@ -220,7 +232,7 @@ impl Renderer {
                     for view in &views {
                         let p = params(view);
                         let light_pipe = settings.light_pipeline(p.fill_gap);
-                        r.light_view(cloud, &view.view, &light_pipe, &p, layers, &mut lit.counts);
+                        r.light_view(cloud, &view.view, &light_pipe, &p, layers, &mut lit);
                     }
                 }
                 Inner::Gpu { renderer, uploaded } => {
@@ -235,6 +247,9 @@ impl Renderer {
         if let Inner::Gpu { renderer, uploaded } = &mut self.inner {
             let up = &uploaded.as_ref().expect("uploaded above").1;
             lit.counts = renderer.read_counts(up)?;
+            if lit.rb.is_some() {
+                lit.rb = renderer.read_rb(up)?;
+            }
         }
         Ok(lit)
     }

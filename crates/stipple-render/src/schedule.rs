@@ -60,6 +60,9 @@ pub trait PassExec {
 
     /// Blends the current layer under what the accumulator holds.
     fn blend_layer(&mut self) -> Result<(), Self::Error>;
+    /// A light view's layer for coloured translucent shadows: the accumulator's colour
+    /// gathers each channel's optical depth (see [`crate::translucent`]).
+    fn transmit_layer(&mut self) -> Result<(), Self::Error>;
 
     /// Keeps the current layer's own image (layer `k`, counted from 0).
     fn keep_layer(&mut self, k: u32) -> Result<(), Self::Error>;
@@ -189,7 +192,11 @@ pub fn light_view<X: PassExec>(
             ..*params
         })?;
         x.light_surface()?;
-        x.blend_layer()?;
+        if params.coloured {
+            x.transmit_layer()?;
+        } else {
+            x.blend_layer()?;
+        }
         if k + 1 < layers {
             x.peel_behind(params.fill_gap)?;
         }
@@ -256,6 +263,10 @@ mod tests {
         }
         fn blend_layer(&mut self) -> Result<(), ()> {
             self.steps.push("blend".into());
+            Ok(())
+        }
+        fn transmit_layer(&mut self) -> Result<(), ()> {
+            self.steps.push("transmit".into());
             Ok(())
         }
         fn keep_layer(&mut self, k: u32) -> Result<(), ()> {
@@ -380,6 +391,7 @@ mod tests {
             face: 0,
             light: 2,
             mode: MarkMode::Rest,
+            coloured: false,
         };
         light_view(&mut x, &light, &params, 1).unwrap();
         assert_eq!(

@@ -59,12 +59,16 @@ pub const FULL: u16 = 255;
 /// Per-point lit sums for up to four lights, and the samples taken for each.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LitTexture {
-    /// Light l's sum in element l ([`FULL`] per fully lit sample). In memory (little-endian)
-    /// this is what the GPU reads as two u32 words per point: lights 0 | 1 << 16 and
-    /// 2 | 3 << 16.
+    /// Light l's sum in element l ([`FULL`] per fully lit sample); with [`LitTexture::rb`],
+    /// the green channel's. In memory (little-endian) this is what the GPU reads as two u32
+    /// words per point: lights 0 | 1 << 16 and 2 | 3 << 16.
     pub counts: Vec<[u16; 4]>,
     /// Samples taken per light (0: no shadow texture for that light, m = 1).
     pub samples: [u32; 4],
+    /// Coloured shadows (light through translucent coloured surfaces, see
+    /// [`crate::translucent`]): per point the red and blue sums of each light, `[r0, b0, r1,
+    /// b1, …]` (on the GPU four words, r_l | b_l << 16). None: grey, every channel `counts`.
+    pub rb: Option<Vec<[u16; 8]>>,
 }
 
 impl LitTexture {
@@ -72,12 +76,37 @@ impl LitTexture {
         LitTexture {
             counts: vec![[0; 4]; points],
             samples: [0; 4],
+            rb: None,
         }
     }
 
-    /// The lit value m of point `i` under light `l`.
+    /// A texture whose channels are kept apart (see [`LitTexture::rb`]).
+    pub fn coloured(points: usize) -> LitTexture {
+        LitTexture {
+            rb: Some(vec![[0; 8]; points]),
+            ..LitTexture::new(points)
+        }
+    }
+
+    /// The lit value m of point `i` under light `l` (green, for a coloured texture).
     pub fn value(&self, i: usize, l: usize) -> f32 {
         crate::passes::shade::cpu::lit_values(self.counts[i], &self.samples)[l]
+    }
+
+    /// The lit values (red, green, blue) of point `i` under light `l`, unrounded.
+    pub fn value_rgb(&self, i: usize, l: usize) -> [f32; 3] {
+        let g = self.value(i, l);
+        match &self.rb {
+            None => [g; 3],
+            Some(rb) => {
+                let s = self.samples[l];
+                if s == 0 {
+                    return [1.0; 3];
+                }
+                let m = |sum: u16| sum as f32 / (s * FULL as u32) as f32;
+                [m(rb[i][2 * l]), g, m(rb[i][2 * l + 1])]
+            }
+        }
     }
 }
 

@@ -36,6 +36,21 @@
 //! 3. `mark` (mode `Rest`): points no layer marked (behind the last layer, or peeled by a
 //!    layer's plane test but outside its Δd) receive the T left at their pixel.
 //!
+//! ## Coloured shadows
+//!
+//! Light through coloured glass takes the glass's colour. When a translucent point has a
+//! colour (not grey), the light is tracked per channel: a surface of opacity α and linear
+//! colour c has optical depth τ_c = τ · w_c in channel c, with
+//! w_c = (1 − c_c + ε) / mean over channels of (1 − c + ε), ε = [`TINT_EPSILON`]: a channel
+//! the surface reflects strongly absorbs less and passes more. The weights average to 1, so
+//! the geometric mean of the three transmittances is exactly the grey (1 − α), a grey,
+//! white or black surface casts the grey shadow, and an opaque point (α = 1) passes nothing
+//! in any channel. Light peeling blends τ · w per channel into the accumulator's colour
+//! (`transmit_layer`, starting at 0), and a point's channels receive exp(−Σ τ_c) · 255. The
+//! texture then holds three sums per light ([`crate::LitTexture::rb`]); shading multiplies
+//! each light's diffuse and specular terms per channel, with each channel's m rounded to
+//! 8 bits (the GPU packs a pixel's four lights in three words).
+//!
 //! An opaque cloud takes the single light image of Dobrev §6 as before; its points receive
 //! 255 or 0 per sample, so m is unchanged. Shading is unchanged too: m multiplies the diffuse
 //! and specular terms of each light (`passes/shade/cpu.rs`), now a fraction for points behind
@@ -44,6 +59,56 @@
 
 use crate::shadow::ShadowSettings;
 use crate::PreparedCloud;
+
+/// ε of the colour weights (see the module notes): keeps a channel a surface reflects in
+/// full from passing everything.
+pub const TINT_EPSILON: f32 = 0.1;
+
+/// The optical depth of an opaque point (α = 1): nothing passes (exp(−1000 · w) is 0 for
+/// every weight [`weights`] gives).
+pub const OPAQUE_DEPTH: f32 = 1000.0;
+
+/// The optical depth τ = −ln(1 − α) of a surface of 8-bit opacity `a`.
+#[inline]
+pub fn optical_depth(a: f32) -> f32 {
+    if a >= 1.0 {
+        OPAQUE_DEPTH
+    } else {
+        -(1.0 - a).ln()
+    }
+}
+
+/// sRGB 8-bit to linear, by the formula (the GPU twin computes the same).
+#[inline]
+pub fn srgb8_to_linear(v: u8) -> f32 {
+    let c = v as f32 / 255.0;
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// The per-channel weights w_c of a surface's optical depth for its sRGB colour (see the
+/// module notes); (1, 1, 1) for grey.
+#[inline]
+pub fn weights(colour: [u8; 3]) -> [f32; 3] {
+    let s = colour.map(|v| 1.0 - srgb8_to_linear(v) + TINT_EPSILON);
+    let mean = (s[0] + s[1] + s[2]) * (1.0 / 3.0);
+    s.map(|x| x / mean)
+}
+
+/// Whether `cloud`'s shadows are coloured: some translucent point has a colour that is not
+/// grey (channels more than 2 apart in 8 bits).
+pub fn coloured(cloud: &PreparedCloud) -> bool {
+    let (Some(alpha), Some(colours)) = (&cloud.alpha, &cloud.cloud.colors) else {
+        return false;
+    };
+    alpha.iter().zip(colours).any(|(&a, c)| {
+        let (lo, hi) = (c.iter().min().unwrap(), c.iter().max().unwrap());
+        a < 255 && hi - lo > 2
+    })
+}
 
 /// The light layers a shadow texture of `cloud` peels: `settings.layers` when some point is
 /// translucent (opacity below 1 in 8 bits), else 1.
@@ -56,5 +121,31 @@ pub fn light_layers(cloud: &PreparedCloud, settings: &ShadowSettings) -> u32 {
         settings.layers.max(1)
     } else {
         1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn weights_keep_grey_and_the_geometric_mean() {
+        for grey in [0u8, 77, 128, 255] {
+            for w in weights([grey; 3]) {
+                assert!((w - 1.0).abs() < 1e-6, "{grey}: {w}");
+            }
+        }
+        for c in [[230u8, 60, 40], [10, 200, 90], [120, 170, 230]] {
+            let w = weights(c);
+            assert!(((w[0] + w[1] + w[2]) / 3.0 - 1.0).abs() < 1e-6);
+            // The channel the colour is strongest in absorbs least.
+            let strongest = (0..3).max_by_key(|&i| c[i]).unwrap();
+            assert!((0..3).all(|i| w[strongest] <= w[i]), "{c:?}: {w:?}");
+            // The transmittances' geometric mean is the grey (1 − α).
+            let tau = optical_depth(0.4);
+            let g = w.iter().map(|&w| (-tau * w).exp()).product::<f32>().cbrt();
+            assert!((g - 0.6).abs() < 1e-5, "{g}");
+        }
+        assert!((-OPAQUE_DEPTH * weights([255, 0, 0])[0]).exp() == 0.0);
     }
 }

@@ -199,3 +199,149 @@ fn a_light_inside_a_translucent_sphere_lights_it_and_dims_the_world_outside() {
         }
     }
 }
+
+/// A coloured translucent shell over a white floor under a point light casts a shadow of its
+/// colour: each channel of the core gets (1 − α)^(2 w_c) of the light, with w the weights of
+/// the shell's colour (`translucent::weights`), the far wall's inside (1 − α)^(w_c); an
+/// opaque shell of the same colour passes nothing. Both backends agree on the sums, and a
+/// frame shows the shadow tinted (red over green) where a grey shell's is neutral.
+#[test]
+fn a_coloured_shell_casts_a_shadow_of_its_colour() {
+    use stipple_core::{Camera, Projection};
+    use stipple_render::translucent::weights;
+    let (centre, radius) = (Vec3::new(0.1, -0.2, 1.2), 0.5);
+    let light = Vec3::new(0.3, 0.1, 4.0);
+    let core = on_floor(light, centre);
+    let core_r = 0.5 * radius;
+    let red = [230u8, 60, 40];
+    let coloured = |alpha: f32, colour: [u8; 3]| {
+        let (mut c, np) = shell_over_plane(alpha, centre, radius);
+        let n = c.cloud.len();
+        c.cloud.colors = Some(
+            (0..n)
+                .map(|i| if i < np { [255; 3] } else { colour })
+                .collect(),
+        );
+        (PreparedCloud::new(c.cloud), np)
+    };
+    let cam = Camera {
+        eye: (core + Vec3::new(0.0, 0.0, 3.0)).as_dvec3(),
+        target: core.as_dvec3(),
+        up: glam::DVec3::Y,
+        projection: Projection::Perspective { fov_deg: 20.0 },
+        width: 64,
+        height: 64,
+        near: 0.5,
+        far: 20.0,
+    };
+    let pipe = stipple_render::Pipeline {
+        lights: vec![Light::Point(light.as_dvec3().to_array())],
+        ..stipple_render::Pipeline::default()
+    };
+    let mut per_backend = Vec::new();
+    for mut r in common::backends() {
+        let (c, np) = coloured(0.5, red);
+        let pos = c.cloud.positions.clone();
+        let lit = shadows(&mut r, &c, light);
+        assert!(lit.rb.is_some(), "{}: a coloured texture", r.describe());
+        let a = alpha8(0.5) as f64 / 255.0;
+        let w = weights(red);
+        let core_pts: Vec<usize> = (0..np)
+            .filter(|&i| (pos[i] - core).length() < core_r)
+            .collect();
+        let axis = (centre - light).normalize();
+        let far_cap: Vec<usize> = (np..pos.len())
+            .filter(|&i| (pos[i] - centre).normalize().dot(axis) > 0.9)
+            .collect();
+        for ch in 0..3 {
+            let mean = |pts: &[usize]| {
+                pts.iter()
+                    .map(|&i| lit.value_rgb(i, 0)[ch] as f64)
+                    .sum::<f64>()
+                    / pts.len() as f64
+            };
+            let want = (1.0 - a).powf(2.0 * w[ch] as f64);
+            let got = mean(&core_pts);
+            assert!(
+                (got - want).abs() <= 0.02,
+                "{}: channel {ch}: the core gets {got:.4}, (1 − α)^(2 w) = {want:.4}",
+                r.describe()
+            );
+            let want_far = (1.0 - a).powf(w[ch] as f64);
+            let got_far = mean(&far_cap);
+            assert!(
+                (got_far - want_far).abs() <= 0.02,
+                "{}: channel {ch}: the far cap gets {got_far:.4}, want {want_far:.4}",
+                r.describe()
+            );
+        }
+        // An opaque shell of the same colour: nothing in any channel.
+        let (opaque, _) = coloured(1.0, red);
+        let dark = shadows(&mut r, &opaque, light);
+        let worst = core_pts
+            .iter()
+            .flat_map(|&i| dark.value_rgb(i, 0))
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst <= 0.01,
+            "{}: an opaque shell passes {worst}",
+            r.describe()
+        );
+        // The frame of the floor alone with its shadow: red-tinted, and a grey shell's not.
+        let floor = |c: &PreparedCloud, lit: &LitTexture| {
+            let mut f = c.cloud.clone();
+            f.positions.truncate(np);
+            f.normals.as_mut().unwrap().truncate(np);
+            f.colors.as_mut().unwrap().truncate(np);
+            f.opacity = None;
+            let mut f = PreparedCloud::new(f);
+            f.set_lit(Some(LitTexture {
+                counts: lit.counts[..np].to_vec(),
+                samples: lit.samples,
+                rb: lit.rb.as_ref().map(|rb| rb[..np].to_vec()),
+            }))
+            .unwrap();
+            f
+        };
+        let f = r.render(&floor(&c, &lit), &cam, &pipe).unwrap();
+        let px = f.rgba[(32 * 64 + 32) * 4..][..3].to_vec();
+        assert!(
+            px[0] as i32 > px[1] as i32 + 40 && (px[1] as i32 - px[2] as i32).abs() < 20,
+            "{}: the shadow's centre is {px:?}",
+            r.describe()
+        );
+        let (grey, _) = coloured(0.5, [128, 128, 128]);
+        let glit = shadows(&mut r, &grey, light);
+        assert!(glit.rb.is_none(), "a grey shell's texture stays grey");
+        let g = r.render(&floor(&grey, &glit), &cam, &pipe).unwrap();
+        let gp = &g.rgba[(32 * 64 + 32) * 4..][..3];
+        assert!(
+            (gp[0] as i32 - gp[1] as i32).abs() <= 2,
+            "{}: a grey shell's shadow is {gp:?}",
+            r.describe()
+        );
+        eprintln!(
+            "{}: coloured shadow pixel {px:?}, grey {gp:?}",
+            r.describe()
+        );
+        per_backend.push((lit, f));
+    }
+    if let [(a, fa), (b, fb)] = &per_backend[..] {
+        let (ra, rb) = (a.rb.as_ref().unwrap(), b.rb.as_ref().unwrap());
+        let differ = (0..a.counts.len())
+            .filter(|&i| a.counts[i] != b.counts[i] || ra[i] != rb[i])
+            .count();
+        assert!(
+            differ as f64 <= 1e-3 * a.counts.len() as f64,
+            "coloured shadow parity: {differ} of {} points differ",
+            a.counts.len()
+        );
+        let off = fa
+            .rgba
+            .chunks(4)
+            .zip(fb.rgba.chunks(4))
+            .filter(|(x, y)| (0..3).any(|i| (x[i] as i32 - y[i] as i32).abs() > 2))
+            .count();
+        assert!(off <= 8, "coloured shadow frames: {off} pixels differ");
+    }
+}

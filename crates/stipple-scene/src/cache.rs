@@ -2,10 +2,11 @@
 //! of what it was computed for (clouds, their placement and the lights, see
 //! `scene::relative_key`), reloaded instead of recomputed while the key matches.
 //!
-//! Layout (little-endian): magic `STSHADOW`, u32 version (2), u32 reserved (0), u64 key,
-//! u64 point count, 4 × u32 samples per light, then four u16 lit sums per point (light l's
-//! at 2l; 255 per fully lit sample, see `stipple_render::LitTexture`), then the CRC-32 of
-//! everything before it. Version 1 (one byte of sample counts per light) is not read: such a
+//! Layout (little-endian): magic `STSHADOW`, u32 version (2), u32 flags (bit 0: coloured),
+//! u64 key, u64 point count, 4 × u32 samples per light, then four u16 lit sums per point
+//! (light l's at 2l; 255 per fully lit sample, see `stipple_render::LitTexture`), for a
+//! coloured texture followed by eight u16 per point (red and blue of each light, `rb`), then
+//! the CRC-32 of everything before it. Version 1 (one byte of sample counts per light) is not read: such a
 //! cache is recomputed, and the new one replaces it.
 
 use crate::SceneError;
@@ -17,6 +18,8 @@ const MAGIC: &[u8; 8] = b"STSHADOW";
 const VERSION: u32 = 2;
 /// Bytes per point.
 const PER_POINT: usize = 8;
+/// Bytes per point more for a coloured texture.
+const RB_PER_POINT: usize = 16;
 const HEADER: usize = 8 + 4 + 4 + 8 + 8 + 16;
 
 /// What a cache file holds.
@@ -39,16 +42,22 @@ pub fn write(path: &Path, key: u64, lit: &LitTexture) -> Result<(), SceneError> 
             });
         }
     }
-    let mut buf = Vec::with_capacity(HEADER + PER_POINT * lit.counts.len() + 4);
+    let per = PER_POINT + lit.rb.as_ref().map_or(0, |_| RB_PER_POINT);
+    let mut buf = Vec::with_capacity(HEADER + per * lit.counts.len() + 4);
     buf.extend_from_slice(MAGIC);
     buf.extend_from_slice(&VERSION.to_le_bytes());
-    buf.extend_from_slice(&0u32.to_le_bytes());
+    buf.extend_from_slice(&(lit.rb.is_some() as u32).to_le_bytes());
     buf.extend_from_slice(&key.to_le_bytes());
     buf.extend_from_slice(&(lit.counts.len() as u64).to_le_bytes());
     for s in lit.samples {
         buf.extend_from_slice(&s.to_le_bytes());
     }
     for c in &lit.counts {
+        for v in c {
+            buf.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for c in lit.rb.iter().flatten() {
         for v in c {
             buf.extend_from_slice(&v.to_le_bytes());
         }
@@ -78,16 +87,15 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
         source: e,
     };
     let len = std::fs::metadata(path).map_err(read_error)?.len();
-    let want = (HEADER as u64)
-        .saturating_add((PER_POINT as u64).saturating_mul(points as u64))
-        .saturating_add(4);
     if len < HEADER as u64 {
         return Err(bad("too short to be a shadow cache"));
     }
-    // The version first: a version-1 file has another size for the same cloud.
+    // The version and flags first: a version-1 file has another size for the same cloud,
+    // and a coloured one more bytes per point.
+    let mut coloured = false;
     {
         use std::io::Read;
-        let mut head = [0u8; 12];
+        let mut head = [0u8; 16];
         let mut f = std::fs::File::open(path).map_err(read_error)?;
         f.read_exact(&mut head).map_err(read_error)?;
         if &head[..8] == MAGIC {
@@ -97,8 +105,17 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
                     "version {v} (this stipple reads {VERSION}; it is recomputed)"
                 )));
             }
+            let flags = u32::from_le_bytes(head[12..16].try_into().unwrap());
+            if flags > 1 {
+                return Err(bad(&format!("unknown flags {flags:#x}")));
+            }
+            coloured = flags == 1;
         }
     }
+    let per = PER_POINT + if coloured { RB_PER_POINT } else { 0 };
+    let want = (HEADER as u64)
+        .saturating_add((per as u64).saturating_mul(points as u64))
+        .saturating_add(4);
     if len != want {
         return Err(bad(&format!(
             "has {len} bytes, but a shadow cache for {points} points has {want} (made for \
@@ -134,7 +151,8 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
     {
         return Err(bad("sample counts out of range"));
     }
-    let counts: Vec<[u16; 4]> = buf[HEADER..n]
+    let rb_start = HEADER + PER_POINT * points;
+    let counts: Vec<[u16; 4]> = buf[HEADER..rb_start]
         .chunks_exact(PER_POINT)
         .map(|c| std::array::from_fn(|l| u16::from_le_bytes([c[2 * l], c[2 * l + 1]])))
         .collect();
@@ -142,9 +160,24 @@ pub fn read(path: &Path, points: usize) -> Result<Cached, SceneError> {
     if counts.iter().any(|c| (0..4).any(|l| c[l] as u32 > most(l))) {
         return Err(bad("lit sums out of range for the samples taken"));
     }
+    let rb: Option<Vec<[u16; 8]>> = coloured.then(|| {
+        buf[rb_start..n]
+            .chunks_exact(RB_PER_POINT)
+            .map(|c| std::array::from_fn(|k| u16::from_le_bytes([c[2 * k], c[2 * k + 1]])))
+            .collect()
+    });
+    if let Some(rb) = &rb {
+        if rb.iter().any(|c| (0..8).any(|k| c[k] as u32 > most(k / 2))) {
+            return Err(bad("lit sums out of range for the samples taken"));
+        }
+    }
     Ok(Cached {
         key: u64_at(16),
-        lit: LitTexture { counts, samples },
+        lit: LitTexture {
+            counts,
+            samples,
+            rb,
+        },
     })
 }
 
@@ -165,6 +198,7 @@ mod tests {
                 })
                 .collect(),
             samples: [30, 1, 0, 255],
+            rb: None,
         };
         write(&p, 42, &lit).unwrap();
         let back = read(&p, 1000).unwrap();
@@ -207,6 +241,26 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("out of range"));
+        // A coloured texture keeps its red and blue sums; one out of range is refused, and
+        // unknown flags too.
+        let mut coloured = lit.clone();
+        coloured.rb = Some(
+            (0..1000u16)
+                .map(|i| [i % 255, 3, 0, 255, 0, 0, i, 7])
+                .collect(),
+        );
+        write(&p, 43, &coloured).unwrap();
+        assert_eq!(read(&p, 1000).unwrap().lit, coloured);
+        coloured.rb.as_mut().unwrap()[5][2] = 256;
+        write(&p, 43, &coloured).unwrap();
+        assert!(read(&p, 1000)
+            .unwrap_err()
+            .to_string()
+            .contains("out of range"));
+        let mut bytes = std::fs::read(&p).unwrap();
+        bytes[12] = 6;
+        std::fs::write(&p, &bytes).unwrap();
+        assert!(read(&p, 1000).unwrap_err().to_string().contains("flags"));
         std::fs::remove_dir_all(dir).unwrap();
     }
 }

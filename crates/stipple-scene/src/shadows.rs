@@ -29,8 +29,20 @@ pub fn key(
     lights: &[Light],
     settings: &ShadowSettings,
 ) -> u64 {
-    // Translucent shadows depend on every point's opacity.
+    // Translucent shadows depend on every point's opacity, and coloured ones on the colours
+    // of the translucent points.
     let alpha = cloud.alpha.as_deref().map(crc32fast::hash);
+    let tint = stipple_render::translucent::coloured(cloud).then(|| {
+        let mut crc = crc32fast::Hasher::new();
+        if let (Some(a), Some(c)) = (&cloud.alpha, &cloud.cloud.colors) {
+            for (a, c) in a.iter().zip(c) {
+                if *a < 255 {
+                    crc.update(c);
+                }
+            }
+        }
+        crc.finalize()
+    });
     let placed = match scene {
         Some(s) => s.relative_key(lights, settings),
         None => {
@@ -45,7 +57,7 @@ pub fn key(
         }
     };
     let mut h = std::collections::hash_map::DefaultHasher::new();
-    (placed, alpha).hash(&mut h);
+    (placed, alpha, tint).hash(&mut h);
     h.finish()
 }
 

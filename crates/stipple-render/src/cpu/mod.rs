@@ -56,7 +56,7 @@ fn shade_input<'a>(
         normals: c.normals.as_deref().filter(|_| pipe.lighting),
         albedo: cloud.albedo(pipe),
         objects: cloud.objects.as_ref().map(|o| &o.index[..]),
-        lit: cloud.lit().map(|l| &l.counts[..]),
+        lit: cloud.lit(),
         pixel,
     }
 }
@@ -112,7 +112,7 @@ impl CpuRenderer {
         }
     }
 
-    /// Adds one light image's marks to `counts` (see [`crate::schedule::light_view`];
+    /// Adds one light image's marks to `lit` (see [`crate::schedule::light_view`];
     /// `layers` > 1 peels it for a translucent cloud).
     pub fn light_view(
         &mut self,
@@ -121,9 +121,10 @@ impl CpuRenderer {
         light_pipe: &Pipeline,
         params: &shadow_texture::MarkParams,
         layers: u32,
-        counts: &mut [[u16; 4]],
+        lit: &mut crate::LitTexture,
     ) {
-        let mut x = CpuExec::new(self, cloud, v, light_pipe, Some(counts));
+        let mut x = CpuExec::new(self, cloud, v, light_pipe, Some(&mut lit.counts));
+        x.rb = lit.rb.as_deref_mut();
         match crate::schedule::light_view(&mut x, light_pipe, params, layers) {
             Ok(()) => {}
             Err(never) => match never {},
@@ -169,8 +170,10 @@ pub struct CpuExec<'a> {
     front: Option<(Vec<f32>, Vec<u32>)>,
     layers: Vec<Vec<u8>>,
     rgba: Vec<u8>,
-    /// The shadow sums light views mark.
+    /// The shadow sums light views mark (grey or green, and a coloured texture's red and
+    /// blue).
     counts: Option<&'a mut [[u16; 4]]>,
+    rb: Option<&'a mut [[u16; 8]]>,
 }
 
 impl<'a> CpuExec<'a> {
@@ -191,6 +194,7 @@ impl<'a> CpuExec<'a> {
             layers: Vec::new(),
             rgba: Vec::new(),
             counts,
+            rb: None,
         }
     }
 }
@@ -434,6 +438,19 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         Ok(())
     }
 
+    fn transmit_layer(&mut self) -> Result<(), Self::Error> {
+        let (r, cloud) = (&mut *self.r, self.cloud);
+        let ga = &r.g.as_ref().expect("made by project").0;
+        let (sd, acc) = (&r.surface_depth, &mut r.acc);
+        let alpha = cloud.alpha.as_deref();
+        let colours = cloud.cloud.colors.as_deref();
+        timed(&mut self.stats, PassId::BlendLayers, || {
+            let covered = blend_layers::transmit(&ga.id, sd, colours, alpha, cloud.mean_alpha, acc);
+            ((), 1, covered)
+        });
+        Ok(())
+    }
+
     fn keep_layer(&mut self, _k: u32) -> Result<(), Self::Error> {
         let v = self.v;
         self.layers
@@ -488,6 +505,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             .counts
             .as_deref_mut()
             .expect("a light view is given the counts it marks");
+        let rb = self.rb.as_deref_mut();
         let transmit =
             (params.mode != shadow_texture::MarkMode::Opaque).then(|| shadow_texture::Transmit {
                 acc: &r.acc,
@@ -500,7 +518,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 &cloud.cloud.positions,
                 cloud.cloud.normals.as_deref(),
                 params,
-                counts,
+                shadow_texture::Sums { counts, rb },
                 transmit,
             );
             ((), 1, k)

@@ -22,6 +22,9 @@ pub struct Chunk {
     /// Shadow texture sums per point, two u32 words each (lights 0 | 1 << 16, 2 | 3 << 16;
     /// absent: no shadow texture).
     pub lit: Option<wgpu::Buffer>,
+    /// A coloured shadow texture's red and blue sums, four words per point (light l:
+    /// red | blue << 16; absent: grey).
+    pub lit_rb: Option<wgpu::Buffer>,
 }
 
 pub struct GpuCloud {
@@ -43,6 +46,9 @@ pub struct GpuCloud {
     pub chunks: Vec<Chunk>,
     /// Bound where a chunk has no normals or albedo (never read then).
     pub dummy: wgpu::Buffer,
+    /// Bound writable where a grey shadow texture has no red and blue sums (never written
+    /// then; apart from `dummy`, which may be bound read-only in the same pass).
+    pub dummy_rw: wgpu::Buffer,
     /// Depth peeling: one bit per point, set once a layer's test has peeled it (see
     /// `passes::project::cpu::PeelTest::done`); cleared by the first layer.
     pub done: wgpu::Buffer,
@@ -53,8 +59,9 @@ pub struct GpuCloud {
 
 static NEXT_KEY: AtomicU64 = AtomicU64::new(1);
 
-/// Bytes per point of the largest per-point buffer (positions and normals, 3 × f32).
-const STRIDE: u64 = 12;
+/// Bytes per point of the largest per-point buffer (a coloured shadow texture's red and
+/// blue sums, 4 × u32).
+const STRIDE: u64 = 16;
 
 impl GpuCloud {
     pub fn upload(ctx: &GpuContext, cloud: &PreparedCloud) -> Result<GpuCloud, GpuError> {
@@ -130,10 +137,12 @@ impl GpuCloud {
                     .as_ref()
                     .map(|a| init("style", bytemuck::cast_slice(&a[base..end]))),
                 lit: None,
+                lit_rb: None,
             });
             base = end;
         }
         let dummy = init("dummy", &[0u8; 16]);
+        let dummy_rw = init("dummy (writable)", &[0u8; 16]);
         let done = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("peeled points"),
             size: (c.len().div_ceil(32).max(1) * 4) as u64,
@@ -163,6 +172,7 @@ impl GpuCloud {
             lit_key: 0,
             chunks,
             dummy,
+            dummy_rw,
             done,
             marked,
         };
@@ -181,12 +191,18 @@ impl GpuCloud {
         match lit {
             Some(l) => {
                 self.write_counts(ctx, &l.counts)?;
+                self.write_rb(ctx, l.rb.as_deref())?;
                 self.samples = l.samples;
             }
             None => {
-                if self.chunks.iter().any(|c| c.lit.is_some()) {
+                if self
+                    .chunks
+                    .iter()
+                    .any(|c| c.lit.is_some() || c.lit_rb.is_some())
+                {
                     for c in &mut self.chunks {
                         c.lit = None;
+                        c.lit_rb = None;
                     }
                     self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
                 }
@@ -195,6 +211,50 @@ impl GpuCloud {
         }
         self.lit_key = lit_key;
         Ok(())
+    }
+
+    /// Writes a coloured texture's red and blue sums into the chunks' buffers (made when
+    /// missing), or drops them for a grey texture.
+    pub fn write_rb(&mut self, ctx: &GpuContext, rb: Option<&[[u16; 8]]>) -> Result<(), GpuError> {
+        let Some(rb) = rb else {
+            if self.chunks.iter().any(|c| c.lit_rb.is_some()) {
+                for c in &mut self.chunks {
+                    c.lit_rb = None;
+                }
+                self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
+            }
+            return Ok(());
+        };
+        if rb.len() != self.len {
+            return Err(GpuError::TooLarge(format!(
+                "coloured lit sums for {} points, the cloud has {}",
+                rb.len(),
+                self.len
+            )));
+        }
+        let mut made = false;
+        for c in &mut self.chunks {
+            let data = &rb[c.base as usize..(c.base + c.count) as usize];
+            match &c.lit_rb {
+                Some(b) => ctx.queue.write_buffer(b, 0, bytemuck::cast_slice(data)),
+                None => {
+                    c.lit_rb = Some(ctx.device.create_buffer_init(
+                        &wgpu::util::BufferInitDescriptor {
+                            label: Some("lit red and blue"),
+                            contents: bytemuck::cast_slice(data),
+                            usage: BufferUsages::STORAGE
+                                | BufferUsages::COPY_SRC
+                                | BufferUsages::COPY_DST,
+                        },
+                    ));
+                    made = true;
+                }
+            }
+        }
+        if made {
+            self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
+        }
+        ctx.take_errors()
     }
 
     /// Writes per-point lit sums into the chunks' buffers (made when missing).

@@ -160,6 +160,12 @@ impl PassExec for GpuExec<'_> {
         blend_layers::gpu::record_blend(rec, b, cur, Some(hole), bg)
     }
 
+    fn transmit_layer(&mut self) -> Result<(), GpuError> {
+        let hole = self.cloud.mean_alpha;
+        let (rec, b, cur) = (&mut self.rec, self.b, &self.cur);
+        blend_layers::gpu::record_transmit(rec, b, cur, hole)
+    }
+
     fn keep_layer(&mut self, k: u32) -> Result<(), GpuError> {
         let (n4, f) = (self.image_bytes(), self.b.f);
         let lr = f.layers_read.as_ref().ok_or_else(|| {

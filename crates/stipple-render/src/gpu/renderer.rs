@@ -301,6 +301,23 @@ impl GpuRenderer {
         Ok(counts)
     }
 
+    /// Reads a coloured shadow texture's red and blue sums back (None for a grey one).
+    pub fn read_rb(&self, cloud: &GpuCloud) -> Result<Option<Vec<[u16; 8]>>, GpuError> {
+        if cloud.chunks.iter().any(|c| c.lit_rb.is_none()) {
+            return Ok(None);
+        }
+        let mut rb = Vec::with_capacity(cloud.len);
+        for c in &cloud.chunks {
+            let b = c.lit_rb.as_ref().expect("checked above");
+            let raw = copy_out(&self.ctx, b, 16 * c.count as u64)?;
+            rb.extend(
+                raw.chunks_exact(16)
+                    .map(|w| std::array::from_fn(|k| u16::from_le_bytes([w[2 * k], w[2 * k + 1]]))),
+            );
+        }
+        Ok(Some(rb))
+    }
+
     /// The points of an uploaded cloud seen in `v`, back to front in slices of thickness
     /// `eps` (see `passes::bucket_sort`).
     pub fn bucket_sort(

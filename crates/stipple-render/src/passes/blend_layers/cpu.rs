@@ -53,6 +53,40 @@ pub fn blend(
         .sum()
 }
 
+/// A light view's layer for coloured translucent shadows (see [`crate::translucent`]): the
+/// accumulator's colour gathers the optical depth per channel, τ · w_c of the pixel's point
+/// (grey weights for a pixel without a point of its own), and T ← T · (1 − α) as [`blend`].
+/// Returns the pixels it covered.
+pub fn transmit(
+    id: &[u32],
+    depth: &[f32],
+    colours: Option<&[[u8; 3]]>,
+    alpha: Option<&[u8]>,
+    hole_alpha: f32,
+    acc: &mut [[f32; 4]],
+) -> u64 {
+    use crate::translucent::{optical_depth, weights};
+    acc.par_iter_mut()
+        .enumerate()
+        .map(|(k, a)| {
+            let al = pixel_alpha(id[k], depth[k], alpha, hole_alpha);
+            if al <= 0.0 {
+                return 0;
+            }
+            let w = match colours {
+                Some(c) if is_point(id[k]) => weights(c[id[k] as usize]),
+                _ => [1.0; 3],
+            };
+            let tau = optical_depth(al);
+            for i in 0..3 {
+                a[i] += tau * w[i];
+            }
+            a[3] *= 1.0 - al;
+            1
+        })
+        .sum()
+}
+
 /// The composite over the (linear) background colour.
 pub fn compose(acc: &[[f32; 4]], background: [f32; 3], out: &mut [[f32; 3]]) {
     out.par_iter_mut().zip(acc).for_each(|(o, a)| {

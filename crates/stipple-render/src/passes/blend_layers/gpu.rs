@@ -23,10 +23,13 @@ pub(crate) struct BlendLayers {
     bgl: wgpu::BindGroupLayout,
     begin: wgpu::ComputePipeline,
     blend: wgpu::ComputePipeline,
+    transmit: wgpu::ComputePipeline,
     compose: wgpu::ComputePipeline,
 }
 
-const SLOTS: [Slot; 8] = [UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE];
+const SLOTS: [Slot; 9] = [
+    UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE, READ,
+];
 
 impl GpuPass for BlendLayers {
     fn new(ctx: &GpuContext, _: &Shared) -> BlendLayers {
@@ -36,6 +39,7 @@ impl GpuPass for BlendLayers {
         BlendLayers {
             begin: util::compute(d, &m, "begin", &bgl),
             blend: util::compute(d, &m, "blend", &bgl),
+            transmit: util::compute(d, &m, "transmit", &bgl),
             compose: util::compute(d, &m, "compose", &bgl),
             bgl,
         }
@@ -58,6 +62,7 @@ impl BlendLayers {
                 Res::Buf(&f.colour[c]),
                 Res::Buf(&f.acc),
                 Res::Buf(&s.counters),
+                Res::Buf(&f.attr_pos),
             ],
         )
     }
@@ -92,6 +97,29 @@ pub(crate) fn record_blend(
         Some(_) => rec.end(PassId::BlendLayers, 1, vec![slot], q),
         None => rec.end(PassId::BlendBegin, 1, vec![], q),
     }
+}
+
+/// `transmit` of the current light layer (coloured translucent shadows).
+pub(crate) fn record_transmit(
+    rec: &mut Rec<'_>,
+    b: Binder<'_>,
+    cur: &Cursor,
+    hole_alpha: f32,
+) -> Result<(), GpuError> {
+    let q = rec.section();
+    let grid = grid_2d(b.ctx, b.f.width, b.f.height)?;
+    let slot = rec.slot()?;
+    let off = rec.arena.push(&BlendBlock {
+        hole_alpha,
+        slot,
+        pad: [0; 2],
+        background: [0.0; 3],
+        pad2: 0,
+    })?;
+    let pass = b.pass::<BlendLayers>();
+    let group = pass.group(b, cur.g, cur.colour);
+    rec.image_pass(q, &pass.transmit, &group, &[off], grid);
+    rec.end(PassId::BlendLayers, 1, vec![slot], q)
 }
 
 /// The composite over the background into colour image 0.

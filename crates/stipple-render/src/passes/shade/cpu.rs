@@ -70,8 +70,8 @@ pub struct ShadeInput<'a> {
     pub albedo: Albedo<'a>,
     /// The object of each point (None: every point is object 0).
     pub objects: Option<&'a [u8]>,
-    /// Lit sums per point (see [`crate::LitTexture`]; None: no shadow textures).
-    pub lit: Option<&'a [[u16; 4]]>,
+    /// Shadow textures (see [`crate::LitTexture`]; None: none).
+    pub lit: Option<&'a crate::LitTexture>,
     /// Per-pixel normal and linear albedo that replace the point's (splat blending: the
     /// depth is the blended one and is not corrected).
     pub pixel: Option<(&'a [Vec3], &'a [[f32; 3]])>,
@@ -89,24 +89,52 @@ pub fn lit_values(counts: [u16; 4], samples: &[u32; 4]) -> [f32; 4] {
     })
 }
 
+/// Lit values per light and colour channel of point `i` (see [`crate::LitTexture`]): the
+/// grey texture's m in every channel, or a coloured one's channels, each rounded to 8 bits
+/// as the GPU packs them per pixel (q = round(sum / samples), m = q / 255, in integers).
+#[inline]
+pub fn lit_rgb(lit: &crate::LitTexture, i: usize, samples: &[u32; 4]) -> [[f32; 3]; 4] {
+    match &lit.rb {
+        None => lit_values(lit.counts[i], samples).map(|m| [m; 3]),
+        Some(rb) => std::array::from_fn(|l| {
+            let s = samples[l];
+            if s == 0 {
+                return [1.0; 3];
+            }
+            let q = |sum: u16| ((2 * sum as u32 + s) / (2 * s)).min(255) as f32 / 255.0;
+            [q(rb[i][2 * l]), q(lit.counts[i][l]), q(rb[i][2 * l + 1])]
+        }),
+    }
+}
+
 pub use crate::srgb::{intensity_grey, linear_to_srgb8, srgb_to_linear_table, SrgbEncoder};
 
 /// Phong terms for unit normal `n` and unit direction to the viewer `v`, summed over the
 /// lights `l` (unit directions towards each light) weighted by their lit values `m`.
 #[inline]
-pub fn phong(albedo: [f32; 3], n: Vec3, v: Vec3, l: &[Vec3], m: &[f32; 4], t: &Terms) -> [f32; 3] {
+pub fn phong(
+    albedo: [f32; 3],
+    n: Vec3,
+    v: Vec3,
+    l: &[Vec3],
+    m: &[[f32; 3]; 4],
+    t: &Terms,
+) -> [f32; 3] {
     let n = if n.dot(v) < 0.0 { -n } else { n };
-    let mut k = t.ambient;
-    let mut s = 0.0;
+    let mut k = [t.ambient; 3];
+    let mut s = [0.0; 3];
     for (i, &l) in l.iter().enumerate() {
         let nl = n.dot(l);
         if nl > 0.0 {
             let r = 2.0 * nl * n - l;
-            k += m[i] * t.diffuse * nl;
-            s += m[i] * t.specular * r.dot(v).max(0.0).powi(t.shininess as i32);
+            let spec = r.dot(v).max(0.0).powi(t.shininess as i32);
+            for c in 0..3 {
+                k[c] += m[i][c] * t.diffuse * nl;
+                s[c] += m[i][c] * t.specular * spec;
+            }
         }
     }
-    albedo.map(|a| a * k + s)
+    std::array::from_fn(|c| albedo[c] * k[c] + s[c])
 }
 
 /// [`phong`] over the frame's lights for a surface at `hit` (directions towards each light,
@@ -118,7 +146,7 @@ fn phong_lights(
     n: Vec3,
     to_eye: Vec3,
     hit: Vec3,
-    mut m: [f32; 4],
+    mut m: [[f32; 3]; 4],
     t: &Terms,
 ) -> [f32; 3] {
     let mut dirs = [Vec3::ZERO; 4];
@@ -128,12 +156,26 @@ fn phong_lights(
             LocalLight::Directional(d) => d,
             LocalLight::Point(lp) => {
                 let lv = lp - hit;
-                *m *= falloff(p.falloff, lv.length_squared());
+                let f = falloff(p.falloff, lv.length_squared());
+                for c in m.iter_mut() {
+                    *c *= f;
+                }
                 lv.normalize_or_zero()
             }
         };
     }
     phong(albedo, n, to_eye, &dirs[..p.lights.len()], &m, t)
+}
+
+/// A point without a normal under shadow textures: its albedo times the ambient term plus
+/// the rest scaled by the mean lit value over the lights (per channel).
+#[inline]
+fn unlit(albedo: [f32; 3], m: &[[f32; 3]; 4], lights: usize, t: &Terms) -> [f32; 3] {
+    let n = lights.clamp(1, 4);
+    std::array::from_fn(|c| {
+        let mean = m[..n].iter().map(|m| m[c]).sum::<f32>() / n as f32;
+        albedo[c] * (t.ambient + (1.0 - t.ambient) * mean)
+    })
 }
 
 /// A point light's strength at squared distance `d2`: (d₀ / d)² with `d0` > 0, else 1.
@@ -176,14 +218,10 @@ pub fn shade_points(
             let t = &p.materials[input.objects.map_or(0, |o| o[id] as usize)];
             let m = input
                 .lit
-                .map_or([1.0; 4], |lit| lit_values(lit[id], &p.samples));
+                .map_or([[1.0; 3]; 4], |lit| lit_rgb(lit, id, &p.samples));
             let Some(normals) = input.normals else {
                 return match input.lit {
-                    Some(_) => {
-                        let n = p.lights.len().max(1);
-                        let mean = m[..n].iter().sum::<f32>() / n as f32;
-                        albedo.map(|a| a * (t.ambient + (1.0 - t.ambient) * mean))
-                    }
+                    Some(_) => unlit(albedo, &m, p.lights.len(), t),
                     None => albedo,
                 };
             };
@@ -232,15 +270,10 @@ pub fn shade(
                 let t = &p.materials[input.objects.map_or(0, |o| o[id] as usize)];
                 let m = input
                     .lit
-                    .map_or([1.0; 4], |lit| lit_values(lit[id], &p.samples));
+                    .map_or([[1.0; 3]; 4], |lit| lit_rgb(lit, id, &p.samples));
                 let Some(normals) = input.normals else {
                     crow[i] = match input.lit {
-                        Some(_) => {
-                            let n = p.lights.len().max(1);
-                            let mean = m[..n].iter().sum::<f32>() / n as f32;
-                            let k = t.ambient + (1.0 - t.ambient) * mean;
-                            albedo.map(|a| a * k)
-                        }
+                        Some(_) => unlit(albedo, &m, p.lights.len(), t),
                         None => albedo,
                     };
                     drow[i] = depth;
@@ -303,7 +336,7 @@ mod tests {
             shininess: 8.0,
         };
         let v = Vec3::Z;
-        let lit = [1.0; 4];
+        let lit = [[1.0; 3]; 4];
         let facing = phong([0.5; 3], Vec3::Z, v, &[v], &lit, &t)[0];
         let tilted = phong([0.5; 3], Vec3::new(0.0, 0.6, 0.8), v, &[v], &lit, &t)[0];
         assert!((facing - (0.5 * 0.9 + 0.1)).abs() < 1e-6);
@@ -311,9 +344,9 @@ mod tests {
         // Back-facing normals are lit as if turned towards the viewer (two-sided).
         assert_eq!(phong([0.5; 3], -Vec3::Z, v, &[v], &lit, &t)[0], facing);
         // In full shadow only the ambient term is left: c = k_a + m (k_d + k_s).
-        let dark = phong([0.5; 3], Vec3::Z, v, &[v], &[0.0; 4], &t)[0];
+        let dark = phong([0.5; 3], Vec3::Z, v, &[v], &[[0.0; 3]; 4], &t)[0];
         assert!((dark - 0.5 * 0.2).abs() < 1e-6);
-        let half = phong([0.5; 3], Vec3::Z, v, &[v], &[0.5; 4], &t)[0];
+        let half = phong([0.5; 3], Vec3::Z, v, &[v], &[[0.5; 3]; 4], &t)[0];
         assert!((half - (0.1 + 0.5 * (0.35 + 0.1))).abs() < 1e-6);
     }
 

@@ -8,9 +8,12 @@ struct Gather {
     has_normals: u32,
     has_albedo: u32,
     has_style: u32,
+    // 0 none, 1 grey sums (copied), 2 coloured (packed to 8 bits per channel and light).
     has_lit: u32,
     pad0: u32,
     pad1: u32,
+    // Samples per light (coloured: to normalise).
+    samples: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -27,8 +30,19 @@ struct Gather {
 // 0 | 1 << 16, 2 | 3 << 16).
 @group(0) @binding(8) var<storage, read> style: array<u32>;
 @group(0) @binding(9) var<storage, read> lit: array<vec2<u32>>;
-// Per pixel: (style, lit words, 0) of the pixel's point.
+// Per pixel: (style, lit words, 0) of the pixel's point; coloured: (style, the lit values
+// m of (light, channel) as bytes 3 · light + channel of words y, z, w).
 @group(0) @binding(10) var<storage, read_write> attr_style: array<vec4<u32>>;
+// Coloured shadow textures: red | blue << 16 per light.
+@group(0) @binding(11) var<storage, read> lit_rb: array<vec4<u32>>;
+
+// shade::cpu::lit_rgb: a channel's sum over `s` samples rounded to 8 bits (255 unshadowed).
+fn lit8(sum: u32, s: u32) -> u32 {
+    if (s == 0u) {
+        return 255u;
+    }
+    return min((2u * sum + s) / (2u * s), 255u);
+}
 
 @compute @workgroup_size(256)
 fn gather(
@@ -61,6 +75,22 @@ fn gather(
         let w = lit[l];
         st.y = w.x;
         st.z = w.y;
+    } else if (gp.has_lit == 2u) {
+        let w = lit[l];
+        let rb = lit_rb[l];
+        var packed = array<u32, 3>(0u, 0u, 0u);
+        for (var li = 0u; li < 4u; li++) {
+            let s = gp.samples[li];
+            let g = (select(w.y, w.x, li < 2u) >> (16u * (li % 2u))) & 0xffffu;
+            let q = vec3<u32>(lit8(rb[li] & 0xffffu, s), lit8(g, s), lit8(rb[li] >> 16u, s));
+            for (var c = 0u; c < 3u; c++) {
+                let j = 3u * li + c;
+                packed[j / 4u] = packed[j / 4u] | (q[c] << (8u * (j % 4u)));
+            }
+        }
+        st.y = packed[0];
+        st.z = packed[1];
+        st.w = packed[2];
     }
     attr_style[i] = st;
 }

@@ -20,8 +20,10 @@ pub(crate) struct GatherBlock {
     pub has_normals: u32,
     pub has_albedo: u32,
     pub has_style: u32,
+    /// 0 none, 1 grey, 2 coloured (see gather.wgsl).
     pub has_lit: u32,
     pub pad: [u32; 2],
+    pub samples: [u32; 4],
 }
 
 #[repr(C)]
@@ -66,15 +68,17 @@ impl ShadeBlock {
             crate::passes::shade::shade_params(cloud.origin, pipe, gap, materials, cloud.samples);
         let constant = (!cloud.has_albedo).then_some(pipe.material.base_colour);
         let has_lit = cloud.chunks.iter().any(|c| c.lit.is_some()) && cloud.samples != [0; 4];
-        (
-            ShadeBlock::new(
-                &params,
-                cloud.has_normals && pipe.lighting,
-                constant,
-                has_lit,
-            ),
-            material_table(&params),
-        )
+        let coloured = has_lit && cloud.chunks.iter().all(|c| c.lit_rb.is_some());
+        let mut block = ShadeBlock::new(
+            &params,
+            cloud.has_normals && pipe.lighting,
+            constant,
+            has_lit,
+        );
+        if coloured {
+            block.has_lit = 2;
+        }
+        (block, material_table(&params))
     }
 
     pub fn new(
@@ -131,7 +135,7 @@ impl GpuPass for Shade {
                 &crate::device::shaders::GATHER_MODULE,
                 "gather",
                 &[
-                    UNIFORM, DYNAMIC, READ, READ, READ, READ, WRITE, WRITE, READ, READ, WRITE,
+                    UNIFORM, DYNAMIC, READ, READ, READ, READ, WRITE, WRITE, READ, READ, WRITE, READ,
                 ],
             ),
             shade: Pass::new(
@@ -225,8 +229,13 @@ fn gather_groups(
             has_normals: c.normals.is_some() as u32,
             has_albedo: c.albedo.is_some() as u32,
             has_style: c.style.is_some() as u32,
-            has_lit: c.lit.is_some() as u32,
+            has_lit: match (&c.lit, &c.lit_rb) {
+                (Some(_), Some(_)) => 2,
+                (Some(_), None) => 1,
+                (None, _) => 0,
+            },
             pad: [0; 2],
+            samples: cloud.samples,
         })?;
         let [view, gblock] = b.view_and::<GatherBlock>();
         let or_dummy = |x: &Option<wgpu::Buffer>| x.as_ref().unwrap_or(&cloud.dummy).clone();
@@ -247,6 +256,7 @@ fn gather_groups(
                 Res::Buf(&style),
                 Res::Buf(&lit),
                 Res::Buf(&f.attr_style),
+                Res::Buf(c.lit_rb.as_ref().unwrap_or(&cloud.dummy)),
             ],
         );
         gathers.push((group, off));

@@ -79,26 +79,25 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     var depth = g_depth[k];
     let st = attr_style[k];
     let mat = materials[st.x & 0xffu];
-    // shade::lit_values
-    var m = array<f32, 4>(1.0, 1.0, 1.0, 1.0);
+    // shade::lit_rgb
+    var m = array<vec3<f32>, 4>(vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0));
     if (sp.has_lit == 1u) {
         for (var l = 0u; l < 4u; l++) {
             if (sp.samples[l] > 0u) {
                 let w = select(st.z, st.y, l < 2u);
-                m[l] = f32((w >> (16u * (l % 2u))) & 0xffffu) / f32(sp.samples[l] * 255u);
+                m[l] = vec3<f32>(f32((w >> (16u * (l % 2u))) & 0xffffu) / f32(sp.samples[l] * 255u));
             }
+        }
+    } else if (sp.has_lit == 2u) {
+        // Coloured: gather packed 8 bits per channel and light (byte 3 · light + channel).
+        for (var l = 0u; l < 4u; l++) {
+            m[l] = vec3<f32>(packed_lit(st, 3u * l), packed_lit(st, 3u * l + 1u), packed_lit(st, 3u * l + 2u));
         }
     }
     if (sp.has_normals == 0u) {
         var c = albedo;
-        if (sp.has_lit == 1u) {
-            let nl = max(sp.light_count, 1u);
-            var sum = 0.0;
-            for (var l = 0u; l < nl; l++) {
-                sum = sum + m[l];
-            }
-            let kk = mat.x + (1.0 - mat.x) * (sum / f32(nl));
-            c = albedo * kk;
+        if (sp.has_lit != 0u) {
+            c = unlit(albedo, m, mat);
         }
         colour[k] = vec4<f32>(c, 1.0);
         surface_depth[k] = depth;
@@ -140,6 +139,22 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
     surface_depth[k] = depth;
 }
 
+// Byte j of a pixel's packed coloured lit values (words y, z, w of its style), as m.
+fn packed_lit(st: vec4<u32>, j: u32) -> f32 {
+    let w = select(select(st.w, st.z, j < 8u), st.y, j < 4u);
+    return f32((w >> (8u * (j % 4u))) & 0xffu) / 255.0;
+}
+
+// shade::cpu::unlit: a point without a normal under shadow textures.
+fn unlit(albedo: vec3<f32>, m: array<vec3<f32>, 4>, mat: vec4<f32>) -> vec3<f32> {
+    let nl = clamp(sp.light_count, 1u, 4u);
+    var sum = vec3<f32>(0.0);
+    for (var l = 0u; l < nl; l++) {
+        sum = sum + m[l];
+    }
+    return albedo * (mat.x + (1.0 - mat.x) * (sum / f32(nl)));
+}
+
 // shade::phong over the frame's lights, for a point at `hit` with normal `n_in` (turned to
 // the eye), lit values `m` and material (ambient, diffuse, specular, shininess) `mat`.
 fn phong_lights(
@@ -147,7 +162,7 @@ fn phong_lights(
     n_in: vec3<f32>,
     to_eye: vec3<f32>,
     hit: vec3<f32>,
-    m: array<f32, 4>,
+    m: array<vec3<f32>, 4>,
     mat: vec4<f32>,
 ) -> vec3<f32> {
     var n = n_in;
@@ -155,8 +170,8 @@ fn phong_lights(
     if (dot3(n, to_eye) < 0.0) {
         n = -n;
     }
-    var kk = mat.x;
-    var sp_sum = 0.0;
+    var kk = vec3<f32>(mat.x);
+    var sp_sum = vec3<f32>(0.0);
     for (var li = 0u; li < sp.light_count; li++) {
         let light = sp.lights[li];
         var l = to_eye;
@@ -176,7 +191,7 @@ fn phong_lights(
                 if (len2 > 0.0) {
                     strength = strength * (sp.falloff * sp.falloff / len2);
                 } else {
-                    strength = 0.0;
+                    strength = vec3<f32>(0.0);
                 }
             }
         }

@@ -47,10 +47,18 @@ impl MarkMode {
 }
 
 /// A translucent light view's state for [`mark`]: per light pixel the blend accumulator
-/// (transmittance in `.3`), and one bit per point set once this sample has marked it.
+/// (transmittance in `.3`; with coloured shadows the optical depth per channel in `.0..3`),
+/// and one bit per point set once this sample has marked it.
 pub struct Transmit<'a> {
     pub acc: &'a [[f32; 4]],
     pub marked: &'a [AtomicU64],
+}
+
+/// The sums [`mark`] adds to: per point the grey (or green) sum of each light, and a
+/// coloured texture's red and blue ones (see [`crate::LitTexture`]).
+pub struct Sums<'a> {
+    pub counts: &'a mut [[u16; 4]],
+    pub rb: Option<&'a mut [[u16; 8]]>,
 }
 
 /// What a sample that reaches a point through transmittance `t` adds to its sum.
@@ -73,6 +81,9 @@ pub struct MarkParams {
     pub light: u32,
     /// Opaque, or a translucent layer (set by [`crate::schedule::light_view`]).
     pub mode: MarkMode,
+    /// Coloured translucent shadows (see [`crate::translucent`]): layers blend optical
+    /// depths per channel and marks add to three sums.
+    pub coloured: bool,
 }
 
 /// The layer gap on a light image at view depth `z`: d̃, but at least three light pixels.
@@ -115,47 +126,78 @@ pub fn mark(
     positions: &[Vec3],
     normals: Option<&[Vec3]>,
     p: &MarkParams,
-    counts: &mut [[u16; 4]],
+    sums: Sums<'_>,
     transmit: Option<Transmit<'_>>,
 ) -> u64 {
+    let Sums { counts, rb } = sums;
     let eye = Vec3::from(v.eye);
     let l = p.light as usize;
-    counts
-        .par_iter_mut()
-        .enumerate()
-        .with_min_len(4096)
-        .map(|(i, c)| {
-            let (word, bit) = (i / 64, 1u64 << (i % 64));
-            if let Some(t) = &transmit {
-                if t.marked[word].load(Ordering::Relaxed) & bit != 0 {
-                    return 0;
-                }
-            }
-            let q = positions[i];
-            let d = q - eye;
-            if p.face != ALL_FACES && dominant_face(d) != p.face {
+    let coloured = p.coloured && rb.is_some();
+    let mut none: Vec<[u16; 8]> = Vec::new();
+    let rb: &mut [[u16; 8]] = match rb {
+        Some(rb) => rb,
+        None => &mut none,
+    };
+    let mark_one = |i: usize, c: &mut [u16; 4], rb: Option<&mut [u16; 8]>| -> u64 {
+        let (word, bit) = (i / 64, 1u64 << (i % 64));
+        if let Some(t) = &transmit {
+            if t.marked[word].load(Ordering::Relaxed) & bit != 0 {
                 return 0;
             }
-            let Some((pix, z)) = crate::passes::project::cpu::project_point(v, q) else {
+        }
+        let q = positions[i];
+        let d = q - eye;
+        if p.face != ALL_FACES && dominant_face(d) != p.face {
+            return 0;
+        }
+        let Some((pix, z)) = crate::passes::project::cpu::project_point(v, q) else {
+            return 0;
+        };
+        if p.mode != MarkMode::Rest {
+            let gap = light_gap(v, p.gap, z);
+            let dd = offset(d, normals.map(|n| n[i]), gap, p.slope_cap);
+            if z > reference[pix] + dd {
                 return 0;
-            };
-            if p.mode != MarkMode::Rest {
-                let gap = light_gap(v, p.gap, z);
-                let dd = offset(d, normals.map(|n| n[i]), gap, p.slope_cap);
-                if z > reference[pix] + dd {
-                    return 0;
+            }
+        }
+        match (&transmit, rb) {
+            (Some(t), Some(rb)) if coloured => {
+                t.marked[word].fetch_or(bit, Ordering::Relaxed);
+                let a = t.acc[pix];
+                rb[2 * l] += amount((-a[0]).exp());
+                c[l] += amount((-a[1]).exp());
+                rb[2 * l + 1] += amount((-a[2]).exp());
+            }
+            (Some(t), _) => {
+                t.marked[word].fetch_or(bit, Ordering::Relaxed);
+                c[l] += amount(t.acc[pix][3]);
+            }
+            (None, rb) => {
+                c[l] += FULL;
+                if let Some(rb) = rb {
+                    rb[2 * l] += FULL;
+                    rb[2 * l + 1] += FULL;
                 }
             }
-            match &transmit {
-                Some(t) => {
-                    t.marked[word].fetch_or(bit, Ordering::Relaxed);
-                    c[l] += amount(t.acc[pix][3]);
-                }
-                None => c[l] += FULL,
-            }
-            1
-        })
-        .sum()
+        }
+        1
+    };
+    if rb.is_empty() {
+        counts
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(i, c)| mark_one(i, c, None))
+            .sum()
+    } else {
+        counts
+            .par_iter_mut()
+            .zip(rb.par_iter_mut())
+            .enumerate()
+            .with_min_len(4096)
+            .map(|(i, (c, rb))| mark_one(i, c, Some(rb)))
+            .sum()
+    }
 }
 
 #[cfg(test)]
@@ -199,10 +241,22 @@ mod tests {
             face: ALL_FACES,
             light: 1,
             mode: MarkMode::Opaque,
+            coloured: false,
         };
         let mut counts = vec![[0u16; 4]; 3];
         assert_eq!(
-            mark(&v, &reference, &pts, None, &params, &mut counts, None),
+            mark(
+                &v,
+                &reference,
+                &pts,
+                None,
+                &params,
+                Sums {
+                    counts: &mut counts,
+                    rb: None
+                },
+                None
+            ),
             2
         );
         assert_eq!(counts, vec![[0, FULL, 0, 0], [0, FULL, 0, 0], [0; 4]]);
@@ -222,7 +276,18 @@ mod tests {
             ..params
         };
         assert_eq!(
-            mark(&v, &reference, &pts, None, &layer, &mut counts, Some(t())),
+            mark(
+                &v,
+                &reference,
+                &pts,
+                None,
+                &layer,
+                Sums {
+                    counts: &mut counts,
+                    rb: None
+                },
+                Some(t())
+            ),
             1
         );
         assert_eq!(counts, vec![[0; 4], [0, 77, 0, 0], [0; 4]]);
@@ -231,7 +296,18 @@ mod tests {
             ..params
         };
         assert_eq!(
-            mark(&v, &reference, &pts, None, &rest, &mut counts, Some(t())),
+            mark(
+                &v,
+                &reference,
+                &pts,
+                None,
+                &rest,
+                Sums {
+                    counts: &mut counts,
+                    rb: None
+                },
+                Some(t())
+            ),
             1
         );
         assert_eq!(counts, vec![[0; 4], [0, 77, 0, 0], [0, 77, 0, 0]]);

@@ -23,7 +23,9 @@ pub(crate) struct MarkBlock {
     pub slot: u32,
     /// [`super::cpu::MarkMode::code`].
     pub mode: u32,
-    pub pad: [u32; 3],
+    /// Coloured shadows: red and blue sums into `lit_rb` too.
+    pub coloured: u32,
+    pub pad: [u32; 2],
 }
 
 /// The pass's pipeline.
@@ -36,7 +38,7 @@ impl GpuPass for Gpu {
             &crate::device::shaders::SHADOW_TEXTURE_MODULE,
             "mark",
             &[
-                UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, READ, WRITE,
+                UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, READ, WRITE, WRITE,
             ],
         ))
     }
@@ -69,7 +71,8 @@ pub(crate) fn record(
             has_normals: c.normals.is_some() as u32,
             slot,
             mode: mp.mode.code(),
-            pad: [0; 3],
+            coloured: (mp.coloured && c.lit_rb.is_some()) as u32,
+            pad: [0; 2],
         })?;
         let [view, block] = b.view_and::<MarkBlock>();
         let group = b.bind_chunk(
@@ -85,6 +88,7 @@ pub(crate) fn record(
                 Res::Buf(&b.shared.counters),
                 Res::Buf(&b.f.acc),
                 Res::Buf(&cloud.marked),
+                Res::Buf(c.lit_rb.as_ref().unwrap_or(&cloud.dummy_rw)),
             ],
         );
         work.push((group, off, flat_groups(b.ctx, c.count as u64)));

@@ -18,7 +18,9 @@ struct Mark {
     slot: u32,
     // 0 opaque, 1 a translucent light layer, 2 the points no layer marked.
     mode: u32,
-    pad0: u32,
+    // Coloured shadows: the accumulator holds optical depths per channel; red and blue go to
+    // lit_rb.
+    coloured: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -34,6 +36,13 @@ struct Mark {
 @group(0) @binding(7) var<storage, read> acc: array<vec4<f32>>;
 // One bit per point of the cloud: marked by an earlier light layer of this sample.
 @group(0) @binding(8) var<storage, read_write> marked: array<atomic<u32>>;
+// Coloured shadows: per point and light, red | blue << 16.
+@group(0) @binding(9) var<storage, read_write> lit_rb: array<u32>;
+
+// cpu::amount
+fn amount(t: f32) -> u32 {
+    return u32(clamp(t, 0.0, 1.0) * 255.0 + 0.5);
+}
 
 var<workgroup> marked_here: atomic<u32>;
 
@@ -79,11 +88,21 @@ fn mark(
         if (!skip && (mp.face == 6u || dominant_face(d) == mp.face)) {
             let h = project_point(q);
             if (h.ok && (mp.mode == 2u || h.depth <= reference[h.pixel] + offset(d, local, h.depth))) {
-                // cpu::amount
                 var add = 255u;
+                var red_blue = 255u | (255u << 16u);
                 if (mp.mode != 0u) {
                     atomicOr(&marked[i / 32u], bit);
-                    add = u32(clamp(acc[h.pixel].w, 0.0, 1.0) * 255.0 + 0.5);
+                    let a = acc[h.pixel];
+                    if (mp.coloured == 1u) {
+                        add = amount(exp(-a.y));
+                        red_blue = amount(exp(-a.x)) | (amount(exp(-a.z)) << 16u);
+                    } else {
+                        add = amount(a.w);
+                    }
+                }
+                if (mp.coloured == 1u) {
+                    let r = 4u * local + mp.light;
+                    lit_rb[r] = lit_rb[r] + red_blue;
                 }
                 let w = 2u * local + mp.light / 2u;
                 lit[w] = lit[w] + (add << (16u * (mp.light % 2u)));

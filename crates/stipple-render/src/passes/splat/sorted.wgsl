@@ -38,6 +38,13 @@ struct SortedComposite {
 @group(0) @binding(14) var<storage, read> s_albedo: array<u32>;
 @group(0) @binding(15) var<storage, read> s_style: array<u32>;
 @group(0) @binding(16) var<storage, read> s_lit: array<vec2<u32>>;
+// Coloured shadows (has_lit 2): red | blue << 16 per light.
+@group(0) @binding(25) var<storage, read> s_lit_rb: array<vec4<u32>>;
+
+// A coloured channel's sum over `s` samples as m, rounded to 8 bits (shade::cpu::lit_rgb).
+fn lit8(sum: u32, s: u32) -> f32 {
+    return f32(min((2u * sum + s) / (2u * s), 255u)) / 255.0;
+}
 // (radius, bend…) and the clip planes: three vec4 per point (the splat pass's shapes).
 @group(0) @binding(17) var<storage, read> s_shapes: array<vec4<f32>>;
 // Per point of the cloud: (centre x, centre y, radius, depth), (linear colour, τ).
@@ -104,25 +111,27 @@ fn sorted_points(
         albedo = vec3<f32>(to_linear[bits & 0xffu], to_linear[(bits >> 8u) & 0xffu], to_linear[(bits >> 16u) & 0xffu]);
     }
     let mat = materials[object];
-    var m = array<f32, 4>(1.0, 1.0, 1.0, 1.0);
-    if (sc.has_lit == 1u) {
+    var m = array<vec3<f32>, 4>(vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0));
+    if (sc.has_lit != 0u) {
         let lw = s_lit[local];
         for (var l = 0u; l < 4u; l++) {
             if (sp.samples[l] > 0u) {
                 let w = select(lw.y, lw.x, l < 2u);
-                m[l] = f32((w >> (16u * (l % 2u))) & 0xffffu) / f32(sp.samples[l] * 255u);
+                let g = (w >> (16u * (l % 2u))) & 0xffffu;
+                if (sc.has_lit == 1u) {
+                    m[l] = vec3<f32>(f32(g) / f32(sp.samples[l] * 255u));
+                } else {
+                    // shade::cpu::lit_rgb: each channel rounded to 8 bits.
+                    let rb = s_lit_rb[local][l];
+                    m[l] = vec3<f32>(lit8(rb & 0xffffu, sp.samples[l]), lit8(g, sp.samples[l]), lit8(rb >> 16u, sp.samples[l]));
+                }
             }
         }
     }
     var c = albedo;
     if (sc.has_normals == 0u) {
-        if (sc.has_lit == 1u) {
-            let nl = max(sp.light_count, 1u);
-            var sum = 0.0;
-            for (var l = 0u; l < nl; l++) {
-                sum = sum + m[l];
-            }
-            c = albedo * (mat.x + (1.0 - mat.x) * (sum / f32(nl)));
+        if (sc.has_lit != 0u) {
+            c = unlit(albedo, m, mat);
         }
     } else {
         let n = vec3<f32>(s_normals[3u * local], s_normals[3u * local + 1u], s_normals[3u * local + 2u]);

@@ -67,7 +67,8 @@ impl GpuPass for SortedGpu {
         #[rustfmt::skip]
         let points = [
             UNIFORM, UNIFORM, SKIP, SKIP, SKIP, SKIP, READ, SKIP, SKIP, SKIP, UNIFORM,
-            UNIFORM, READ, READ, READ, READ, READ, READ, WRITE,
+            UNIFORM, READ, READ, READ, READ, READ, READ, WRITE, SKIP, SKIP, SKIP, SKIP, SKIP,
+            SKIP, READ,
         ];
         #[rustfmt::skip]
         let composite = [
@@ -140,7 +141,12 @@ pub(crate) fn record(
                     has_normals: (ch.normals.is_some() && block.has_normals == 1) as u32,
                     has_albedo: (ch.albedo.is_some() && block.has_albedo == 1) as u32,
                     has_style: ch.style.is_some() as u32,
-                    has_lit: (ch.lit.is_some() && cloud.samples != [0; 4]) as u32,
+                    has_lit: match (&ch.lit, &ch.lit_rb) {
+                        _ if cloud.samples == [0; 4] => 0,
+                        (Some(_), Some(_)) => 2,
+                        (Some(_), None) => 1,
+                        (None, _) => 0,
+                    },
                 }),
             );
             let or_dummy = |x: &Option<wgpu::Buffer>| x.as_ref().unwrap_or(&cloud.dummy).clone();
@@ -166,6 +172,13 @@ pub(crate) fn record(
                     Res::Buf(&or_dummy(&ch.lit)),
                     Res::Buf(shape),
                     Res::Buf(splats),
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Buf(&or_dummy(&ch.lit_rb)),
                 ],
             );
             c.set_bind_group(0, &g, &[]);
