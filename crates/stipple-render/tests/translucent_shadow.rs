@@ -345,3 +345,98 @@ fn a_coloured_shell_casts_a_shadow_of_its_colour() {
         assert!(off <= 8, "coloured shadow frames: {off} pixels differ");
     }
 }
+
+/// Sorted splats shade per point: a coloured shadow texture tints them as it tints pixels,
+/// the same on both backends (a small scene: a floor under a red translucent ball; one
+/// texture for both, since splats of one slice may blend in either order, and the frames
+/// compared by their pixels' agreement and the shadow's mean colour).
+#[test]
+fn sorted_splats_show_coloured_shadows_on_both_backends() {
+    use stipple_core::{Camera, Projection};
+    use stipple_render::{Pipeline, SplatMode, SplatSettings};
+    let floor = common::jittered_square(40_000, 2.0, 0.0, 9);
+    let (ball, bn) = common::sphere(30_000, Vec3::new(0.0, 0.0, 0.8), 0.35, 5);
+    let np = floor.len();
+    let mut c = PointCloud::default();
+    c.normals = Some(std::iter::repeat_n(Vec3::Z, np).chain(bn).collect());
+    c.colors = Some(
+        std::iter::repeat_n([255; 3], np)
+            .chain(std::iter::repeat_n([230, 60, 40], ball.len()))
+            .collect(),
+    );
+    c.opacity = Some(
+        std::iter::repeat_n(1.0, np)
+            .chain(std::iter::repeat_n(0.5, ball.len()))
+            .collect(),
+    );
+    c.positions = floor.into_iter().chain(ball).collect();
+    let light = Vec3::new(0.0, 0.0, 3.0);
+    let lit = shadows(&mut common::cpu(), &PreparedCloud::new(c.clone()), light);
+    assert!(lit.rb.is_some());
+    // The floor alone, seen from above: the ball's shadow in the middle.
+    let mut f = c.clone();
+    f.positions.truncate(np);
+    f.normals.as_mut().unwrap().truncate(np);
+    f.colors.as_mut().unwrap().truncate(np);
+    f.opacity = None;
+    let mut f = PreparedCloud::new(f);
+    f.set_lit(Some(LitTexture {
+        counts: lit.counts[..np].to_vec(),
+        samples: lit.samples,
+        rb: lit.rb.as_ref().map(|rb| rb[..np].to_vec()),
+    }))
+    .unwrap();
+    let cam = Camera {
+        eye: glam::DVec3::new(0.0, -0.01, 2.5),
+        target: glam::DVec3::ZERO,
+        up: glam::DVec3::Y,
+        projection: Projection::Perspective { fov_deg: 30.0 },
+        width: 48,
+        height: 48,
+        near: 0.5,
+        far: 20.0,
+    };
+    let pipe = Pipeline {
+        lights: vec![Light::Point(light.as_dvec3().to_array())],
+        ..Pipeline::splats(SplatSettings {
+            mode: SplatMode::Sorted,
+            ..SplatSettings::default()
+        })
+    };
+    let mut frames = Vec::new();
+    for mut r in common::backends() {
+        let frame = r.render(&f, &cam, &pipe).unwrap();
+        // The shadow's middle (8 × 8 pixels) and the open floor at a corner.
+        let mean = |x0: usize, y0: usize| -> [f64; 3] {
+            let mut m = [0.0; 3];
+            for y in y0..y0 + 8 {
+                for x in x0..x0 + 8 {
+                    for (c, m) in m.iter_mut().enumerate() {
+                        *m += frame.rgba[(y * 48 + x) * 4 + c] as f64 / 64.0;
+                    }
+                }
+            }
+            m
+        };
+        let (shadow, open) = (mean(20, 20), mean(2, 2));
+        assert!(
+            shadow[0] > shadow[1] + 30.0 && (open[0] - open[1]).abs() <= 2.0,
+            "{}: shadow {shadow:?}, open floor {open:?}",
+            r.describe()
+        );
+        frames.push((frame, shadow));
+    }
+    if let [(a, sa), (b, sb)] = &frames[..] {
+        let agree = common::agreeing(&a.rgba, &b.rgba, 3);
+        assert!(
+            agree >= 0.97,
+            "sorted splats with coloured shadows: {agree} of pixels agree"
+        );
+        for c in 0..3 {
+            assert!(
+                (sa[c] - sb[c]).abs() <= 2.0,
+                "shadow means {sa:?} vs {sb:?}"
+            );
+        }
+    }
+}
