@@ -357,19 +357,21 @@ fn sorted_splats_show_coloured_shadows_on_both_backends() {
     let floor = common::jittered_square(40_000, 2.0, 0.0, 9);
     let (ball, bn) = common::sphere(30_000, Vec3::new(0.0, 0.0, 0.8), 0.35, 5);
     let np = floor.len();
-    let mut c = PointCloud::default();
-    c.normals = Some(std::iter::repeat_n(Vec3::Z, np).chain(bn).collect());
-    c.colors = Some(
-        std::iter::repeat_n([255; 3], np)
-            .chain(std::iter::repeat_n([230, 60, 40], ball.len()))
-            .collect(),
-    );
-    c.opacity = Some(
-        std::iter::repeat_n(1.0, np)
-            .chain(std::iter::repeat_n(0.5, ball.len()))
-            .collect(),
-    );
-    c.positions = floor.into_iter().chain(ball).collect();
+    let c = PointCloud {
+        normals: Some(std::iter::repeat_n(Vec3::Z, np).chain(bn).collect()),
+        colors: Some(
+            std::iter::repeat_n([255; 3], np)
+                .chain(std::iter::repeat_n([230, 60, 40], ball.len()))
+                .collect(),
+        ),
+        opacity: Some(
+            std::iter::repeat_n(1.0, np)
+                .chain(std::iter::repeat_n(0.5, ball.len()))
+                .collect(),
+        ),
+        positions: floor.into_iter().chain(ball).collect(),
+        ..Default::default()
+    };
     let light = Vec3::new(0.0, 0.0, 3.0);
     let lit = shadows(&mut common::cpu(), &PreparedCloud::new(c.clone()), light);
     assert!(lit.rb.is_some());
