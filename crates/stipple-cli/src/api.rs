@@ -78,16 +78,23 @@ pub struct View<'a> {
     pub label: &'a str,
 }
 
+/// What a frame is drawn with once the cloud is prepared: the pipeline (after `--pipeline
+/// auto` chose) and the line describing the shadows made, if any.
+pub struct Prepared {
+    pub pipeline: Pipeline,
+    pub shadow_line: Option<String>,
+}
+
 /// Colours the cloud as asked, chooses the pipeline (estimating or re-orienting normals where
-/// it needs them), applies the look (a scene's lights, layers, opacity, shadows) and renders.
-/// `note` receives each line the user should read, as it happens.
-pub fn render_prepared(
+/// it needs them) and applies the look (a scene's lights, layers, opacity, shadows): what
+/// every frame of `view` shares. `note` receives each line the user should read.
+pub fn prepare(
     a: &RenderArgs,
     cloud: &mut PreparedCloud,
     view: &View<'_>,
     renderer: &mut Renderer,
     note: &mut dyn FnMut(&str),
-) -> Result<Rendered> {
+) -> Result<Prepared> {
     let View {
         camera,
         scene,
@@ -116,8 +123,28 @@ pub fn render_prepared(
         }
         pipe.keep_layers = true;
     }
+    Ok(Prepared {
+        pipeline: pipe,
+        shadow_line,
+    })
+}
+
+/// Colours the cloud as asked, chooses the pipeline (estimating or re-orienting normals where
+/// it needs them), applies the look (a scene's lights, layers, opacity, shadows) and renders
+/// (see [`prepare`]). `note` receives each line the user should read, as it happens.
+pub fn render_prepared(
+    a: &RenderArgs,
+    cloud: &mut PreparedCloud,
+    view: &View<'_>,
+    renderer: &mut Renderer,
+    note: &mut dyn FnMut(&str),
+) -> Result<Rendered> {
+    let Prepared {
+        pipeline: pipe,
+        shadow_line,
+    } = prepare(a, cloud, view, renderer, note)?;
     let t0 = std::time::Instant::now();
-    let frame = renderer.render(cloud, camera, &pipe)?;
+    let frame = renderer.render(cloud, view.camera, &pipe)?;
     Ok(Rendered {
         frame,
         pipeline: pipe,

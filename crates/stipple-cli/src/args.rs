@@ -174,12 +174,47 @@ pub struct CameraArgs {
     /// Orthographic projection with this view height (world units) instead of perspective.
     #[arg(long, value_parser = positive_f64, value_name = "HEIGHT")]
     pub ortho: Option<f64>,
+    /// Exactly the camera a JSON file holds (what --camera-out and `stipple view`'s C key
+    /// write): eye, target, up, projection, size, near and far; --size still changes the
+    /// size.
+    #[arg(
+        long,
+        value_name = "FILE.json",
+        conflicts_with_all = ["eye", "target", "up", "fov", "ortho"]
+    )]
+    pub camera: Option<std::path::PathBuf>,
 }
 
 impl CameraArgs {
+    /// The camera of `--camera FILE`, if given (with `--size` applied).
+    fn file_camera(&self) -> Result<Option<Camera>> {
+        let Some(p) = &self.camera else {
+            return Ok(None);
+        };
+        let meta = std::fs::metadata(p).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        if !meta.is_file() || meta.len() > 1 << 20 {
+            return Err(anyhow!(
+                "{}: not a camera file (a regular JSON file of at most 1 MiB)",
+                p.display()
+            ));
+        }
+        let text = std::fs::read_to_string(p).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        let mut cam = Camera::from_json(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        if let Some((w, h)) = self.size {
+            cam.width = w;
+            cam.height = h;
+        }
+        cam.validate()
+            .map_err(|e| anyhow!("{}: camera: {e}", p.display()))?;
+        Ok(Some(cam))
+    }
+
     /// The camera for a cloud: the default framing, then the overrides; near and far always
     /// come from the cloud's bounds.
     pub fn build(&self, cloud: &PointCloud) -> Result<Camera> {
+        if let Some(cam) = self.file_camera()? {
+            return Ok(cam);
+        }
         let (lo, hi) = cloud.world_bounds();
         if let (Some(s), None, None, None, None) =
             (cloud.sensor, self.eye, self.target, self.up, self.ortho)
@@ -255,6 +290,9 @@ impl CameraArgs {
     /// The camera for a scene with these world bounds (a LOD tree's root box): the default
     /// framing (Z-up when `z_up`), then the overrides.
     pub fn build_framed(&self, lo: DVec3, hi: DVec3, z_up: bool) -> Result<Camera> {
+        if let Some(cam) = self.file_camera()? {
+            return Ok(cam);
+        }
         let spec = stipple_scene::file::CameraSpec {
             eye: self.eye.map(|v| v.to_array()),
             target: self.target.map(|v| v.to_array()),

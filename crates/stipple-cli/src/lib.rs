@@ -10,6 +10,7 @@ pub mod lod;
 pub mod look;
 pub mod memory;
 pub mod output;
+pub mod view;
 
 use clap::{Parser, Subcommand};
 use cmd::{gen::GenArgs, normals::NormalsArgs, render::RenderArgs};
@@ -111,6 +112,9 @@ pub enum Cmd {
     /// Sample a mesh's faces to points by area (normals and colours interpolated from the
     /// vertices) and write a cloud file (Gunjee et al. §3).
     Convert(cmd::convert::ConvertArgs),
+    /// Open a window onto a cloud, a scene file or a demo scene: orbit, pan, zoom and fly
+    /// with the mouse and keys, drawn with everything `render` takes (same options).
+    View(cmd::view::ViewArgs),
 }
 
 /// Runs the command line (`std::env::args`) and returns the exit code.
@@ -128,6 +132,7 @@ pub fn run() -> ExitCode {
         Some(Cmd::Bench(a)) => a.source.memory,
         Some(Cmd::Gen(a)) => a.memory,
         Some(Cmd::Convert(a)) => a.memory,
+        Some(Cmd::View(a)) => a.render.source.memory,
         _ => None,
     };
     if let Some(m) = memory {
@@ -144,6 +149,7 @@ pub fn run() -> ExitCode {
         Some(Cmd::Eval(a)) => cmd::eval::run(a),
         Some(Cmd::Normals(a)) => cmd::normals::normals(a),
         Some(Cmd::Convert(a)) => cmd::convert::convert(a),
+        Some(Cmd::View(a)) => cmd::view::view(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

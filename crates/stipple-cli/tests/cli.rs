@@ -1182,3 +1182,62 @@ fn volumes_render_their_iso_surface() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--camera FILE` renders exactly the camera `--camera-out` wrote (the same image), and a
+/// missing or bad file, or one given with --eye, is a clear error naming it.
+#[test]
+fn a_saved_camera_renders_the_same_view() {
+    let dir = tempdir("camera-file");
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--size",
+            "64x48",
+            "--backend",
+            "cpu",
+            "--eye",
+            "2,1.5,3",
+            "--camera-out",
+            "c.json",
+            "-o",
+            "a.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--camera",
+            "c.json",
+            "--backend",
+            "cpu",
+            "-o",
+            "b.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let a = std::fs::read(dir.join("a.png")).unwrap();
+    assert_eq!(a, std::fs::read(dir.join("b.png")).unwrap());
+    std::fs::write(dir.join("bad.json"), "{\"eye\": [0, 0]}").unwrap();
+    for (args, want) in [
+        (vec!["--camera", "none.json"], "none.json"),
+        (vec!["--camera", "bad.json"], "bad.json"),
+        (
+            vec!["--camera", "c.json", "--eye", "1,1,1"],
+            "cannot be used with",
+        ),
+    ] {
+        let mut v = vec!["render", "--size", "32", "-o", "x.png"];
+        v.extend(args.iter());
+        let o = stipple(&dir, &v);
+        assert!(
+            !o.status.success() && text(&o).contains(want),
+            "{args:?}: {}",
+            text(&o)
+        );
+        assert!(!dir.join("x.png").exists());
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

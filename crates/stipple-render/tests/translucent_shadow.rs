@@ -349,7 +349,7 @@ fn a_coloured_shell_casts_a_shadow_of_its_colour() {
 /// Sorted splats shade per point: a coloured shadow texture tints them as it tints pixels,
 /// the same on both backends (a small scene: a floor under a red translucent ball; one
 /// texture for both, since splats of one slice may blend in either order, and the frames
-/// compared by their pixels' agreement and the shadow's mean colour).
+/// compared in blocks and by the shadow's mean colour).
 #[test]
 fn sorted_splats_show_coloured_shadows_on_both_backends() {
     use stipple_core::{Camera, Projection};
@@ -429,11 +429,29 @@ fn sorted_splats_show_coloured_shadows_on_both_backends() {
         frames.push((frame, shadow));
     }
     if let [(a, sa), (b, sb)] = &frames[..] {
-        let agree = common::agreeing(&a.rgba, &b.rgba, 3);
-        assert!(
-            agree >= 0.97,
-            "sorted splats with coloured shadows: {agree} of pixels agree"
-        );
+        // Splats of one slice blend in either order (per-point lit values differ a little
+        // within a slice), so pixels are compared in 8 × 8 blocks: every block's mean colour
+        // within 3 levels.
+        let block = |f: &stipple_render::Frame, bx: usize, by: usize, c: usize| {
+            let mut m = 0.0;
+            for y in 8 * by..8 * by + 8 {
+                for x in 8 * bx..8 * bx + 8 {
+                    m += f.rgba[(y * 48 + x) * 4 + c] as f64 / 64.0;
+                }
+            }
+            m
+        };
+        for by in 0..6 {
+            for bx in 0..6 {
+                for c in 0..3 {
+                    let (p, q) = (block(a, bx, by, c), block(b, bx, by, c));
+                    assert!(
+                        (p - q).abs() <= 3.0,
+                        "block ({bx}, {by}) channel {c}: {p:.1} (CPU) vs {q:.1} (GPU)"
+                    );
+                }
+            }
+        }
         for c in 0..3 {
             assert!(
                 (sa[c] - sb[c]).abs() <= 2.0,

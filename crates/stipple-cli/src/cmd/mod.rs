@@ -10,3 +10,4 @@ pub mod gen;
 pub mod info;
 pub mod normals;
 pub mod render;
+pub mod view;

@@ -1,0 +1,438 @@
+//! `stipple view`: a window onto a cloud, a scene file or a demo scene, moved with the mouse
+//! and keys, drawn by the same library and the same pipeline as `stipple render` (every
+//! `render` option applies, with the same names and ranges). See `crate::view` for the
+//! navigation and the presentation.
+
+use crate::cmd::render::RenderArgs;
+use crate::view::nav::{pick, Nav};
+use crate::view::present::Presenter;
+use crate::Result;
+use anyhow::anyhow;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use stipple_render::{Pipeline, PreparedCloud, Renderer};
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{Window, WindowId};
+
+#[derive(clap::Args)]
+#[command(after_help = "\
+Mouse: left drag orbits about the target, right or middle drag (or shift + left) pans, the \
+wheel zooms, a double click centres the orbit on the point under the cursor (its \
+coordinates are printed).
+Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, P saves a \
+screenshot (PNG, the window's size), C saves the camera as JSON (`stipple render --camera \
+FILE` renders exactly that view), Escape quits.")]
+pub struct ViewArgs {
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Close the window after this many seconds (scripts and tests).
+    #[arg(long, value_name = "SECONDS", value_parser = crate::args::finite_f64)]
+    pub quit_after: Option<f64>,
+}
+
+/// What the window shows and what it was drawn with.
+struct Scene {
+    cloud: PreparedCloud,
+    pipe: Pipeline,
+    renderer: Renderer,
+    label: String,
+    /// Where screenshots and cameras go: `<prefix>-N.png` / `.json`.
+    prefix: PathBuf,
+}
+
+/// The last frame drawn (for the window, screenshots and picking).
+struct Shown {
+    w: u32,
+    h: u32,
+    rgba: Vec<u8>,
+    depth: Vec<f32>,
+    camera: stipple_core::Camera,
+}
+
+struct App {
+    scene: Scene,
+    nav: Nav,
+    window: Option<(Arc<Window>, Presenter)>,
+    shown: Option<Shown>,
+    /// The view changed since the last frame.
+    dirty: bool,
+    frames: u64,
+    cursor: (f64, f64),
+    drag: Option<(MouseButton, (f64, f64))>,
+    shift: bool,
+    last_click: Option<(Instant, (f64, f64))>,
+    /// Fly keys held: forward, right, up.
+    fly: [i8; 6],
+    last_tick: Instant,
+    quit_at: Option<Instant>,
+    error: Option<anyhow::Error>,
+}
+
+pub fn view(a: ViewArgs) -> Result<()> {
+    if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+        return Err(anyhow!(
+            "stipple view opens a window, and there is no display (DISPLAY is not set); on a \
+             machine without one, `stipple render` writes images, or run a virtual display \
+             (Xvfb :1 & DISPLAY=:1 stipple view …)"
+        ));
+    }
+    let r = &a.render;
+    if let Some((w, h)) = r.camera.size {
+        crate::memory::check_frame(w, h, r.look.layers.unwrap_or(1))?;
+    }
+    let crate::api::Loaded {
+        mut cloud,
+        label,
+        camera,
+        scene,
+        tree,
+    } = crate::api::load(r)?;
+    crate::memory::check_frame(
+        camera.width,
+        camera.height,
+        crate::look::layers(&r.look, scene.as_ref()),
+    )?;
+    let mut renderer = r.backend.open()?;
+    let prepared = crate::api::prepare(
+        r,
+        &mut cloud,
+        &crate::api::View {
+            camera: &camera,
+            scene: scene.as_ref(),
+            tree,
+            label: &label,
+        },
+        &mut renderer,
+        &mut |n| eprintln!("stipple: {n}"),
+    )?;
+    if let Some(line) = &prepared.shadow_line {
+        println!("{line}");
+    }
+    if tree {
+        eprintln!(
+            "stipple: note: a tree is shown as the cut chosen for the opening view (the view \
+             does not stream nodes yet)"
+        );
+    }
+    let (lo, hi) = cloud.cloud.world_bounds();
+    let z_up = camera.up.z.abs() > camera.up.y.abs();
+    let prefix = match &r.output {
+        Some(o) => o.with_extension(""),
+        None => PathBuf::from("stipple-view"),
+    };
+    let event_loop = EventLoop::new().map_err(|e| {
+        anyhow!("stipple view cannot open a window ({e}); `stipple render` writes images")
+    })?;
+    let mut app = App {
+        scene: Scene {
+            cloud,
+            pipe: prepared.pipeline,
+            renderer,
+            label,
+            prefix,
+        },
+        nav: Nav::new(camera, z_up, lo, hi),
+        window: None,
+        shown: None,
+        dirty: true,
+        frames: 0,
+        cursor: (0.0, 0.0),
+        drag: None,
+        shift: false,
+        last_click: None,
+        fly: [0; 6],
+        last_tick: Instant::now(),
+        quit_at: a
+            .quit_after
+            .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
+        error: None,
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| anyhow!("the window's event loop failed: {e}"))?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+impl App {
+    fn fail(&mut self, el: &ActiveEventLoop, e: anyhow::Error) {
+        self.error = Some(e);
+        el.exit();
+    }
+
+    /// Renders the current view and shows it.
+    fn draw(&mut self) -> Result<()> {
+        let Some((window, presenter)) = &mut self.window else {
+            return Ok(());
+        };
+        if let (false, Some(s)) = (self.dirty, &self.shown) {
+            // Nothing moved (the window was uncovered): show the last frame again.
+            if !presenter.show(s.w, s.h, &s.rgba)? {
+                window.request_redraw();
+            }
+            return Ok(());
+        }
+        let cam = self.nav.camera.clone();
+        let t0 = Instant::now();
+        let frame = self
+            .scene
+            .renderer
+            .render(&self.scene.cloud, &cam, &self.scene.pipe)?;
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        let shown = presenter.show(frame.width, frame.height, &frame.rgba)?;
+        if !shown {
+            window.request_redraw();
+            return Ok(());
+        }
+        self.dirty = false;
+        self.frames += 1;
+        window.set_title(&format!(
+            "stipple view — {} — {}×{} — {ms:.0} ms on {}",
+            self.scene.label,
+            frame.width,
+            frame.height,
+            self.scene.renderer.describe()
+        ));
+        if self.frames == 1 {
+            println!(
+                "showing {} ({}x{}, {ms:.0} ms on {}, presented by {})",
+                self.scene.label,
+                frame.width,
+                frame.height,
+                self.scene.renderer.describe(),
+                presenter.adapter_name
+            );
+            use std::io::Write;
+            let _ = std::io::stdout().flush();
+        }
+        self.shown = Some(Shown {
+            w: frame.width,
+            h: frame.height,
+            rgba: frame.rgba,
+            depth: frame.depth,
+            camera: cam,
+        });
+        Ok(())
+    }
+
+    fn changed(&mut self) {
+        self.dirty = true;
+        if let Some((w, _)) = &self.window {
+            w.request_redraw();
+        }
+    }
+
+    /// The first `<prefix>-N.<ext>` that does not exist.
+    fn free_name(&self, ext: &str) -> PathBuf {
+        let p = &self.scene.prefix;
+        (1..)
+            .map(|n| PathBuf::from(format!("{}-{n}.{ext}", p.display())))
+            .find(|c| !c.exists())
+            .expect("some number is free")
+    }
+
+    fn screenshot(&mut self) -> Result<()> {
+        let Some(s) = &self.shown else {
+            return Ok(());
+        };
+        let path = self.free_name("png");
+        let mut staged = crate::output::Staged::default();
+        staged.write(&path, |t| {
+            stipple_io::image::write_png(t, s.w, s.h, &s.rgba)
+        })?;
+        staged.commit()?;
+        println!("wrote {}", path.display());
+        Ok(())
+    }
+
+    fn save_camera(&mut self) -> Result<()> {
+        let path = self.free_name("json");
+        let json = self.nav.camera.to_json();
+        let mut staged = crate::output::Staged::default();
+        staged.write(&path, |t| {
+            std::fs::write(t, &json).map_err(|e| stipple_io::IoError::io(t, e))
+        })?;
+        staged.commit()?;
+        println!(
+            "wrote {} (stipple render {} --camera {} renders this view)",
+            path.display(),
+            self.scene.label,
+            path.display()
+        );
+        Ok(())
+    }
+
+    fn double_click(&mut self) {
+        let Some(s) = &self.shown else { return };
+        let (x, y) = self.cursor;
+        if x < 0.0 || y < 0.0 {
+            return;
+        }
+        if let Some(p) = pick(&s.camera, &s.depth, x as u32, y as u32) {
+            println!("picked {:.4} {:.4} {:.4}", p.x, p.y, p.z);
+            self.nav.centre_on(p);
+            self.changed();
+        }
+    }
+
+    fn key(&mut self, el: &ActiveEventLoop, code: KeyCode, pressed: bool) {
+        let fly = |c: KeyCode| match c {
+            KeyCode::KeyW => Some(0),
+            KeyCode::KeyS => Some(1),
+            KeyCode::KeyD => Some(2),
+            KeyCode::KeyA => Some(3),
+            KeyCode::KeyE => Some(4),
+            KeyCode::KeyQ => Some(5),
+            _ => None,
+        };
+        if let Some(k) = fly(code) {
+            self.fly[k] = pressed as i8;
+            self.last_tick = Instant::now();
+            return;
+        }
+        if !pressed {
+            return;
+        }
+        let r = match code {
+            KeyCode::Escape => {
+                el.exit();
+                Ok(())
+            }
+            KeyCode::KeyF => {
+                self.nav.frame_all();
+                self.changed();
+                Ok(())
+            }
+            KeyCode::KeyP => self.screenshot(),
+            KeyCode::KeyC => self.save_camera(),
+            _ => Ok(()),
+        };
+        if let Err(e) = r {
+            eprintln!("stipple: {}", crate::message(&e));
+        }
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, el: &ActiveEventLoop) {
+        if self.window.is_some() {
+            return;
+        }
+        let c = &self.nav.camera;
+        let attrs = Window::default_attributes()
+            .with_title(format!("stipple view — {}", self.scene.label))
+            .with_inner_size(winit::dpi::PhysicalSize::new(c.width, c.height))
+            .with_position(winit::dpi::PhysicalPosition::new(0, 0));
+        let window = match el.create_window(attrs) {
+            Ok(w) => Arc::new(w),
+            Err(e) => return self.fail(el, anyhow!("cannot open a window: {e}")),
+        };
+        match Presenter::new(window.clone(), el.owned_display_handle()) {
+            Ok(p) => self.window = Some((window.clone(), p)),
+            Err(e) => return self.fail(el, e),
+        }
+        // Keys reach the window without a window manager too (a virtual display).
+        window.focus_window();
+        window.request_redraw();
+    }
+
+    fn window_event(&mut self, el: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => el.exit(),
+            WindowEvent::Resized(size) if size.width > 0 && size.height > 0 => {
+                if let Some((_, p)) = &mut self.window {
+                    p.resize(size.width, size.height);
+                }
+                if (size.width, size.height) != (self.nav.camera.width, self.nav.camera.height) {
+                    self.nav.resize(size.width, size.height);
+                }
+                self.changed();
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.draw() {
+                    self.fail(el, e);
+                }
+            }
+            WindowEvent::ModifiersChanged(m) => self.shift = m.state().shift_key(),
+            WindowEvent::KeyboardInput { event, .. } => {
+                if let PhysicalKey::Code(code) = event.physical_key {
+                    if !event.repeat || event.state == ElementState::Released {
+                        self.key(el, code, event.state == ElementState::Pressed);
+                    }
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let (x, y) = (position.x, position.y);
+                let (dx, dy) = (x - self.cursor.0, y - self.cursor.1);
+                self.cursor = (x, y);
+                match self.drag {
+                    Some((MouseButton::Left, _)) if !self.shift => {
+                        self.nav.orbit(dx, dy);
+                        self.changed();
+                    }
+                    Some((MouseButton::Left | MouseButton::Right | MouseButton::Middle, _)) => {
+                        self.nav.pan(dx, dy);
+                        self.changed();
+                    }
+                    _ => {}
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => match state {
+                ElementState::Pressed => {
+                    self.drag = Some((button, self.cursor));
+                    if button == MouseButton::Left {
+                        let now = Instant::now();
+                        let near = |p: (f64, f64)| {
+                            (p.0 - self.cursor.0).abs() < 4.0 && (p.1 - self.cursor.1).abs() < 4.0
+                        };
+                        let double = self.last_click.is_some_and(|(t, p)| {
+                            now.duration_since(t) < Duration::from_millis(400) && near(p)
+                        });
+                        self.last_click = Some((now, self.cursor));
+                        if double {
+                            self.last_click = None;
+                            self.double_click();
+                        }
+                    }
+                }
+                ElementState::Released => self.drag = None,
+            },
+            WindowEvent::MouseWheel { delta, .. } => {
+                let notches = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y as f64,
+                    MouseScrollDelta::PixelDelta(p) => p.y / 40.0,
+                };
+                self.nav.zoom(notches);
+                self.changed();
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, el: &ActiveEventLoop) {
+        if self.quit_at.is_some_and(|t| Instant::now() >= t) {
+            el.exit();
+            return;
+        }
+        let axis = |a: usize, b: usize| (self.fly[a] - self.fly[b]) as f64;
+        let (f, r, u) = (axis(0, 1), axis(2, 3), axis(4, 5));
+        if (f, r, u) != (0.0, 0.0, 0.0) {
+            let now = Instant::now();
+            let dt = now.duration_since(self.last_tick).as_secs_f64().min(0.25);
+            self.last_tick = now;
+            self.nav.fly(f, r, u, dt, self.shift);
+            self.changed();
+            el.set_control_flow(ControlFlow::Poll);
+        } else if let Some(t) = self.quit_at {
+            el.set_control_flow(ControlFlow::WaitUntil(t));
+        } else {
+            el.set_control_flow(ControlFlow::Wait);
+        }
+    }
+}

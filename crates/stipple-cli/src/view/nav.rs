@@ -1,0 +1,285 @@
+//! Navigation of `stipple view`: how mouse and keys move the camera. Pure camera arithmetic
+//! (no window), so it is tested on its own.
+//!
+//! - **Orbit** (left drag): the eye turns about the target, about the world's up axis (Z for
+//!   LiDAR, Y for scanned objects: the up the default camera uses) and the camera's right
+//!   axis; the view never tips over the pole (the angle to the up axis stays within 2°–178°).
+//! - **Pan** (right or middle drag, or shift + left drag): eye and target move together in
+//!   the image plane, so the point under the cursor stays under it at the target's depth.
+//! - **Zoom** (wheel): the eye moves towards the target (15% of the distance a notch); an
+//!   orthographic view scales its height instead.
+//! - **Fly** (W A S D, Q E for down and up): eye and target move together at a speed tied to
+//!   the cloud's size (a quarter of its bounding diagonal a second; shift: four times).
+//! - **Frame all** (F): back to the camera the view opened with.
+//! - **Centre** (double click): the target moves to the picked surface point; the eye stays.
+//!
+//! After every move near and far are fitted to the cloud's bounds again
+//! ([`Camera::fit_clip`]), as `stipple render` does, so the CLI renders a saved camera the
+//! same.
+
+use glam::DVec3;
+use stipple_core::camera::Projection;
+use stipple_core::Camera;
+
+/// Degrees of orbit per pixel of drag.
+pub const ORBIT_DEG_PER_PX: f64 = 0.3;
+/// The distance to the target kept after a notch of zoom.
+pub const ZOOM_STEP: f64 = 0.85;
+
+/// The camera and what moves it.
+#[derive(Clone, Debug)]
+pub struct Nav {
+    pub camera: Camera,
+    /// The camera the view opened with (F returns to it).
+    pub home: Camera,
+    /// The world's up axis for orbits.
+    pub up: DVec3,
+    /// The cloud's world bounds (near and far are fitted to them).
+    pub lo: DVec3,
+    pub hi: DVec3,
+}
+
+impl Nav {
+    pub fn new(camera: Camera, z_up: bool, lo: DVec3, hi: DVec3) -> Nav {
+        Nav {
+            home: camera.clone(),
+            camera,
+            up: if z_up { DVec3::Z } else { DVec3::Y },
+            lo,
+            hi,
+        }
+    }
+
+    /// The cloud's bounding diagonal (at least a tiny positive length).
+    pub fn size(&self) -> f64 {
+        (self.hi - self.lo).length().max(1e-9)
+    }
+
+    fn refit(&mut self) {
+        let f = (self.camera.target - self.camera.eye).normalize_or_zero();
+        // Keep the image's up off the viewing direction.
+        if f.cross(self.camera.up).length_squared() < 1e-12 {
+            self.camera.up = if f.cross(self.up).length_squared() > 1e-12 {
+                self.up
+            } else {
+                f.any_orthonormal_vector()
+            };
+        }
+        self.camera.fit_clip(self.lo, self.hi);
+    }
+
+    /// Turns the eye about the target by a drag of (dx, dy) pixels.
+    pub fn orbit(&mut self, dx: f64, dy: f64) {
+        let c = &mut self.camera;
+        let offset = c.eye - c.target;
+        let yaw = (-dx * ORBIT_DEG_PER_PX).to_radians();
+        let mut o = glam::DQuat::from_axis_angle(self.up, yaw) * offset;
+        // Pitch about the right axis, the angle to the up axis kept within 2°–178°.
+        let right = self.up.cross(o).normalize_or_zero();
+        if right != DVec3::ZERO {
+            let angle = o
+                .normalize()
+                .dot(self.up)
+                .clamp(-1.0, 1.0)
+                .acos()
+                .to_degrees();
+            let pitch = (dy * ORBIT_DEG_PER_PX).clamp(angle - 178.0, angle - 2.0);
+            // About right = up × o a positive angle turns o away from up: a drag down
+            // (dy > 0) raises the eye.
+            o = glam::DQuat::from_axis_angle(right, -pitch.to_radians()) * o;
+        }
+        c.eye = c.target + o;
+        c.up = self.up;
+        self.refit();
+    }
+
+    /// World units per pixel at the target's depth.
+    pub fn pixel_size(&self) -> f64 {
+        let c = &self.camera;
+        match c.projection {
+            Projection::Perspective { fov_deg } => {
+                let d = (c.target - c.eye).length();
+                2.0 * d * (fov_deg.to_radians() * 0.5).tan() / c.height as f64
+            }
+            Projection::Orthographic { height } => height / c.height as f64,
+        }
+    }
+
+    /// Moves eye and target in the image plane by a drag of (dx, dy) pixels (the content
+    /// follows the cursor).
+    pub fn pan(&mut self, dx: f64, dy: f64) {
+        let s = self.pixel_size();
+        let b = self.camera.basis();
+        let shift = b.right * (-dx * s) + b.up * (dy * s);
+        self.camera.eye += shift;
+        self.camera.target += shift;
+        self.refit();
+    }
+
+    /// Zooms by `notches` (positive: closer).
+    pub fn zoom(&mut self, notches: f64) {
+        let k = ZOOM_STEP.powf(notches.clamp(-20.0, 20.0));
+        let least = self.size() * 1e-6;
+        let c = &mut self.camera;
+        match &mut c.projection {
+            Projection::Perspective { .. } => {
+                let o = c.eye - c.target;
+                let d = (o.length() * k).max(least);
+                c.eye = c.target + o.normalize() * d;
+            }
+            Projection::Orthographic { height } => *height = (*height * k).max(1e-9),
+        }
+        self.refit();
+    }
+
+    /// Flies for `dt` seconds along the view (forward, right, up in −1..1), `fast` four times
+    /// quicker.
+    pub fn fly(&mut self, forward: f64, right: f64, up: f64, dt: f64, fast: bool) {
+        let speed = 0.25 * self.size() * if fast { 4.0 } else { 1.0 };
+        let b = self.camera.basis();
+        let shift = (b.forward * forward + b.right * right + self.up * up) * (speed * dt);
+        self.camera.eye += shift;
+        self.camera.target += shift;
+        self.refit();
+    }
+
+    /// Back to the opening camera, at the window's current size.
+    pub fn frame_all(&mut self) {
+        let (w, h) = (self.camera.width, self.camera.height);
+        self.camera = self.home.clone();
+        self.resize(w, h);
+    }
+
+    /// The target moves to `p`; the eye stays.
+    pub fn centre_on(&mut self, p: DVec3) {
+        if (p - self.camera.eye).length() > self.size() * 1e-9 {
+            self.camera.target = p;
+            self.refit();
+        }
+    }
+
+    /// The window's new size in pixels.
+    pub fn resize(&mut self, w: u32, h: u32) {
+        self.camera.width = w.clamp(1, stipple_core::camera::MAX_SIDE);
+        self.camera.height = h.clamp(1, stipple_core::camera::MAX_SIDE);
+        self.refit();
+    }
+}
+
+/// The world point a pixel shows, from the frame's view-axis depth there (None on background).
+pub fn pick(camera: &Camera, depth: &[f32], i: u32, j: u32) -> Option<DVec3> {
+    if i >= camera.width || j >= camera.height {
+        return None;
+    }
+    let d = *depth.get((j * camera.width + i) as usize)? as f64;
+    if !d.is_finite() {
+        return None;
+    }
+    let (o, dir) = camera.pixel_ray(i, j);
+    let along = dir.dot(camera.basis().forward);
+    if along <= 0.0 {
+        return None;
+    }
+    let t = match camera.projection {
+        Projection::Perspective { .. } => d / along,
+        Projection::Orthographic { .. } => d - (o - camera.eye).dot(camera.basis().forward),
+    };
+    Some(o + dir * t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn nav() -> Nav {
+        let cam = Camera {
+            eye: DVec3::new(0.0, 0.0, 5.0),
+            target: DVec3::ZERO,
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_deg: 40.0 },
+            width: 200,
+            height: 100,
+            near: 0.1,
+            far: 10.0,
+        };
+        Nav::new(cam, false, DVec3::splat(-1.0), DVec3::splat(1.0))
+    }
+
+    #[test]
+    fn orbit_keeps_the_distance_and_stops_at_the_pole() {
+        let mut n = nav();
+        n.orbit(300.0, 0.0);
+        let c = &n.camera;
+        assert!(((c.eye - c.target).length() - 5.0).abs() < 1e-9);
+        // 300 px × 0.3° = 90° about +Y: from +Z to −X (a drag to the right turns the eye left).
+        assert!(
+            (c.eye - DVec3::new(-5.0, 0.0, 0.0)).length() < 1e-9,
+            "{:?}",
+            c.eye
+        );
+        // Dragging far down stops 2° short of the pole.
+        n.orbit(0.0, 10_000.0);
+        let a = (n.camera.eye - n.camera.target)
+            .normalize()
+            .dot(DVec3::Y)
+            .acos()
+            .to_degrees();
+        assert!((a - 2.0).abs() < 1e-6 || (a - 178.0).abs() < 1e-6, "{a}");
+        assert!(n.camera.validate().is_ok());
+        // Near and far still hold the bounds: every corner's depth lies between them.
+        let f = n.camera.basis().forward;
+        for k in 0..8 {
+            let c = DVec3::new(
+                if k & 1 == 0 { -1.0 } else { 1.0 },
+                if k & 2 == 0 { -1.0 } else { 1.0 },
+                if k & 4 == 0 { -1.0 } else { 1.0 },
+            );
+            let d = (c - n.camera.eye).dot(f);
+            assert!(n.camera.near <= d && d <= n.camera.far, "corner {c:?}: {d}");
+        }
+    }
+
+    #[test]
+    fn pan_moves_the_target_by_the_drag_in_world_units() {
+        let mut n = nav();
+        let s = n.pixel_size();
+        assert!((s - 2.0 * 5.0 * 20f64.to_radians().tan() / 100.0).abs() < 1e-12);
+        n.pan(10.0, 0.0);
+        // Content follows the cursor: dragging right moves the camera left.
+        assert!((n.camera.target - DVec3::new(-10.0 * s, 0.0, 0.0)).length() < 1e-12);
+        assert!((n.camera.eye - DVec3::new(-10.0 * s, 0.0, 5.0)).length() < 1e-12);
+        // The point under the cursor stays under it: the target, projected, moved 10 px right.
+        let mut m = nav();
+        m.pan(10.0, -4.0);
+        let (x, y, _) = m.camera.project(DVec3::ZERO).unwrap();
+        assert!(
+            (x - 110.0).abs() < 1e-6 && (y - 46.0).abs() < 1e-6,
+            "{x} {y}"
+        );
+    }
+
+    #[test]
+    fn zoom_fly_frame_and_pick() {
+        let mut n = nav();
+        n.zoom(1.0);
+        assert!(((n.camera.eye - n.camera.target).length() - 5.0 * ZOOM_STEP).abs() < 1e-9);
+        n.zoom(-1.0);
+        assert!(((n.camera.eye - n.camera.target).length() - 5.0).abs() < 1e-9);
+        n.fly(1.0, 0.0, 0.0, 1.0, false);
+        let step = 0.25 * 12f64.sqrt();
+        assert!((n.camera.eye.z - (5.0 - step)).abs() < 1e-9);
+        n.resize(64, 48);
+        n.frame_all();
+        assert_eq!(n.camera.eye, DVec3::new(0.0, 0.0, 5.0));
+        assert_eq!((n.camera.width, n.camera.height), (64, 48));
+        // A pixel whose depth is 5 (the plane z = 0) picks a point on that plane, on the ray.
+        let depth = vec![5.0f32; 64 * 48];
+        let p = pick(&n.camera, &depth, 10, 7).unwrap();
+        assert!(p.z.abs() < 1e-5, "{p:?}");
+        let (o, d) = n.camera.pixel_ray(10, 7);
+        assert!(((p - o).normalize() - d).length() < 1e-9);
+        assert_eq!(pick(&n.camera, &vec![f32::INFINITY; 64 * 48], 1, 1), None);
+        n.centre_on(p);
+        assert_eq!(n.camera.target, p);
+    }
+}

@@ -1,0 +1,278 @@
+//! `stipple view` tested as a person sees it: on a virtual X display (Xvfb, with lavapipe
+//! presenting), the window is dragged with the mouse and sent keys (xdotool), the screen is
+//! captured (xwd), and what the window shows is compared with `stipple render` of the camera
+//! the viewer saved. Skipped with a printed reason where Xvfb, xwd or xdotool is missing;
+//! with STIPPLE_REQUIRE_GPU=1 (CI, which installs them) a missing one is a failure.
+
+mod common;
+
+use common::*;
+use std::io::BufRead;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn tool(name: &str) -> Option<PathBuf> {
+    std::env::var_os("PATH")?
+        .to_str()?
+        .split(':')
+        .map(|d| Path::new(d).join(name))
+        .find(|p| p.is_file())
+}
+
+fn tools() -> Option<[PathBuf; 3]> {
+    let found = ["Xvfb", "xwd", "xdotool"].map(tool);
+    if let [Some(a), Some(b), Some(c)] = found {
+        return Some([a, b, c]);
+    }
+    let why = "Xvfb, xwd and xdotool are needed (apt-get install xvfb x11-apps xdotool)";
+    if std::env::var("STIPPLE_REQUIRE_GPU").as_deref() == Ok("1") {
+        panic!("{why}");
+    }
+    eprintln!("skipped: {why}");
+    None
+}
+
+/// A virtual display, stopped when dropped.
+struct Display {
+    server: Child,
+    name: String,
+}
+
+impl Drop for Display {
+    fn drop(&mut self) {
+        let _ = self.server.kill();
+        let _ = self.server.wait();
+    }
+}
+
+fn start_display(xvfb: &Path) -> Display {
+    // A display number of our own, free of other test runs.
+    let mut n = 100 + std::process::id() % 800;
+    while Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+        n += 1;
+    }
+    let server = Command::new(xvfb)
+        .args([
+            &format!(":{n}"),
+            "-screen",
+            "0",
+            "640x480x24",
+            "-nolisten",
+            "tcp",
+        ])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("Xvfb starts");
+    let socket = format!("/tmp/.X11-unix/X{n}");
+    let t0 = Instant::now();
+    while !Path::new(&socket).exists() {
+        assert!(t0.elapsed() < Duration::from_secs(20), "Xvfb did not start");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    Display {
+        server,
+        name: format!(":{n}"),
+    }
+}
+
+/// An XWD screen dump (xwd -root) as RGB rows: 32-bit TrueColor pixels through their masks.
+fn read_xwd(bytes: &[u8]) -> (usize, usize, Vec<[u8; 3]>) {
+    let u = |k: usize| u32::from_be_bytes(bytes[4 * k..4 * k + 4].try_into().unwrap()) as usize;
+    let (header, w, h) = (u(0), u(4), u(5));
+    let (byte_order, bpp, bpl) = (u(7), u(11), u(12));
+    let masks = [u(14) as u32, u(15) as u32, u(16) as u32];
+    let ncolors = u(19);
+    assert_eq!(bpp, 32, "a 24-bit screen stores 32 bits a pixel");
+    let data = &bytes[header + 12 * ncolors..];
+    let mut px = Vec::with_capacity(w * h);
+    for y in 0..h {
+        for x in 0..w {
+            let b: [u8; 4] = data[y * bpl + 4 * x..][..4].try_into().unwrap();
+            let v = if byte_order == 0 {
+                u32::from_le_bytes(b)
+            } else {
+                u32::from_be_bytes(b)
+            };
+            px.push(masks.map(|m| ((v & m) >> m.trailing_zeros()) as u8));
+        }
+    }
+    (w, h, px)
+}
+
+fn wait_for(path: &Path, what: &str) {
+    let t0 = Instant::now();
+    while !path.exists() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "{what}: {} never appeared",
+            path.display()
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // Written through a temporary file and renamed: complete once it exists.
+}
+
+#[test]
+fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
+    let Some([xvfb, xwd, xdotool]) = tools() else {
+        return;
+    };
+    let display = start_display(&xvfb);
+    let dir = tempdir("view");
+    let (w, h) = (200usize, 150usize);
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args([
+            "view",
+            "--size",
+            &format!("{w}x{h}"),
+            "--backend",
+            "cpu",
+            "--quit-after",
+            "120",
+            "-o",
+            "shot",
+        ])
+        .current_dir(&dir)
+        .env("DISPLAY", &display.name)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for the first frame on the screen.
+    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
+    let first = out.next().and_then(|l| l.ok()).unwrap_or_default();
+    assert!(first.starts_with("showing"), "the viewer said {first:?}");
+    let x = |args: &[&str]| {
+        let o = Command::new(&xdotool)
+            .args(args)
+            .env("DISPLAY", &display.name)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
+        String::from_utf8_lossy(&o.stdout).trim().to_string()
+    };
+    let id = x(&["search", "--sync", "--name", "stipple view"]);
+    let id = id.lines().next().unwrap().to_string();
+    x(&["windowfocus", "--sync", &id]);
+    // Orbit: a drag to the right and down with the left button.
+    x(&["mousemove", "--sync", "60", "60"]);
+    x(&["mousedown", "1"]);
+    x(&["mousemove", "--sync", "110", "75"]);
+    x(&["mouseup", "1"]);
+    std::thread::sleep(Duration::from_millis(500));
+    // Save the camera (C) and the viewer's own screenshot (P).
+    x(&["key", "c"]);
+    let cam = dir.join("shot-1.json");
+    wait_for(&cam, "the camera");
+    x(&["key", "p"]);
+    let shot = dir.join("shot-1.png");
+    wait_for(&shot, "the screenshot");
+    std::thread::sleep(Duration::from_millis(500));
+    // The screen as a person sees it.
+    let dump = Command::new(&xwd)
+        .args(["-root", "-silent"])
+        .env("DISPLAY", &display.name)
+        .output()
+        .unwrap();
+    assert!(dump.status.success());
+    // Escape closes the window.
+    x(&["key", "Escape"]);
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = viewer.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "Escape did not close the viewer"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "the viewer failed");
+    // The camera moved: its eye is not the opening one.
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--size",
+            &format!("{w}x{h}"),
+            "--backend",
+            "cpu",
+            "--camera-out",
+            "home.json",
+            "-o",
+            "home.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let home: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("home.json")).unwrap()).unwrap();
+    assert_ne!(json["eye"], home["eye"], "the drag orbited the camera");
+    // What render draws for the saved camera.
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--camera",
+            "shot-1.json",
+            "--backend",
+            "cpu",
+            "-o",
+            "ref.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (rw, rh, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
+    assert_eq!((rw as usize, rh as usize), (w, h));
+    let (sw, sh, own) = stipple_io::image::read_png(&shot).unwrap();
+    assert_eq!((sw, sh), (rw, rh));
+    assert_eq!(
+        own, reference,
+        "the viewer's screenshot is the render of its camera"
+    );
+    // The window on the screen, at the top-left corner (no window manager).
+    let (dw, dh, screen) = read_xwd(&dump.stdout);
+    assert!(dw >= w && dh >= h);
+    let mut off = 0;
+    for y in 0..h {
+        for x in 0..w {
+            let s = screen[y * dw + x];
+            let r = &reference[4 * (y * w + x)..][..3];
+            if (0..3).any(|c| s[c].abs_diff(r[c]) > 1) {
+                off += 1;
+            }
+        }
+    }
+    assert!(
+        off * 1000 <= w * h,
+        "{off} of {} window pixels differ from render's image of the saved camera",
+        w * h
+    );
+    // And the window is not blank: it differs from the opening view.
+    let (_, _, opening) = stipple_io::image::read_png(&dir.join("home.png")).unwrap();
+    assert_ne!(opening, reference);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn without_a_display_view_says_what_to_do() {
+    let dir = tempdir("view-nodisplay");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args(["view", "--size", "64x48"])
+        .current_dir(&dir)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let t = text(&o);
+    assert!(
+        t.contains("no display") && t.contains("stipple render"),
+        "{t}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
