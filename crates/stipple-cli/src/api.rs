@@ -95,6 +95,19 @@ pub fn prepare(
     renderer: &mut Renderer,
     note: &mut dyn FnMut(&str),
 ) -> Result<Prepared> {
+    prepare_progressively(a, cloud, view, renderer, note, None).map(|(p, _)| p)
+}
+
+/// [`prepare`] taking at most `first_samples` shadow samples per light now (None: all), and
+/// what is left to refine (see [`crate::look::ShadowRefinement`]).
+pub fn prepare_progressively(
+    a: &RenderArgs,
+    cloud: &mut PreparedCloud,
+    view: &View<'_>,
+    renderer: &mut Renderer,
+    note: &mut dyn FnMut(&str),
+    first_samples: Option<u32>,
+) -> Result<(Prepared, Option<crate::look::ShadowRefinement>)> {
     let View {
         camera,
         scene,
@@ -109,13 +122,14 @@ pub fn prepare(
     for n in &notes {
         note(n);
     }
-    let shadow_line = crate::look::apply(
+    let (shadow_line, refine) = crate::look::apply_progressively(
         cloud,
         &mut pipe,
         scene,
         &a.look,
         a.pipeline.background.is_some(),
         renderer,
+        first_samples,
     )?;
     if a.layer_images.is_some() {
         if pipe.layers == 1 {
@@ -123,10 +137,13 @@ pub fn prepare(
         }
         pipe.keep_layers = true;
     }
-    Ok(Prepared {
-        pipeline: pipe,
-        shadow_line,
-    })
+    Ok((
+        Prepared {
+            pipeline: pipe,
+            shadow_line,
+        },
+        refine,
+    ))
 }
 
 /// Colours the cloud as asked, chooses the pipeline (estimating or re-orienting normals where

@@ -54,6 +54,67 @@ pub fn apply(
     background_given: bool,
     renderer: &mut Renderer,
 ) -> Result<Option<String>> {
+    apply_progressively(cloud, pipe, scene, look, background_given, renderer, None)
+        .map(|(line, _)| line)
+}
+
+/// What is left to refine of a shadow texture made with fewer samples than asked (Dobrev
+/// §7: one sample while the view moves, more once it rests): the settings and lights it was
+/// made with and the samples per light to reach.
+#[derive(Clone, Debug)]
+pub struct ShadowRefinement {
+    pub settings: ShadowSettings,
+    pub lights: Vec<Light>,
+    pub max_samples: u32,
+}
+
+impl ShadowRefinement {
+    /// Samples per light still to take.
+    pub fn remaining(&self, cloud: &PreparedCloud) -> u32 {
+        let taken = cloud.lit().map_or([0; 4], |l| l.samples);
+        self.lights
+            .iter()
+            .zip(taken)
+            .map(|(l, t)| {
+                shadow::light_samples(l)
+                    .min(self.max_samples)
+                    .saturating_sub(t)
+            })
+            .sum()
+    }
+
+    /// Takes one more sample of every light that wants more. Returns the samples taken so
+    /// far and wanted in all (summed over the lights).
+    pub fn step(&self, cloud: &mut PreparedCloud, renderer: &mut Renderer) -> Result<(u32, u32)> {
+        let start = cloud.lit().cloned();
+        let taken = start
+            .as_ref()
+            .map_or(0, |l| l.samples.iter().max().copied().unwrap_or(0));
+        let lit = renderer.shadow_texture(
+            cloud,
+            &self.lights,
+            &self.settings,
+            start,
+            (taken + 1).min(self.max_samples),
+            &mut |_, _| {},
+        )?;
+        let done: u32 = lit.samples.iter().sum();
+        cloud.set_lit(Some(lit))?;
+        Ok((done, done + self.remaining(cloud)))
+    }
+}
+
+/// [`apply`], taking at most `first_samples` samples per light now (None: all) and saying
+/// what is left to refine.
+pub fn apply_progressively(
+    cloud: &mut PreparedCloud,
+    pipe: &mut Pipeline,
+    scene: Option<&LoadedScene>,
+    look: &LookArgs,
+    background_given: bool,
+    renderer: &mut Renderer,
+    first_samples: Option<u32>,
+) -> Result<(Option<String>, Option<ShadowRefinement>)> {
     if let Some(s) = scene {
         s.apply_to(pipe, background_given);
     }
@@ -84,11 +145,11 @@ pub fn apply(
         None => look.shadows,
     };
     if !wanted {
-        return Ok(None);
+        return Ok((None, None));
     }
     if pipe.lights.iter().all(|l| shadow::light_samples(l) == 0) {
         if scene.is_some() && !look.shadows {
-            return Ok(None);
+            return Ok((None, None));
         }
         let raw = pipe
             .geometry
@@ -147,7 +208,7 @@ pub fn apply(
     }
     let job = stipple_scene::shadows::ShadowJob {
         settings,
-        max_samples,
+        max_samples: first_samples.map_or(max_samples, |f| f.clamp(1, max_samples)),
         cache: look
             .shadow_cache
             .clone()
@@ -166,7 +227,13 @@ pub fn apply(
         bar.set_position(d as u64);
     })?;
     bar.finish_and_clear();
-    Ok(Some(line))
+    let refine = ShadowRefinement {
+        settings,
+        lights: pipe.lights.clone(),
+        max_samples,
+    };
+    let refine = (refine.remaining(cloud) > 0).then_some(refine);
+    Ok((Some(line), refine))
 }
 
 /// A scene file's merged cloud, its settings and the camera.

@@ -47,30 +47,27 @@ impl Drop for Display {
 }
 
 fn start_display(xvfb: &Path) -> Display {
-    // A display number of our own, free of other test runs.
-    let mut n = 100 + std::process::id() % 800;
-    while Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-        n += 1;
-    }
-    let server = Command::new(xvfb)
+    // Xvfb picks a free display number and writes it to its standard output (-displayfd),
+    // so tests running at once never share a screen.
+    let mut server = Command::new(xvfb)
         .args([
-            &format!(":{n}"),
+            "-displayfd",
+            "1",
             "-screen",
             "0",
             "640x480x24",
             "-nolisten",
             "tcp",
         ])
-        .stdout(Stdio::null())
+        .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
         .expect("Xvfb starts");
-    let socket = format!("/tmp/.X11-unix/X{n}");
-    let t0 = Instant::now();
-    while !Path::new(&socket).exists() {
-        assert!(t0.elapsed() < Duration::from_secs(20), "Xvfb did not start");
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let mut line = String::new();
+    std::io::BufReader::new(server.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let n: u32 = line.trim().parse().expect("Xvfb says its display number");
     Display {
         server,
         name: format!(":{n}"),
@@ -255,6 +252,109 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
     // And the window is not blank: it differs from the opening view.
     let (_, _, opening) = stipple_io::image::read_png(&dir.join("home.png")).unwrap();
     assert_ne!(opening, reference);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Shadows come progressively (Dobrev §7): the window opens with one sample per light and
+/// takes the rest while the view rests; once refined, what it shows is what `render` draws
+/// with every sample for the same camera.
+#[test]
+fn shadows_refine_while_the_view_rests() {
+    let Some([xvfb, xwd, xdotool]) = tools() else {
+        return;
+    };
+    let display = start_display(&xvfb);
+    let dir = tempdir("view-shadows");
+    std::fs::write(
+        dir.join("s.toml"),
+        "[camera]\neye = [2.0, 2.5, 3.0]\ntarget = [0.0, 0.3, 0.0]\n\n\
+         [[cloud]]\ndemo = \"plane\"\npoints = 40000\nscale = 4\n\n\
+         [[cloud]]\ndemo = \"sphere\"\npoints = 20000\nscale = 0.5\ntranslate = [0, 0.8, 0]\n\n\
+         [[light]]\ntype = \"area\"\nposition = [0.5, 3, 0.5]\nshape = \"disc\"\nradius = 0.4\n\
+         samples = 6\n",
+    )
+    .unwrap();
+    let (w, h) = (160usize, 120usize);
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args([
+            "view",
+            "s.toml",
+            "--size",
+            &format!("{w}x{h}"),
+            "--backend",
+            "cpu",
+        ])
+        .args(["--quit-after", "120", "-o", "shot"])
+        .current_dir(&dir)
+        .env("DISPLAY", &display.name)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let out = std::io::BufReader::new(viewer.stdout.take().unwrap());
+    let mut said = Vec::new();
+    for line in out.lines() {
+        let line = line.unwrap();
+        said.push(line.clone());
+        if line.starts_with("shadows refined") {
+            break;
+        }
+    }
+    assert!(
+        said[0].starts_with("shadows: 1 light samples"),
+        "the window opens with one sample: {said:?}"
+    );
+    assert!(
+        said.iter().any(|l| l == "shadows refined: 6 light samples"),
+        "{said:?}"
+    );
+    let x = |args: &[&str]| {
+        let o = Command::new(&xdotool)
+            .args(args)
+            .env("DISPLAY", &display.name)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
+        String::from_utf8_lossy(&o.stdout).trim().to_string()
+    };
+    let id = x(&["search", "--sync", "--name", "stipple view"]);
+    x(&["windowfocus", "--sync", id.lines().next().unwrap()]);
+    std::thread::sleep(Duration::from_millis(500));
+    x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    let dump = Command::new(&xwd)
+        .args(["-root", "-silent"])
+        .env("DISPLAY", &display.name)
+        .output()
+        .unwrap();
+    x(&["key", "Escape"]);
+    let _ = viewer.wait();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "s.toml",
+            "--camera",
+            "shot-1.json",
+            "--backend",
+            "cpu",
+            "-o",
+            "ref.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
+    let (dw, _, screen) = read_xwd(&dump.stdout);
+    let off = (0..w * h)
+        .filter(|&k| {
+            let s = screen[(k / w) * dw + k % w];
+            (0..3).any(|c| s[c].abs_diff(reference[4 * k + c]) > 1)
+        })
+        .count();
+    assert!(
+        off * 1000 <= w * h,
+        "{off} pixels differ from render's fully sampled shadows"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

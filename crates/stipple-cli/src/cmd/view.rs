@@ -42,7 +42,12 @@ struct Scene {
     label: String,
     /// Where screenshots and cameras go: `<prefix>-N.png` / `.json`.
     prefix: PathBuf,
+    /// Shadow samples still to take while the view rests.
+    refine: Option<crate::look::ShadowRefinement>,
 }
+
+/// How long the view must rest before shadows are refined.
+const REST: Duration = Duration::from_millis(300);
 
 /// The last frame drawn (for the window, screenshots and picking).
 struct Shown {
@@ -68,6 +73,10 @@ struct App {
     /// Fly keys held: forward, right, up.
     fly: [i8; 6],
     last_tick: Instant,
+    /// When the view last moved (refinement waits for it to rest).
+    last_input: Instant,
+    /// What is still refining, for the title.
+    status: String,
     quit_at: Option<Instant>,
     error: Option<anyhow::Error>,
 }
@@ -97,7 +106,8 @@ pub fn view(a: ViewArgs) -> Result<()> {
         crate::look::layers(&r.look, scene.as_ref()),
     )?;
     let mut renderer = r.backend.open()?;
-    let prepared = crate::api::prepare(
+    // Shadows: one sample per light now, the rest while the view rests (Dobrev §7).
+    let (prepared, refine) = crate::api::prepare_progressively(
         r,
         &mut cloud,
         &crate::api::View {
@@ -108,6 +118,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
         },
         &mut renderer,
         &mut |n| eprintln!("stipple: {n}"),
+        Some(1),
     )?;
     if let Some(line) = &prepared.shadow_line {
         println!("{line}");
@@ -134,8 +145,10 @@ pub fn view(a: ViewArgs) -> Result<()> {
             renderer,
             label,
             prefix,
+            refine,
         },
         nav: Nav::new(camera, z_up, lo, hi),
+        last_input: Instant::now(),
         window: None,
         shown: None,
         dirty: true,
@@ -146,6 +159,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
         last_click: None,
         fly: [0; 6],
         last_tick: Instant::now(),
+        status: String::new(),
         quit_at: a
             .quit_after
             .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
@@ -193,11 +207,12 @@ impl App {
         self.dirty = false;
         self.frames += 1;
         window.set_title(&format!(
-            "stipple view — {} — {}×{} — {ms:.0} ms on {}",
+            "stipple view — {} — {}×{} — {ms:.0} ms on {}{}",
             self.scene.label,
             frame.width,
             frame.height,
-            self.scene.renderer.describe()
+            self.scene.renderer.describe(),
+            self.status
         ));
         if self.frames == 1 {
             println!(
@@ -223,6 +238,7 @@ impl App {
 
     fn changed(&mut self) {
         self.dirty = true;
+        self.last_input = Instant::now();
         if let Some((w, _)) = &self.window {
             w.request_redraw();
         }
@@ -429,10 +445,36 @@ impl ApplicationHandler for App {
             self.nav.fly(f, r, u, dt, self.shift);
             self.changed();
             el.set_control_flow(ControlFlow::Poll);
-        } else if let Some(t) = self.quit_at {
-            el.set_control_flow(ControlFlow::WaitUntil(t));
-        } else {
-            el.set_control_flow(ControlFlow::Wait);
+            return;
         }
+        let mut wake = self.quit_at;
+        // Resting: one more shadow sample per light, then draw again (Dobrev §7).
+        if let Some(refine) = self.scene.refine.clone() {
+            let rest_at = self.last_input + REST;
+            if Instant::now() < rest_at || self.drag.is_some() {
+                wake = Some(wake.map_or(rest_at, |q| q.min(rest_at)));
+            } else if !self.dirty {
+                match refine.step(&mut self.scene.cloud, &mut self.scene.renderer) {
+                    Ok((done, all)) => {
+                        self.status = if done < all {
+                            format!(" — refining shadows: {done} of {all} light samples")
+                        } else {
+                            println!("shadows refined: {all} light samples");
+                            self.scene.refine = None;
+                            String::new()
+                        };
+                        self.dirty = true;
+                        if let Some((w, _)) = &self.window {
+                            w.request_redraw();
+                        }
+                    }
+                    Err(e) => return self.fail(el, e),
+                }
+            }
+        }
+        el.set_control_flow(match wake {
+            Some(t) => ControlFlow::WaitUntil(t),
+            None => ControlFlow::Wait,
+        });
     }
 }
