@@ -151,6 +151,45 @@ pub fn open_with_camera(p: &Path, camera: &CameraArgs) -> Result<(Arc<LodTree>, 
     Ok((tree, cam))
 }
 
+/// A tree streamed as the view moves (`stipple view`): nodes are requested for each camera
+/// and loaded on background threads; a cut is drawn from what is resident, missing nodes
+/// standing in by their nearest resident ancestor, so a frame never waits for the disk.
+pub struct TreeStream {
+    pub tree: Arc<LodTree>,
+    streamer: Streamer,
+    opts: SelectOptions,
+}
+
+impl TreeStream {
+    pub fn open(p: &Path, lod: &LodArgs) -> Result<TreeStream> {
+        let tree = open(p)?;
+        let opts = lod.select_options(&tree)?;
+        let streamer = Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders)?;
+        Ok(TreeStream {
+            tree,
+            streamer,
+            opts,
+        })
+    }
+
+    /// The cut for `camera` from the resident nodes (requesting the missing ones), and how
+    /// many of the cut's nodes are still loading.
+    pub fn cut(&self, camera: &Camera) -> Result<(PreparedCloud, usize)> {
+        if let Some(e) = self.streamer.error() {
+            return Err(anyhow::Error::msg(e));
+        }
+        let sel = stipple_lod::select(&self.tree, camera, &self.opts);
+        self.streamer.request(&sel.nodes);
+        let (parts, missing) = self.streamer.resident_cut(&sel.nodes);
+        Ok((cut_cloud(&self.tree, &parts, camera), missing))
+    }
+
+    /// Nodes loaded so far (a change means a better cut may be ready).
+    pub fn loads(&self) -> u64 {
+        self.streamer.stats().loads
+    }
+}
+
 /// For `render`: the complete cut for the camera (waiting for its nodes, with a spinner).
 pub fn load_cut(
     p: &Path,

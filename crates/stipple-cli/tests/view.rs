@@ -358,6 +358,119 @@ fn shadows_refine_while_the_view_rests() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A tree streams: the window opens at once with what is resident (the root first) and
+/// cuts again as nodes arrive, and the finished view is what `render` draws from the tree
+/// for the same camera (which waits for the whole cut).
+#[test]
+fn a_tree_streams_into_the_window() {
+    let Some([xvfb, xwd, xdotool]) = tools() else {
+        return;
+    };
+    let display = start_display(&xvfb);
+    let dir = tempdir("view-tree");
+    for args in [
+        &["gen", "torus", "-o", "t.ply", "--points", "300000"][..],
+        &["build-lod", "t.ply", "-o", "t.stlod"][..],
+    ] {
+        let o = stipple(&dir, args);
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+    }
+    let (w, h) = (160usize, 120usize);
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args([
+            "view",
+            "t.stlod",
+            "--size",
+            &format!("{w}x{h}"),
+            "--backend",
+            "cpu",
+        ])
+        .args(["--quit-after", "120", "-o", "shot"])
+        .current_dir(&dir)
+        .env("DISPLAY", &display.name)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
+    let first = out.next().and_then(|l| l.ok()).unwrap_or_default();
+    assert!(first.starts_with("showing"), "the viewer said {first:?}");
+    let x = |args: &[&str]| {
+        let o = Command::new(&xdotool)
+            .args(args)
+            .env("DISPLAY", &display.name)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
+        String::from_utf8_lossy(&o.stdout).trim().to_string()
+    };
+    let id = x(&["search", "--sync", "--name", "stipple view"]);
+    let id = id.lines().next().unwrap().to_string();
+    // Until no node is loading any more (the title says so while they are).
+    let t0 = Instant::now();
+    while x(&["getwindowname", &id]).contains("loading") {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "nodes never finished loading"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // Zoom in a notch: a new cut, streamed again.
+    x(&["windowfocus", "--sync", &id]);
+    x(&["mousemove", "--sync", "80", "60"]);
+    x(&["click", "4"]);
+    std::thread::sleep(Duration::from_millis(300));
+    let t0 = Instant::now();
+    while x(&["getwindowname", &id]).contains("loading") {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "nodes never finished loading"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    let dump = Command::new(&xwd)
+        .args(["-root", "-silent"])
+        .env("DISPLAY", &display.name)
+        .output()
+        .unwrap();
+    x(&["key", "Escape"]);
+    let _ = viewer.wait();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "t.stlod",
+            "--camera",
+            "shot-1.json",
+            "--backend",
+            "cpu",
+            "-o",
+            "ref.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
+    let (dw, _, screen) = read_xwd(&dump.stdout);
+    let off = (0..w * h)
+        .filter(|&k| {
+            let s = screen[(k / w) * dw + k % w];
+            (0..3).any(|c| s[c].abs_diff(reference[4 * k + c]) > 1)
+        })
+        .count();
+    assert!(
+        off * 1000 <= w * h,
+        "{off} pixels differ from render's cut of the tree"
+    );
+    let covered = (0..w * h)
+        .filter(|&k| reference[4 * k..4 * k + 3] != screen[0][..])
+        .count();
+    assert!(covered > w * h / 10, "the torus covers the window");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn without_a_display_view_says_what_to_do() {
     let dir = tempdir("view-nodisplay");

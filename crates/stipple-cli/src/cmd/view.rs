@@ -42,8 +42,21 @@ struct Scene {
     label: String,
     /// Where screenshots and cameras go: `<prefix>-N.png` / `.json`.
     prefix: PathBuf,
+    /// The input as `stipple render` takes it (empty for a demo), for the camera hint.
+    input: String,
     /// Shadow samples still to take while the view rests.
     refine: Option<crate::look::ShadowRefinement>,
+    /// A tree streamed as the view moves, with the camera and node loads the cloud was cut
+    /// for, the cut's nodes still loading, and what each new cut is coloured with.
+    stream: Option<Stream>,
+}
+
+struct Stream {
+    tree: crate::lod::TreeStream,
+    cut_for: Option<(stipple_core::Camera, u64)>,
+    missing: usize,
+    colour: crate::args::ColourArgs,
+    opacity: Option<f32>,
 }
 
 /// How long the view must rest before shadows are refined.
@@ -123,12 +136,16 @@ pub fn view(a: ViewArgs) -> Result<()> {
     if let Some(line) = &prepared.shadow_line {
         println!("{line}");
     }
-    if tree {
-        eprintln!(
-            "stipple: note: a tree is shown as the cut chosen for the opening view (the view \
-             does not stream nodes yet)"
-        );
-    }
+    let stream = match (&r.source.input, tree) {
+        (Some(p), true) => Some(Stream {
+            tree: crate::lod::TreeStream::open(p, &r.lod)?,
+            cut_for: None,
+            missing: 0,
+            colour: r.colour.clone(),
+            opacity: r.look.opacity,
+        }),
+        _ => None,
+    };
     let (lo, hi) = cloud.cloud.world_bounds();
     let z_up = camera.up.z.abs() > camera.up.y.abs();
     let prefix = match &r.output {
@@ -145,7 +162,13 @@ pub fn view(a: ViewArgs) -> Result<()> {
             renderer,
             label,
             prefix,
+            input: r
+                .source
+                .input
+                .as_ref()
+                .map_or(String::new(), |p| format!("{} ", p.display())),
             refine,
+            stream,
         },
         nav: Nav::new(camera, z_up, lo, hi),
         last_input: Instant::now(),
@@ -193,6 +216,25 @@ impl App {
             return Ok(());
         }
         let cam = self.nav.camera.clone();
+        // A tree: cut again for a new camera, or when nodes it waited for have loaded.
+        if let Some(st) = &mut self.scene.stream {
+            let loads = st.tree.loads();
+            if st.cut_for.as_ref() != Some(&(cam.clone(), loads)) {
+                let (mut cloud, missing) = st.tree.cut(&cam)?;
+                st.colour.apply(&mut cloud, &self.scene.label)?;
+                if let Some(o) = st.opacity {
+                    cloud.set_opacity(o);
+                }
+                self.scene.cloud = cloud;
+                st.missing = missing;
+                st.cut_for = Some((cam.clone(), loads));
+                self.status = if missing > 0 {
+                    format!(" — loading {missing} nodes")
+                } else {
+                    String::new()
+                };
+            }
+        }
         let t0 = Instant::now();
         let frame = self
             .scene
@@ -276,9 +318,9 @@ impl App {
         })?;
         staged.commit()?;
         println!(
-            "wrote {} (stipple render {} --camera {} renders this view)",
+            "wrote {} (stipple render {}--camera {} renders this view)",
             path.display(),
-            self.scene.label,
+            self.scene.input,
             path.display()
         );
         Ok(())
@@ -448,6 +490,23 @@ impl ApplicationHandler for App {
             return;
         }
         let mut wake = self.quit_at;
+        // A tree's nodes still loading: look again shortly, and draw when some arrived.
+        if let Some(st) = &self.scene.stream {
+            if st.missing > 0 {
+                if st
+                    .cut_for
+                    .as_ref()
+                    .is_some_and(|(_, l)| *l != st.tree.loads())
+                {
+                    self.dirty = true;
+                    if let Some((w, _)) = &self.window {
+                        w.request_redraw();
+                    }
+                }
+                let soon = Instant::now() + Duration::from_millis(100);
+                wake = Some(wake.map_or(soon, |q| q.min(soon)));
+            }
+        }
         // Resting: one more shadow sample per light, then draw again (Dobrev §7).
         if let Some(refine) = self.scene.refine.clone() {
             let rest_at = self.last_input + REST;
