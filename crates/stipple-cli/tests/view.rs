@@ -98,6 +98,31 @@ fn read_xwd(bytes: &[u8]) -> (usize, usize, Vec<[u8; 3]>) {
     (w, h, px)
 }
 
+/// Pixels of the window (w × h at the screen's top-left corner) more than a level off
+/// `reference` (RGBA), once the screen has settled: captured again until it matches or
+/// 20 s pass (a loaded machine may draw late), and the last count returned.
+fn settled_difference(xwd: &Path, display: &str, reference: &[u8], w: usize, h: usize) -> usize {
+    let t0 = Instant::now();
+    loop {
+        let o = Command::new(xwd)
+            .args(["-root", "-silent"])
+            .env("DISPLAY", display)
+            .output()
+            .unwrap();
+        let (dw, _, screen) = read_xwd(&o.stdout);
+        let off = (0..w * h)
+            .filter(|&k| {
+                let s = screen[(k / w) * dw + k % w];
+                (0..3).any(|c| s[c].abs_diff(reference[4 * k + c]) > 1)
+            })
+            .count();
+        if off * 1000 <= w * h || t0.elapsed() > Duration::from_secs(20) {
+            return off;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
 fn wait_for(path: &Path, what: &str) {
     let t0 = Instant::now();
     while !path.exists() {
@@ -166,14 +191,23 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
     x(&["key", "p"]);
     let shot = dir.join("shot-1.png");
     wait_for(&shot, "the screenshot");
-    std::thread::sleep(Duration::from_millis(500));
-    // The screen as a person sees it.
-    let dump = Command::new(&xwd)
-        .args(["-root", "-silent"])
-        .env("DISPLAY", &display.name)
-        .output()
-        .unwrap();
-    assert!(dump.status.success());
+    // What render draws for the saved camera, and the window as a person sees it.
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--camera",
+            "shot-1.json",
+            "--backend",
+            "cpu",
+            "-o",
+            "ref.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (rw, rh, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
+    assert_eq!((rw as usize, rh as usize), (w, h));
+    let off = settled_difference(&xwd, &display.name, &reference, w, h);
     // Escape closes the window.
     x(&["key", "Escape"]);
     let t0 = Instant::now();
@@ -209,22 +243,6 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
     let home: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("home.json")).unwrap()).unwrap();
     assert_ne!(json["eye"], home["eye"], "the drag orbited the camera");
-    // What render draws for the saved camera.
-    let o = stipple(
-        &dir,
-        &[
-            "render",
-            "--camera",
-            "shot-1.json",
-            "--backend",
-            "cpu",
-            "-o",
-            "ref.png",
-        ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let (rw, rh, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    assert_eq!((rw as usize, rh as usize), (w, h));
     let (sw, sh, own) = stipple_io::image::read_png(&shot).unwrap();
     assert_eq!((sw, sh), (rw, rh));
     assert_eq!(
@@ -232,18 +250,6 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
         "the viewer's screenshot is the render of its camera"
     );
     // The window on the screen, at the top-left corner (no window manager).
-    let (dw, dh, screen) = read_xwd(&dump.stdout);
-    assert!(dw >= w && dh >= h);
-    let mut off = 0;
-    for y in 0..h {
-        for x in 0..w {
-            let s = screen[y * dw + x];
-            let r = &reference[4 * (y * w + x)..][..3];
-            if (0..3).any(|c| s[c].abs_diff(r[c]) > 1) {
-                off += 1;
-            }
-        }
-    }
     assert!(
         off * 1000 <= w * h,
         "{off} of {} window pixels differ from render's image of the saved camera",
@@ -291,9 +297,10 @@ fn shadows_refine_while_the_view_rests() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    let out = std::io::BufReader::new(viewer.stdout.take().unwrap());
+    // Kept open to the end: the viewer still prints (a closed pipe would end it).
+    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
     let mut said = Vec::new();
-    for line in out.lines() {
+    for line in out.by_ref() {
         let line = line.unwrap();
         said.push(line.clone());
         if line.starts_with("shadows refined") {
@@ -322,13 +329,6 @@ fn shadows_refine_while_the_view_rests() {
     std::thread::sleep(Duration::from_millis(500));
     x(&["key", "c"]);
     wait_for(&dir.join("shot-1.json"), "the camera");
-    let dump = Command::new(&xwd)
-        .args(["-root", "-silent"])
-        .env("DISPLAY", &display.name)
-        .output()
-        .unwrap();
-    x(&["key", "Escape"]);
-    let _ = viewer.wait();
     let o = stipple(
         &dir,
         &[
@@ -344,13 +344,9 @@ fn shadows_refine_while_the_view_rests() {
     );
     assert!(o.status.success(), "{}", text(&o));
     let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    let (dw, _, screen) = read_xwd(&dump.stdout);
-    let off = (0..w * h)
-        .filter(|&k| {
-            let s = screen[(k / w) * dw + k % w];
-            (0..3).any(|c| s[c].abs_diff(reference[4 * k + c]) > 1)
-        })
-        .count();
+    let off = settled_difference(&xwd, &display.name, &reference, w, h);
+    x(&["key", "Escape"]);
+    let _ = viewer.wait();
     assert!(
         off * 1000 <= w * h,
         "{off} pixels differ from render's fully sampled shadows"
@@ -431,13 +427,6 @@ fn a_tree_streams_into_the_window() {
     std::thread::sleep(Duration::from_millis(300));
     x(&["key", "c"]);
     wait_for(&dir.join("shot-1.json"), "the camera");
-    let dump = Command::new(&xwd)
-        .args(["-root", "-silent"])
-        .env("DISPLAY", &display.name)
-        .output()
-        .unwrap();
-    x(&["key", "Escape"]);
-    let _ = viewer.wait();
     let o = stipple(
         &dir,
         &[
@@ -453,21 +442,120 @@ fn a_tree_streams_into_the_window() {
     );
     assert!(o.status.success(), "{}", text(&o));
     let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    let (dw, _, screen) = read_xwd(&dump.stdout);
-    let off = (0..w * h)
-        .filter(|&k| {
-            let s = screen[(k / w) * dw + k % w];
-            (0..3).any(|c| s[c].abs_diff(reference[4 * k + c]) > 1)
-        })
-        .count();
+    let off = settled_difference(&xwd, &display.name, &reference, w, h);
+    x(&["key", "Escape"]);
+    let _ = viewer.wait();
     assert!(
         off * 1000 <= w * h,
         "{off} pixels differ from render's cut of the tree"
     );
     let covered = (0..w * h)
-        .filter(|&k| reference[4 * k..4 * k + 3] != screen[0][..])
+        .filter(|&k| reference[4 * k..4 * k + 3] != reference[..3])
         .count();
     assert!(covered > w * h / 10, "the torus covers the window");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The panel (Tab) holds every `render` option by its flag's name: filtered to
+/// `no-lighting`, ticked and applied, the window shows what `render --no-lighting` draws for
+/// the same camera; a hidden panel leaves the image whole.
+#[test]
+fn the_panel_applies_render_options() {
+    let Some([xvfb, xwd, xdotool]) = tools() else {
+        return;
+    };
+    let display = start_display(&xvfb);
+    let dir = tempdir("view-panel");
+    let (w, h) = (400usize, 300usize);
+    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args(["view", "--size", &format!("{w}x{h}"), "--backend", "cpu"])
+        .args(["--quit-after", "120", "-o", "shot"])
+        .current_dir(&dir)
+        .env("DISPLAY", &display.name)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
+    let first = out.next().and_then(|l| l.ok()).unwrap_or_default();
+    assert!(first.starts_with("showing"), "the viewer said {first:?}");
+    let x = |args: &[&str]| {
+        let o = Command::new(&xdotool)
+            .args(args)
+            .env("DISPLAY", &display.name)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
+        String::from_utf8_lossy(&o.stdout).trim().to_string()
+    };
+    let screen = || {
+        let o = Command::new(&xwd)
+            .args(["-root", "-silent"])
+            .env("DISPLAY", &display.name)
+            .output()
+            .unwrap();
+        read_xwd(&o.stdout)
+    };
+    let id = x(&["search", "--sync", "--name", "stipple view"]);
+    x(&["windowfocus", "--sync", id.lines().next().unwrap()]);
+    let before = screen();
+    x(&["key", "Tab"]);
+    std::thread::sleep(Duration::from_millis(700));
+    let with_panel = screen();
+    let changed = (0..h)
+        .flat_map(|y| (0..120).map(move |x| (x, y)))
+        .filter(|&(x, y)| before.2[y * before.0 + x] != with_panel.2[y * with_panel.0 + x])
+        .count();
+    assert!(
+        changed > 1000,
+        "Tab shows the panel on the left ({changed} pixels changed)"
+    );
+    // Filter (the text field at the top), tick the one option left, Apply.
+    x(&["mousemove", "--sync", "165", "69", "click", "1"]);
+    x(&["type", "--delay", "20", "no-lighting"]);
+    std::thread::sleep(Duration::from_millis(400));
+    x(&["mousemove", "--sync", "15", "124", "click", "1"]);
+    std::thread::sleep(Duration::from_millis(300));
+    x(&["mousemove", "--sync", "32", "92", "click", "1"]);
+    let applied = out
+        .by_ref()
+        .map_while(|l| l.ok())
+        .find(|l| l.starts_with("applied"))
+        .unwrap_or_default();
+    assert!(
+        applied.contains("--no-lighting"),
+        "the viewer said {applied:?}"
+    );
+    // Hide the panel, save the camera, look at the window (a click on the image first takes
+    // the keyboard from the panel's text field).
+    x(&["mousemove", "--sync", "380", "280", "click", "1"]);
+    x(&["key", "Tab"]);
+    std::thread::sleep(Duration::from_millis(500));
+    x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    std::thread::sleep(Duration::from_millis(300));
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--camera",
+            "shot-1.json",
+            "--no-lighting",
+            "--backend",
+            "cpu",
+            "-o",
+            "ref.png",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
+    let off = settled_difference(&xwd, &display.name, &reference, w, h);
+    x(&["key", "Escape"]);
+    let _ = viewer.wait();
+    assert!(
+        off * 1000 <= w * h,
+        "{off} pixels differ from render --no-lighting"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

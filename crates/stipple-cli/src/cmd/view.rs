@@ -25,7 +25,8 @@ wheel zooms, a double click centres the orbit on the point under the cursor (its
 coordinates are printed).
 Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, P saves a \
 screenshot (PNG, the window's size), C saves the camera as JSON (`stipple render --camera \
-FILE` renders exactly that view), Escape quits.")]
+FILE` renders exactly that view), Tab shows the panel of every `render` option (Apply redraws \
+with them), Escape quits.")]
 pub struct ViewArgs {
     #[command(flatten)]
     pub render: RenderArgs,
@@ -73,6 +74,10 @@ struct Shown {
 
 struct App {
     scene: Scene,
+    /// The side panel (Tab) of `render`'s options.
+    panel: crate::view::panel::Panel,
+    egui: egui::Context,
+    egui_state: Option<egui_winit::State>,
     nav: Nav,
     window: Option<(Arc<Window>, Presenter)>,
     shown: Option<Shown>,
@@ -103,16 +108,70 @@ pub fn view(a: ViewArgs) -> Result<()> {
         ));
     }
     let r = &a.render;
+    let (scene, camera) = build(r, None)?;
+    let (lo, hi) = scene.cloud.cloud.world_bounds();
+    let z_up = camera.up.z.abs() > camera.up.y.abs();
+    // The panel starts with the options given after `view` (the input aside).
+    let given: Vec<String> = std::env::args()
+        .skip_while(|t| t != "view")
+        .skip(1)
+        .collect();
+    let panel = crate::view::panel::Panel::new(
+        &given,
+        r.source.input.as_ref().map(|p| p.display().to_string()),
+    );
+    let event_loop = EventLoop::new().map_err(|e| {
+        anyhow!("stipple view cannot open a window ({e}); `stipple render` writes images")
+    })?;
+    let mut app = App {
+        scene,
+        panel,
+        egui: egui::Context::default(),
+        egui_state: None,
+        nav: Nav::new(camera, z_up, lo, hi),
+        last_input: Instant::now(),
+        window: None,
+        shown: None,
+        dirty: true,
+        frames: 0,
+        cursor: (0.0, 0.0),
+        drag: None,
+        shift: false,
+        last_click: None,
+        fly: [0; 6],
+        last_tick: Instant::now(),
+        status: String::new(),
+        quit_at: a
+            .quit_after
+            .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
+        error: None,
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| anyhow!("the window's event loop failed: {e}"))?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
+
+/// Reads the input and prepares what every frame shares, as `stipple render` does: for the
+/// opening view, or (Apply in the panel) with new options for the current `camera`.
+fn build(
+    r: &RenderArgs,
+    camera: Option<&stipple_core::Camera>,
+) -> Result<(Scene, stipple_core::Camera)> {
     if let Some((w, h)) = r.camera.size {
         crate::memory::check_frame(w, h, r.look.layers.unwrap_or(1))?;
     }
     let crate::api::Loaded {
         mut cloud,
         label,
-        camera,
+        camera: opening,
         scene,
         tree,
     } = crate::api::load(r)?;
+    let camera = camera.cloned().unwrap_or(opening);
     crate::memory::check_frame(
         camera.width,
         camera.height,
@@ -146,17 +205,12 @@ pub fn view(a: ViewArgs) -> Result<()> {
         }),
         _ => None,
     };
-    let (lo, hi) = cloud.cloud.world_bounds();
-    let z_up = camera.up.z.abs() > camera.up.y.abs();
     let prefix = match &r.output {
         Some(o) => o.with_extension(""),
         None => PathBuf::from("stipple-view"),
     };
-    let event_loop = EventLoop::new().map_err(|e| {
-        anyhow!("stipple view cannot open a window ({e}); `stipple render` writes images")
-    })?;
-    let mut app = App {
-        scene: Scene {
+    Ok((
+        Scene {
             cloud,
             pipe: prepared.pipeline,
             renderer,
@@ -170,34 +224,63 @@ pub fn view(a: ViewArgs) -> Result<()> {
             refine,
             stream,
         },
-        nav: Nav::new(camera, z_up, lo, hi),
-        last_input: Instant::now(),
-        window: None,
-        shown: None,
-        dirty: true,
-        frames: 0,
-        cursor: (0.0, 0.0),
-        drag: None,
-        shift: false,
-        last_click: None,
-        fly: [0; 6],
-        last_tick: Instant::now(),
-        status: String::new(),
-        quit_at: a
-            .quit_after
-            .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
-        error: None,
-    };
-    event_loop
-        .run_app(&mut app)
-        .map_err(|e| anyhow!("the window's event loop failed: {e}"))?;
-    match app.error {
-        Some(e) => Err(e),
-        None => Ok(()),
-    }
+        camera,
+    ))
 }
 
 impl App {
+    /// Apply in the panel: the options parsed as the command line parses them, the input
+    /// read and prepared again, the camera kept.
+    fn apply(&mut self) {
+        let argv = self.panel.args();
+        let r = match crate::api::parse_render_args(&argv) {
+            Ok(r) => r,
+            Err(e) => {
+                self.panel.error = Some(e.to_string().trim().to_string());
+                return;
+            }
+        };
+        match build(&r, Some(&self.nav.camera)) {
+            Ok((mut scene, _)) => {
+                // Screenshots and cameras keep going where they went.
+                scene.prefix = std::mem::take(&mut self.scene.prefix);
+                self.scene = scene;
+                self.panel.error = None;
+                let (lo, hi) = self.scene.cloud.cloud.world_bounds();
+                self.nav.lo = lo;
+                self.nav.hi = hi;
+                self.shown = None;
+                println!("applied: {}", argv.join(" "));
+                self.changed();
+            }
+            Err(e) => self.panel.error = Some(crate::message(&e)),
+        }
+    }
+
+    /// The panel's triangles for this frame (None while it is hidden). Returns whether
+    /// Apply was pressed too.
+    fn overlay(&mut self) -> (Option<crate::view::present::Overlay>, bool) {
+        let (Some((window, _)), Some(state), true) =
+            (&self.window, &mut self.egui_state, self.panel.visible)
+        else {
+            return (None, false);
+        };
+        let raw = state.take_egui_input(window);
+        let panel = &mut self.panel;
+        let mut apply = false;
+        let out = self.egui.run_ui(raw, |ui| apply |= panel.ui(ui));
+        state.handle_platform_output(window, out.platform_output);
+        let primitives = self.egui.tessellate(out.shapes, out.pixels_per_point);
+        (
+            Some(crate::view::present::Overlay {
+                primitives,
+                textures: out.textures_delta,
+                pixels_per_point: out.pixels_per_point,
+            }),
+            apply,
+        )
+    }
+
     fn fail(&mut self, el: &ActiveEventLoop, e: anyhow::Error) {
         self.error = Some(e);
         el.exit();
@@ -205,12 +288,17 @@ impl App {
 
     /// Renders the current view and shows it.
     fn draw(&mut self) -> Result<()> {
+        let (overlay, apply) = self.overlay();
+        if apply {
+            self.apply();
+        }
         let Some((window, presenter)) = &mut self.window else {
             return Ok(());
         };
         if let (false, Some(s)) = (self.dirty, &self.shown) {
-            // Nothing moved (the window was uncovered): show the last frame again.
-            if !presenter.show(s.w, s.h, &s.rgba)? {
+            // Nothing moved (the window was uncovered, the panel changed): show the last
+            // frame again.
+            if !presenter.show(s.w, s.h, &s.rgba, overlay.as_ref())? {
                 window.request_redraw();
             }
             return Ok(());
@@ -241,7 +329,7 @@ impl App {
             .renderer
             .render(&self.scene.cloud, &cam, &self.scene.pipe)?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
-        let shown = presenter.show(frame.width, frame.height, &frame.rgba)?;
+        let shown = presenter.show(frame.width, frame.height, &frame.rgba, overlay.as_ref())?;
         if !shown {
             window.request_redraw();
             return Ok(());
@@ -395,12 +483,54 @@ impl ApplicationHandler for App {
             Ok(p) => self.window = Some((window.clone(), p)),
             Err(e) => return self.fail(el, e),
         }
+        self.egui_state = Some(egui_winit::State::new(
+            self.egui.clone(),
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            None,
+        ));
         // Keys reach the window without a window manager too (a virtual display).
         window.focus_window();
         window.request_redraw();
     }
 
     fn window_event(&mut self, el: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        // Tab shows and hides the panel whatever has the keyboard.
+        if let WindowEvent::KeyboardInput { event: k, .. } = &event {
+            if k.physical_key == PhysicalKey::Code(KeyCode::Tab)
+                && k.state == ElementState::Pressed
+                && !k.repeat
+            {
+                self.panel.visible = !self.panel.visible;
+                if let Some((w, _)) = &self.window {
+                    w.request_redraw();
+                }
+                return;
+            }
+        }
+        if self.panel.visible {
+            if let (Some((w, _)), Some(state)) = (&self.window, &mut self.egui_state) {
+                let r = state.on_window_event(w, &event);
+                if r.repaint {
+                    w.request_redraw();
+                }
+                let pointer = matches!(
+                    event,
+                    WindowEvent::CursorMoved { .. }
+                        | WindowEvent::MouseInput { .. }
+                        | WindowEvent::MouseWheel { .. }
+                ) && self.drag.is_none()
+                    && self.egui.is_pointer_over_egui();
+                if r.consumed || pointer {
+                    if let WindowEvent::CursorMoved { position, .. } = event {
+                        self.cursor = (position.x, position.y);
+                    }
+                    return;
+                }
+            }
+        }
         match event {
             WindowEvent::CloseRequested => el.exit(),
             WindowEvent::Resized(size) if size.width > 0 && size.height > 0 => {

@@ -1,5 +1,7 @@
 //! The interactive viewer's parts that `cmd::view` puts together: camera navigation
-//! ([`nav`]) and showing frames in the window ([`present`]).
+//! ([`nav`]), the side panel of `render`'s options ([`panel`]) and showing frames in the
+//! window ([`present`]).
 
 pub mod nav;
+pub mod panel;
 pub mod present;

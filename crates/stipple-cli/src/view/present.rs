@@ -29,8 +29,16 @@ fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
 }
 "#;
 
+/// The side panel's triangles and texture changes for one frame (see `view::panel`).
+pub struct Overlay {
+    pub primitives: Vec<egui::ClippedPrimitive>,
+    pub textures: egui::TexturesDelta,
+    pub pixels_per_point: f32,
+}
+
 /// The window's surface and what copies a frame onto it.
 pub struct Presenter {
+    egui: egui_wgpu::Renderer,
     surface: wgpu::Surface<'static>,
     device: wgpu::Device,
     queue: wgpu::Queue,
@@ -144,7 +152,9 @@ impl Presenter {
             multiview_mask: None,
             cache: None,
         });
+        let egui = egui_wgpu::Renderer::new(&device, config.format, Default::default());
         Ok(Presenter {
+            egui,
             surface,
             device,
             queue,
@@ -169,7 +179,7 @@ impl Presenter {
 
     /// Shows a frame (`rgba`: w × h sRGB bytes, row 0 at the top). Returns false when the
     /// surface was not ready (occluded, outdated): the caller draws again later.
-    pub fn show(&mut self, w: u32, h: u32, rgba: &[u8]) -> Result<bool> {
+    pub fn show(&mut self, w: u32, h: u32, rgba: &[u8], overlay: Option<&Overlay>) -> Result<bool> {
         if rgba.len() != (w as usize) * (h as usize) * 4 || w == 0 || h == 0 {
             return Err(anyhow!("a frame of {w}x{h} with {} bytes", rgba.len()));
         }
@@ -234,6 +244,26 @@ impl Presenter {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("view"),
             });
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: [self.config.width, self.config.height],
+            pixels_per_point: overlay.map_or(1.0, |o| o.pixels_per_point),
+        };
+        let mut extra = Vec::new();
+        if let Some(o) = overlay {
+            for (id, deltas) in &o.textures.set {
+                for delta in deltas {
+                    self.egui
+                        .update_texture(&self.device, &self.queue, *id, delta);
+                }
+            }
+            extra = self.egui.update_buffers(
+                &self.device,
+                &self.queue,
+                &mut enc,
+                &o.primitives,
+                &screen,
+            );
+        }
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("view blit"),
@@ -254,8 +284,17 @@ impl Presenter {
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, group, &[]);
             pass.draw(0..3, 0..1);
+            if let Some(o) = overlay {
+                let mut pass = pass.forget_lifetime();
+                self.egui.render(&mut pass, &o.primitives, &screen);
+            }
         }
-        self.queue.submit([enc.finish()]);
+        if let Some(o) = overlay {
+            for id in &o.textures.free {
+                self.egui.free_texture(id);
+            }
+        }
+        self.queue.submit(extra.into_iter().chain([enc.finish()]));
         self.queue.present(frame);
         Ok(true)
     }
