@@ -184,6 +184,26 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
     x(&["mousemove", "--sync", "110", "75"]);
     x(&["mouseup", "1"]);
     std::thread::sleep(Duration::from_millis(500));
+    // A double click in the middle picks a point: its coordinates and the point's own
+    // position and colour are printed, and the orbit centres on it.
+    x(&["mousemove", "--sync", "100", "75"]);
+    x(&["click", "--repeat", "2", "--delay", "80", "1"]);
+    let picked = out
+        .by_ref()
+        .map_while(|l| l.ok())
+        .find(|l| l.starts_with("picked"))
+        .unwrap_or_default();
+    let xyz: Vec<f64> = picked
+        .split_whitespace()
+        .skip(1)
+        .take(3)
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    assert!(
+        xyz.len() == 3 && xyz.iter().all(|v| v.abs() < 5.0) && picked.contains("colour"),
+        "the viewer said {picked:?}"
+    );
+    std::thread::sleep(Duration::from_millis(500));
     // Save the camera (C) and the viewer's own screenshot (P).
     x(&["key", "c"]);
     let cam = dir.join("shot-1.json");

@@ -22,8 +22,9 @@ use winit::window::{Window, WindowId};
 #[command(after_help = "\
 Mouse: left drag orbits about the target, right or middle drag (or shift + left) pans, the \
 wheel zooms, a double click centres the orbit on the point under the cursor (its \
-coordinates are printed).
-Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, P saves a \
+coordinates and attributes are printed, and the distance to the previous pick).
+Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, U switches \
+the up axis between Z (LiDAR) and Y (scanned objects), P saves a \
 screenshot (PNG, the window's size), C saves the camera as JSON (`stipple render --camera \
 FILE` renders exactly that view), Tab shows the panel of every `render` option (Apply redraws \
 with them), Escape quits.")]
@@ -69,6 +70,8 @@ struct Shown {
     h: u32,
     rgba: Vec<u8>,
     depth: Vec<f32>,
+    /// The point each pixel shows (or a background/hole marker).
+    id: Vec<u32>,
     camera: stipple_core::Camera,
 }
 
@@ -95,6 +98,8 @@ struct App {
     last_input: Instant,
     /// What is still refining, for the title.
     status: String,
+    /// The last picked point (the next pick measures from it).
+    picked: Option<glam::DVec3>,
     quit_at: Option<Instant>,
     error: Option<anyhow::Error>,
 }
@@ -141,6 +146,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
         fly: [0; 6],
         last_tick: Instant::now(),
         status: String::new(),
+        picked: None,
         quit_at: a
             .quit_after
             .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
@@ -361,6 +367,7 @@ impl App {
             h: frame.height,
             rgba: frame.rgba,
             depth: frame.depth,
+            id: frame.id,
             camera: cam,
         });
         Ok(())
@@ -417,11 +424,24 @@ impl App {
     fn double_click(&mut self) {
         let Some(s) = &self.shown else { return };
         let (x, y) = self.cursor;
-        if x < 0.0 || y < 0.0 {
+        if x < 0.0 || y < 0.0 || x >= s.w as f64 || y >= s.h as f64 {
             return;
         }
-        if let Some(p) = pick(&s.camera, &s.depth, x as u32, y as u32) {
-            println!("picked {:.4} {:.4} {:.4}", p.x, p.y, p.z);
+        let (i, j) = (x as u32, y as u32);
+        if let Some(p) = pick(&s.camera, &s.depth, i, j) {
+            let id = s.id[(j * s.w + i) as usize];
+            let about = crate::view::nav::describe_point(&self.scene.cloud.cloud, id);
+            println!("picked {:.4} {:.4} {:.4}{about}", p.x, p.y, p.z);
+            if let Some(q) = self.picked {
+                println!(
+                    "distance to the previous pick: {:.4} (dx {:.4}, dy {:.4}, dz {:.4})",
+                    (p - q).length(),
+                    p.x - q.x,
+                    p.y - q.y,
+                    p.z - q.z
+                );
+            }
+            self.picked = Some(p);
             self.nav.centre_on(p);
             self.changed();
         }
@@ -452,6 +472,19 @@ impl App {
             }
             KeyCode::KeyF => {
                 self.nav.frame_all();
+                self.changed();
+                Ok(())
+            }
+            KeyCode::KeyU => {
+                self.nav.toggle_up();
+                println!(
+                    "orbiting about {}",
+                    if self.nav.up.z != 0.0 {
+                        "Z (up)"
+                    } else {
+                        "Y (up)"
+                    }
+                );
                 self.changed();
                 Ok(())
             }

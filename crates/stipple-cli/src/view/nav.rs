@@ -158,12 +158,54 @@ impl Nav {
         }
     }
 
+    /// Switches the orbit's up axis between Z (LiDAR) and Y (scanned objects); the image's
+    /// up follows it.
+    pub fn toggle_up(&mut self) {
+        self.up = if self.up == DVec3::Z {
+            DVec3::Y
+        } else {
+            DVec3::Z
+        };
+        self.camera.up = self.up;
+        self.refit();
+    }
+
     /// The window's new size in pixels.
     pub fn resize(&mut self, w: u32, h: u32) {
         self.camera.width = w.clamp(1, stipple_core::camera::MAX_SIDE);
         self.camera.height = h.clamp(1, stipple_core::camera::MAX_SIDE);
         self.refit();
     }
+}
+
+/// A point's own position (world, in the file's units with its f64 origin) and attributes,
+/// for a pick's report: "" when `id` is not a point of `cloud`.
+pub fn describe_point(cloud: &stipple_core::PointCloud, id: u32) -> String {
+    let i = id as usize;
+    if i >= cloud.len() {
+        return String::new();
+    }
+    let w = cloud.world(i);
+    let mut parts = vec![format!("point {i} at {:.4} {:.4} {:.4}", w.x, w.y, w.z)];
+    if let Some(c) = &cloud.colors {
+        parts.push(format!("colour {} {} {}", c[i][0], c[i][1], c[i][2]));
+    }
+    if let Some(v) = &cloud.intensity {
+        parts.push(format!("intensity {}", v[i]));
+    }
+    if let Some(v) = &cloud.classification {
+        parts.push(format!("class {}", v[i]));
+    }
+    if let Some(v) = &cloud.return_number {
+        parts.push(format!("return {}", v[i]));
+    }
+    if let Some(v) = &cloud.opacity {
+        parts.push(format!("opacity {:.3}", v[i]));
+    }
+    for f in &cloud.fields {
+        parts.push(format!("{} {}", f.name, f.value(i)));
+    }
+    format!(" ({})", parts.join(", "))
 }
 
 /// The world point a pixel shows, from the frame's view-axis depth there (None on background).
@@ -281,5 +323,27 @@ mod tests {
         assert_eq!(pick(&n.camera, &vec![f32::INFINITY; 64 * 48], 1, 1), None);
         n.centre_on(p);
         assert_eq!(n.camera.target, p);
+        n.toggle_up();
+        assert_eq!((n.up, n.camera.up), (DVec3::Z, DVec3::Z));
+        assert!(n.camera.validate().is_ok());
+    }
+
+    #[test]
+    fn a_pick_reports_the_point_and_its_attributes() {
+        let mut c = stipple_core::PointCloud::from_world(&[
+            DVec3::new(637_000.25, 850_000.5, 10.0),
+            DVec3::new(637_001.0, 850_000.0, 11.0),
+        ]);
+        c.classification = Some(vec![2, 6]);
+        c.fields
+            .push(stipple_core::cloud::Field::new("Deviation", &[3.0, 7.0]));
+        let d = describe_point(&c, 1);
+        assert!(
+            d.contains("point 1 at 637001.0000 850000.0000 11.0000"),
+            "{d}"
+        );
+        assert!(d.contains("class 6") && d.contains("Deviation 7"), "{d}");
+        assert_eq!(describe_point(&c, 2), "");
+        assert_eq!(describe_point(&c, u32::MAX), "");
     }
 }
