@@ -172,13 +172,28 @@ impl TreeStream {
         })
     }
 
-    /// The cut for `camera` from the resident nodes (requesting the missing ones), and how
-    /// many of the cut's nodes are still loading.
-    pub fn cut(&self, camera: &Camera) -> Result<(PreparedCloud, usize)> {
+    /// The point budget of a full cut.
+    pub fn point_budget(&self) -> u64 {
+        self.opts.point_budget
+    }
+
+    /// The fewest points a cut can hold (one node).
+    pub fn least_budget(&self) -> u64 {
+        self.tree.header.max_node_points as u64
+    }
+
+    /// The cut for `camera` from the resident nodes (requesting the missing ones), within
+    /// `budget` points when given (a coarser cut while the view moves), and how many of the
+    /// cut's nodes are still loading.
+    pub fn cut(&self, camera: &Camera, budget: Option<u64>) -> Result<(PreparedCloud, usize)> {
         if let Some(e) = self.streamer.error() {
             return Err(anyhow::Error::msg(e));
         }
-        let sel = stipple_lod::select(&self.tree, camera, &self.opts);
+        let mut opts = self.opts.clone();
+        if let Some(b) = budget {
+            opts.point_budget = b.clamp(self.least_budget(), opts.point_budget);
+        }
+        let sel = stipple_lod::select(&self.tree, camera, &opts);
         self.streamer.request(&sel.nodes);
         let (parts, missing) = self.streamer.resident_cut(&sel.nodes);
         Ok((cut_cloud(&self.tree, &parts, camera), missing))

@@ -31,6 +31,11 @@ with them), Escape quits.")]
 pub struct ViewArgs {
     #[command(flatten)]
     pub render: RenderArgs,
+    /// While the view moves, a tree's cut is made coarser until a frame takes at most this
+    /// many milliseconds [default: 16 on a GPU, 60 on the CPU]; at rest it refines to the full
+    /// cut (--point-budget, --lod-error).
+    #[arg(long, value_name = "MS", value_parser = crate::args::finite_f64)]
+    pub frame_budget: Option<f64>,
     /// Close the window after this many seconds (scripts and tests).
     #[arg(long, value_name = "SECONDS", value_parser = crate::args::finite_f64)]
     pub quit_after: Option<f64>,
@@ -55,7 +60,10 @@ struct Scene {
 
 struct Stream {
     tree: crate::lod::TreeStream,
-    cut_for: Option<(stipple_core::Camera, u64)>,
+    /// The camera, node loads and point budget (None: the full cut) the cloud was cut for.
+    cut_for: Option<(stipple_core::Camera, u64, Option<u64>)>,
+    /// The budget of cuts while the view moves, adapted to the frame-time target.
+    moving_budget: u64,
     missing: usize,
     colour: crate::args::ColourArgs,
     opacity: Option<f32>,
@@ -100,6 +108,8 @@ struct App {
     status: String,
     /// The last picked point (the next pick measures from it).
     picked: Option<glam::DVec3>,
+    /// Milliseconds a frame may take while the view moves (trees coarsen their cut).
+    frame_budget: f64,
     quit_at: Option<Instant>,
     error: Option<anyhow::Error>,
 }
@@ -147,6 +157,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
         last_tick: Instant::now(),
         status: String::new(),
         picked: None,
+        frame_budget: a.frame_budget.unwrap_or(0.0),
         quit_at: a
             .quit_after
             .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
@@ -202,12 +213,16 @@ fn build(
         println!("{line}");
     }
     let stream = match (&r.source.input, tree) {
-        (Some(p), true) => Some(Stream {
-            tree: crate::lod::TreeStream::open(p, &r.lod)?,
-            cut_for: None,
-            missing: 0,
-            colour: r.colour.clone(),
-            opacity: r.look.opacity,
+        (Some(p), true) => Some({
+            let tree = crate::lod::TreeStream::open(p, &r.lod)?;
+            Stream {
+                moving_budget: tree.point_budget(),
+                tree,
+                cut_for: None,
+                missing: 0,
+                colour: r.colour.clone(),
+                opacity: r.look.opacity,
+            }
         }),
         _ => None,
     };
@@ -298,6 +313,7 @@ impl App {
         if apply {
             self.apply();
         }
+        let moving = self.moving();
         let Some((window, presenter)) = &mut self.window else {
             return Ok(());
         };
@@ -313,19 +329,20 @@ impl App {
         // A tree: cut again for a new camera, or when nodes it waited for have loaded.
         if let Some(st) = &mut self.scene.stream {
             let loads = st.tree.loads();
-            if st.cut_for.as_ref() != Some(&(cam.clone(), loads)) {
-                let (mut cloud, missing) = st.tree.cut(&cam)?;
+            let budget = moving.then_some(st.moving_budget);
+            if st.cut_for.as_ref() != Some(&(cam.clone(), loads, budget)) {
+                let (mut cloud, missing) = st.tree.cut(&cam, budget)?;
                 st.colour.apply(&mut cloud, &self.scene.label)?;
                 if let Some(o) = st.opacity {
                     cloud.set_opacity(o);
                 }
                 self.scene.cloud = cloud;
                 st.missing = missing;
-                st.cut_for = Some((cam.clone(), loads));
-                self.status = if missing > 0 {
-                    format!(" — loading {missing} nodes")
-                } else {
-                    String::new()
+                st.cut_for = Some((cam.clone(), loads, budget));
+                self.status = match (missing, budget) {
+                    (0, None) => String::new(),
+                    (0, Some(b)) => format!(" — moving: at most {b} points"),
+                    (m, _) => format!(" — loading {m} nodes"),
                 };
             }
         }
@@ -335,6 +352,25 @@ impl App {
             .renderer
             .render(&self.scene.cloud, &cam, &self.scene.pipe)?;
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        // While moving, the next cut's budget follows the frame-time target.
+        if let (true, Some(st)) = (moving, &mut self.scene.stream) {
+            let target = if self.frame_budget > 0.0 {
+                self.frame_budget
+            } else if self.scene.renderer.describe().starts_with("cpu") {
+                60.0
+            } else {
+                16.0
+            };
+            let points = self.scene.cloud.cloud.len() as f64;
+            let next = if ms > target {
+                points * target / ms * 0.9
+            } else if ms < 0.5 * target {
+                st.moving_budget as f64 * 1.25
+            } else {
+                st.moving_budget as f64
+            };
+            st.moving_budget = (next as u64).clamp(st.tree.least_budget(), st.tree.point_budget());
+        }
         let shown = presenter.show(frame.width, frame.height, &frame.rgba, overlay.as_ref())?;
         if !shown {
             window.request_redraw();
@@ -371,6 +407,11 @@ impl App {
             camera: cam,
         });
         Ok(())
+    }
+
+    /// The view is moving (or rested less than [`REST`]).
+    fn moving(&self) -> bool {
+        self.last_input.elapsed() < REST || self.drag.is_some() || self.fly != [0; 6]
     }
 
     fn changed(&mut self) {
@@ -653,13 +694,25 @@ impl ApplicationHandler for App {
             return;
         }
         let mut wake = self.quit_at;
-        // A tree's nodes still loading: look again shortly, and draw when some arrived.
+        // A tree's nodes still loading: look again shortly, and draw when some arrived; a
+        // coarse cut made while moving: the full one once the view rests.
         if let Some(st) = &self.scene.stream {
+            if st.cut_for.as_ref().is_some_and(|c| c.2.is_some()) {
+                if self.moving() {
+                    let at = self.last_input + REST;
+                    wake = Some(wake.map_or(at, |q| q.min(at)));
+                } else {
+                    self.dirty = true;
+                    if let Some((w, _)) = &self.window {
+                        w.request_redraw();
+                    }
+                }
+            }
             if st.missing > 0 {
                 if st
                     .cut_for
                     .as_ref()
-                    .is_some_and(|(_, l)| *l != st.tree.loads())
+                    .is_some_and(|(_, l, _)| *l != st.tree.loads())
                 {
                     self.dirty = true;
                     if let Some((w, _)) = &self.window {

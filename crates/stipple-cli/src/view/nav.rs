@@ -178,6 +178,21 @@ impl Nav {
     }
 }
 
+/// The point budget of a tree's next cut while the view moves: a frame of `points` that
+/// took `ms` against a target of `target` ms scales it down (to 90% of what fits), a frame
+/// well under the target lets it grow by a quarter; within `range` (one node … the full
+/// budget).
+pub fn next_budget(points: u64, ms: f64, target: f64, current: u64, range: (u64, u64)) -> u64 {
+    let next = if ms > target {
+        points as f64 * target / ms * 0.9
+    } else if ms < 0.5 * target {
+        current as f64 * 1.25
+    } else {
+        current as f64
+    };
+    (next as u64).clamp(range.0, range.1.max(range.0))
+}
+
 /// A point's own position (world, in the file's units with its f64 origin) and attributes,
 /// for a pick's report: "" when `id` is not a point of `cloud`.
 pub fn describe_point(cloud: &stipple_core::PointCloud, id: u32) -> String {
@@ -326,6 +341,31 @@ mod tests {
         n.toggle_up();
         assert_eq!((n.up, n.camera.up), (DVec3::Z, DVec3::Z));
         assert!(n.camera.validate().is_ok());
+    }
+
+    #[test]
+    fn the_moving_budget_follows_the_frame_time() {
+        // 2 M points took 40 ms against 16: the next cut holds 0.72 M.
+        assert_eq!(
+            next_budget(2_000_000, 40.0, 16.0, 2_000_000, (1000, 5_000_000)),
+            720_000
+        );
+        // Fast frames grow it by a quarter, up to the full budget.
+        assert_eq!(
+            next_budget(100_000, 2.0, 16.0, 100_000, (1000, 5_000_000)),
+            125_000
+        );
+        assert_eq!(
+            next_budget(100, 1.0, 16.0, 4_900_000, (1000, 5_000_000)),
+            5_000_000
+        );
+        // Never below one node, however slow.
+        assert_eq!(next_budget(10, 1e6, 16.0, 10, (1000, 5_000_000)), 1000);
+        // Within the target: unchanged.
+        assert_eq!(
+            next_budget(300, 12.0, 16.0, 300_000, (1000, 5_000_000)),
+            300_000
+        );
     }
 
     #[test]
