@@ -189,7 +189,7 @@ impl TreeStream {
         if let Some(e) = self.streamer.error() {
             return Err(anyhow::Error::msg(e));
         }
-        let mut opts = self.opts.clone();
+        let mut opts = self.opts;
         if let Some(b) = budget {
             opts.point_budget = b.clamp(self.least_budget(), opts.point_budget);
         }
