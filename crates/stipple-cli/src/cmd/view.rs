@@ -36,6 +36,18 @@ pub struct ViewArgs {
     /// cut (--point-budget, --lod-error).
     #[arg(long, value_name = "MS", value_parser = crate::args::finite_f64)]
     pub frame_budget: Option<f64>,
+    /// Fly along a camera path: a JSON list of cameras as --camera-out writes them
+    /// (keyframes), interpolated over --exit-after frames (default: one frame per camera).
+    #[arg(long, value_name = "PATH.json")]
+    pub camera_path: Option<PathBuf>,
+    /// Close the window after this many frames, printing frame-time statistics (scripted
+    /// runs and benchmarks).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..=10_000_000))]
+    pub exit_after: Option<u64>,
+    /// Write every frame shown as DIR/frame-NNNNN.png (the directory must exist; existing
+    /// files are not replaced).
+    #[arg(long, value_name = "DIR")]
+    pub screenshot_dir: Option<PathBuf>,
     /// Close the window after this many seconds (scripts and tests).
     #[arg(long, value_name = "SECONDS", value_parser = crate::args::finite_f64)]
     pub quit_after: Option<f64>,
@@ -110,6 +122,15 @@ struct App {
     picked: Option<glam::DVec3>,
     /// Milliseconds a frame may take while the view moves (trees coarsen their cut).
     frame_budget: f64,
+    /// A scripted run: the camera path's keyframes and its frames, frames to show before
+    /// closing, where to write every frame.
+    path: Option<(Vec<stipple_core::Camera>, usize)>,
+    exit_after: Option<u64>,
+    screenshot_dir: Option<PathBuf>,
+    /// Per frame shown: milliseconds of the render, and per pass the milliseconds summed.
+    times: Vec<f64>,
+    pass_ms: Vec<(&'static str, f64)>,
+    done: bool,
     quit_at: Option<Instant>,
     error: Option<anyhow::Error>,
 }
@@ -135,6 +156,31 @@ pub fn view(a: ViewArgs) -> Result<()> {
         &given,
         r.source.input.as_ref().map(|p| p.display().to_string()),
     );
+    let path = match &a.camera_path {
+        Some(p) => {
+            let meta = std::fs::metadata(p).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+            if !meta.is_file() || meta.len() > 64 << 20 {
+                return Err(anyhow!(
+                    "{}: not a camera path (a regular JSON file of at most 64 MiB)",
+                    p.display()
+                ));
+            }
+            let text = std::fs::read_to_string(p).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+            let keys =
+                crate::view::nav::read_path(&text).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+            let frames = a.exit_after.map_or(keys.len(), |n| n as usize);
+            Some((keys, frames))
+        }
+        None => None,
+    };
+    if let Some(d) = &a.screenshot_dir {
+        if !d.is_dir() {
+            return Err(anyhow!(
+                "--screenshot-dir {}: not a directory (make it first)",
+                d.display()
+            ));
+        }
+    }
     let event_loop = EventLoop::new().map_err(|e| {
         anyhow!("stipple view cannot open a window ({e}); `stipple render` writes images")
     })?;
@@ -143,7 +189,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
         panel,
         egui: egui::Context::default(),
         egui_state: None,
-        nav: Nav::new(camera, z_up, lo, hi),
+        nav: Nav::new(camera.clone(), z_up, lo, hi),
         last_input: Instant::now(),
         window: None,
         shown: None,
@@ -158,14 +204,22 @@ pub fn view(a: ViewArgs) -> Result<()> {
         status: String::new(),
         picked: None,
         frame_budget: a.frame_budget.unwrap_or(0.0),
+        path,
+        exit_after: a.exit_after,
+        screenshot_dir: a.screenshot_dir.clone(),
+        times: Vec::new(),
+        pass_ms: Vec::new(),
+        done: false,
         quit_at: a
             .quit_after
             .map(|s| Instant::now() + Duration::from_secs_f64(s.clamp(0.0, 1e6))),
         error: None,
     };
+    app.path_step(0);
     event_loop
         .run_app(&mut app)
         .map_err(|e| anyhow!("the window's event loop failed: {e}"))?;
+    app.print_stats();
     match app.error {
         Some(e) => Err(e),
         None => Ok(()),
@@ -378,6 +432,31 @@ impl App {
         }
         self.dirty = false;
         self.frames += 1;
+        self.times.push(ms);
+        for st in &frame.stats {
+            match self.pass_ms.iter_mut().find(|p| p.0 == st.name()) {
+                Some(p) => p.1 += st.ms,
+                None => self.pass_ms.push((st.name(), st.ms)),
+            }
+        }
+        if let Some(d) = &self.screenshot_dir {
+            let p = d.join(format!("frame-{:05}.png", self.frames));
+            if p.exists() {
+                return Err(anyhow!("{}: exists; not replaced", p.display()));
+            }
+            stipple_io::image::write_png(&p, frame.width, frame.height, &frame.rgba)?;
+        }
+        let advance = if self.exit_after.is_some_and(|n| self.frames >= n) {
+            self.done = true;
+            false
+        } else if self.path.is_none() && self.exit_after.is_some() {
+            // A benchmark of one view: the same camera again until N frames.
+            self.dirty = true;
+            window.request_redraw();
+            false
+        } else {
+            self.path.is_some()
+        };
         window.set_title(&format!(
             "stipple view — {} — {}×{} — {ms:.0} ms on {}{}",
             self.scene.label,
@@ -406,7 +485,62 @@ impl App {
             id: frame.id,
             camera: cam,
         });
+        if advance {
+            self.path_step(self.frames as usize);
+        }
         Ok(())
+    }
+
+    /// A scripted run: the camera of frame `k` of the path (nothing past its end).
+    fn path_step(&mut self, k: usize) {
+        let Some((keys, frames)) = &self.path else {
+            return;
+        };
+        if k >= *frames {
+            if k == *frames {
+                println!("camera path done ({frames} frames)");
+            }
+            return;
+        }
+        let mut c = crate::view::nav::path_camera(keys, k, *frames);
+        c.width = self.nav.camera.width;
+        c.height = self.nav.camera.height;
+        self.nav.camera = c;
+        self.nav
+            .resize(self.nav.camera.width, self.nav.camera.height);
+        self.dirty = true;
+        if let Some((w, _)) = &self.window {
+            w.request_redraw();
+        }
+    }
+
+    /// Frame times at exit: median, 95th and 99th percentile, and the passes that took the
+    /// time (mean per frame).
+    fn print_stats(&self) {
+        if self.times.is_empty() {
+            return;
+        }
+        let mut t = self.times.clone();
+        t.sort_by(f64::total_cmp);
+        let at = |q: f64| t[((t.len() - 1) as f64 * q).round() as usize];
+        let n = t.len() as f64;
+        let mut passes = self.pass_ms.clone();
+        passes.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let top: Vec<String> = passes
+            .iter()
+            .take(6)
+            .map(|(name, ms)| format!("{name} {:.2}", ms / n))
+            .collect();
+        println!(
+            "{} frames on {}: render median {:.2} ms, p95 {:.2}, p99 {:.2}, max {:.2}; per frame: {} ms",
+            t.len(),
+            self.scene.renderer.describe(),
+            at(0.5),
+            at(0.95),
+            at(0.99),
+            t[t.len() - 1],
+            top.join(", ")
+        );
     }
 
     /// The view is moving (or rested less than [`REST`]).
@@ -678,7 +812,7 @@ impl ApplicationHandler for App {
     }
 
     fn about_to_wait(&mut self, el: &ActiveEventLoop) {
-        if self.quit_at.is_some_and(|t| Instant::now() >= t) {
+        if self.done || self.quit_at.is_some_and(|t| Instant::now() >= t) {
             el.exit();
             return;
         }

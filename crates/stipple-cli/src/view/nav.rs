@@ -178,6 +178,49 @@ impl Nav {
     }
 }
 
+/// Reads a camera path: a JSON list of cameras as `--camera-out` writes them (keyframes).
+pub fn read_path(text: &str) -> Result<Vec<Camera>, String> {
+    let v: serde_json::Value = serde_json::from_str(text).map_err(|e| format!("not JSON: {e}"))?;
+    let list = v
+        .as_array()
+        .ok_or("a camera path is a JSON list of cameras (as --camera-out writes them)")?;
+    if list.is_empty() || list.len() > 100_000 {
+        return Err(format!("{} cameras: 1 to 100000", list.len()));
+    }
+    list.iter()
+        .enumerate()
+        .map(|(k, c)| {
+            Camera::from_json(&c.to_string()).map_err(|e| format!("camera {}: {e}", k + 1))
+        })
+        .collect()
+}
+
+/// Frame `k` of `frames` along the keyframes: eye, target and up interpolated linearly
+/// between neighbouring keys (the field of view too, between perspective keys), the first
+/// frame at the first key and the last at the last.
+pub fn path_camera(keys: &[Camera], k: usize, frames: usize) -> Camera {
+    let n = keys.len();
+    if n == 1 || frames <= 1 {
+        return keys[0].clone();
+    }
+    let t = (k.min(frames - 1) as f64 / (frames - 1) as f64) * (n - 1) as f64;
+    let i = (t.floor() as usize).min(n - 2);
+    let f = t - i as f64;
+    let (a, b) = (&keys[i], &keys[i + 1]);
+    let mut c = a.clone();
+    c.eye = a.eye.lerp(b.eye, f);
+    c.target = a.target.lerp(b.target, f);
+    c.up = a.up.lerp(b.up, f).normalize_or(a.up);
+    if let (Projection::Perspective { fov_deg: x }, Projection::Perspective { fov_deg: y }) =
+        (a.projection, b.projection)
+    {
+        c.projection = Projection::Perspective {
+            fov_deg: x + (y - x) * f,
+        };
+    }
+    c
+}
+
 /// The point budget of a tree's next cut while the view moves: a frame of `points` that
 /// took `ms` against a target of `target` ms scales it down (to 90% of what fits), a frame
 /// well under the target lets it grow by a quarter; within `range` (one node … the full
@@ -341,6 +384,30 @@ mod tests {
         n.toggle_up();
         assert_eq!((n.up, n.camera.up), (DVec3::Z, DVec3::Z));
         assert!(n.camera.validate().is_ok());
+    }
+
+    #[test]
+    fn camera_paths_interpolate_between_keyframes() {
+        let n = nav();
+        let mut b = n.camera.clone();
+        b.eye = DVec3::new(5.0, 0.0, 5.0);
+        b.projection = Projection::Perspective { fov_deg: 60.0 };
+        let keys = vec![n.camera.clone(), b.clone()];
+        assert_eq!(path_camera(&keys, 0, 5).eye, n.camera.eye);
+        assert_eq!(path_camera(&keys, 4, 5).eye, b.eye);
+        let mid = path_camera(&keys, 2, 5);
+        assert!((mid.eye - DVec3::new(2.5, 0.0, 5.0)).length() < 1e-12);
+        assert_eq!(mid.projection, Projection::Perspective { fov_deg: 50.0 });
+        // As --camera-out writes them, and errors that say which camera.
+        let json = format!("[{}, {}]", n.camera.to_json(), b.to_json());
+        let back = read_path(&json).unwrap();
+        assert_eq!(back.len(), 2);
+        assert!((back[1].eye - b.eye).length() < 1e-12);
+        assert!(read_path("{}").unwrap_err().contains("list"));
+        assert!(read_path("[]").unwrap_err().contains("0 cameras"));
+        assert!(read_path("[{\"eye\": 1}]")
+            .unwrap_err()
+            .contains("camera 1"));
     }
 
     #[test]
