@@ -122,6 +122,9 @@ struct App {
     picked: Option<glam::DVec3>,
     /// Milliseconds a frame may take while the view moves (trees coarsen their cut).
     frame_budget: f64,
+    /// The window's size and the open panel's width, in pixels.
+    window_size: (u32, u32),
+    panel_px: u32,
     /// A scripted run: the camera path's keyframes and its frames, frames to show before
     /// closing, where to write every frame.
     path: Option<(Vec<stipple_core::Camera>, usize)>,
@@ -204,6 +207,8 @@ pub fn view(a: ViewArgs) -> Result<()> {
         status: String::new(),
         picked: None,
         frame_budget: a.frame_budget.unwrap_or(0.0),
+        window_size: (camera.width, camera.height),
+        panel_px: 0,
         path,
         exit_after: a.exit_after,
         screenshot_dir: a.screenshot_dir.clone(),
@@ -343,7 +348,13 @@ impl App {
         let raw = state.take_egui_input(window);
         let panel = &mut self.panel;
         let mut apply = false;
-        let out = self.egui.run_ui(raw, |ui| apply |= panel.ui(ui));
+        let mut width = 0.0;
+        let out = self.egui.run_ui(raw, |ui| {
+            let (a, w) = panel.ui(ui);
+            apply |= a;
+            width = w;
+        });
+        self.panel_px = (width * out.pixels_per_point).ceil().max(0.0) as u32;
         state.handle_platform_output(window, out.platform_output);
         let primitives = self.egui.tessellate(out.shapes, out.pixels_per_point);
         (
@@ -363,18 +374,26 @@ impl App {
 
     /// Renders the current view and shows it.
     fn draw(&mut self) -> Result<()> {
-        let (overlay, apply) = self.overlay();
+        let (mut overlay, apply) = self.overlay();
         if apply {
             self.apply();
         }
         let moving = self.moving();
+        // The frame fills the window right of the panel.
+        let left = if self.panel.visible { self.panel_px } else { 0 };
+        let (ww, wh) = self.window_size;
+        let fw = ww.saturating_sub(left).max(1);
+        if (fw, wh.max(1)) != (self.nav.camera.width, self.nav.camera.height) {
+            self.nav.resize(fw, wh.max(1));
+            self.dirty = true;
+        }
         let Some((window, presenter)) = &mut self.window else {
             return Ok(());
         };
         if let (false, Some(s)) = (self.dirty, &self.shown) {
             // Nothing moved (the window was uncovered, the panel changed): show the last
             // frame again.
-            if !presenter.show(s.w, s.h, &s.rgba, overlay.as_ref())? {
+            if !presenter.show(s.w, s.h, &s.rgba, left, overlay.as_mut())? {
                 window.request_redraw();
             }
             return Ok(());
@@ -425,7 +444,13 @@ impl App {
             };
             st.moving_budget = (next as u64).clamp(st.tree.least_budget(), st.tree.point_budget());
         }
-        let shown = presenter.show(frame.width, frame.height, &frame.rgba, overlay.as_ref())?;
+        let shown = presenter.show(
+            frame.width,
+            frame.height,
+            &frame.rgba,
+            left,
+            overlay.as_mut(),
+        )?;
         if !shown {
             window.request_redraw();
             return Ok(());
@@ -745,9 +770,8 @@ impl ApplicationHandler for App {
                 if let Some((_, p)) = &mut self.window {
                     p.resize(size.width, size.height);
                 }
-                if (size.width, size.height) != (self.nav.camera.width, self.nav.camera.height) {
-                    self.nav.resize(size.width, size.height);
-                }
+                // The frame's size follows in `draw` (beside the panel when it is open).
+                self.window_size = (size.width, size.height);
                 self.changed();
             }
             WindowEvent::RedrawRequested => {

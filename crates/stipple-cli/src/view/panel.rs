@@ -110,10 +110,10 @@ impl Panel {
         v
     }
 
-    /// Draws the panel; true when Apply was pressed.
-    pub fn ui(&mut self, ui: &mut egui::Ui) -> bool {
+    /// Draws the panel; whether Apply was pressed, and the panel's width in points.
+    pub fn ui(&mut self, ui: &mut egui::Ui) -> (bool, f32) {
         let mut apply = false;
-        egui::Panel::left("stipple-options")
+        let r = egui::Panel::left("stipple-options")
             .default_size(300.0)
             .show(ui, |ui| {
                 ui.heading("stipple render options");
@@ -164,7 +164,7 @@ impl Panel {
                     }
                 });
             });
-        apply
+        (apply, r.response.rect.width())
     }
 }
 

@@ -14,17 +14,23 @@ use winit::window::Window;
 const BLIT: &str = r#"
 @group(0) @binding(0) var frame: texture_2d<f32>;
 
+struct Out {
+    @builtin(position) position: vec4<f32>,
+    // 0..1 across the viewport the frame is drawn into, top left at (0, 0).
+    @location(0) uv: vec2<f32>,
+}
+
 @vertex
-fn vs(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+fn vs(@builtin(vertex_index) i: u32) -> Out {
     let x = f32(i32(i & 1u) * 4 - 1);
     let y = f32(i32(i >> 1u) * 4 - 1);
-    return vec4<f32>(x, y, 0.0, 1.0);
+    return Out(vec4<f32>(x, y, 0.0, 1.0), vec2<f32>(0.5 * (x + 1.0), 0.5 * (1.0 - y)));
 }
 
 @fragment
-fn fs(@builtin(position) p: vec4<f32>) -> @location(0) vec4<f32> {
+fn fs(o: Out) -> @location(0) vec4<f32> {
     let size = vec2<i32>(textureDimensions(frame));
-    let q = min(vec2<i32>(p.xy), size - vec2<i32>(1, 1));
+    let q = clamp(vec2<i32>(floor(o.uv * vec2<f32>(size))), vec2<i32>(0, 0), size - vec2<i32>(1, 1));
     return textureLoad(frame, q, 0);
 }
 "#;
@@ -34,6 +40,14 @@ pub struct Overlay {
     pub primitives: Vec<egui::ClippedPrimitive>,
     pub textures: egui::TexturesDelta,
     pub pixels_per_point: f32,
+}
+
+impl Drop for Overlay {
+    /// An overlay dropped unshown (the frame failed, the app ends): its texture changes go
+    /// with it (egui asks that they be cleared, not dropped).
+    fn drop(&mut self) {
+        self.textures.clear();
+    }
 }
 
 /// The window's surface and what copies a frame onto it.
@@ -179,7 +193,43 @@ impl Presenter {
 
     /// Shows a frame (`rgba`: w × h sRGB bytes, row 0 at the top). Returns false when the
     /// surface was not ready (occluded, outdated): the caller draws again later.
-    pub fn show(&mut self, w: u32, h: u32, rgba: &[u8], overlay: Option<&Overlay>) -> Result<bool> {
+    /// `left`: the frame's left edge in the window (right of the open panel).
+    pub fn show(
+        &mut self,
+        w: u32,
+        h: u32,
+        rgba: &[u8],
+        left: u32,
+        mut overlay: Option<&mut Overlay>,
+    ) -> Result<bool> {
+        // The panel's texture changes first, whatever happens to this frame (egui sends each
+        // change once).
+        if let Some(o) = overlay.as_deref_mut() {
+            for (id, deltas) in &o.textures.set {
+                for delta in deltas {
+                    self.egui
+                        .update_texture(&self.device, &self.queue, *id, delta);
+                }
+            }
+        }
+        let r = self.show_frame(w, h, rgba, left, overlay.as_deref());
+        if let Some(o) = overlay {
+            for id in &o.textures.free {
+                self.egui.free_texture(id);
+            }
+            o.textures.clear();
+        }
+        r
+    }
+
+    fn show_frame(
+        &mut self,
+        w: u32,
+        h: u32,
+        rgba: &[u8],
+        left: u32,
+        overlay: Option<&Overlay>,
+    ) -> Result<bool> {
         if rgba.len() != (w as usize) * (h as usize) * 4 || w == 0 || h == 0 {
             return Err(anyhow!("a frame of {w}x{h} with {} bytes", rgba.len()));
         }
@@ -250,12 +300,6 @@ impl Presenter {
         };
         let mut extra = Vec::new();
         if let Some(o) = overlay {
-            for (id, deltas) in &o.textures.set {
-                for delta in deltas {
-                    self.egui
-                        .update_texture(&self.device, &self.queue, *id, delta);
-                }
-            }
             extra = self.egui.update_buffers(
                 &self.device,
                 &self.queue,
@@ -283,15 +327,21 @@ impl Presenter {
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, group, &[]);
+            let (cw, ch) = (self.config.width as f32, self.config.height as f32);
+            let x0 = (left as f32).min(cw - 1.0);
+            pass.set_viewport(
+                x0,
+                0.0,
+                (w as f32).min(cw - x0),
+                (h as f32).min(ch),
+                0.0,
+                1.0,
+            );
             pass.draw(0..3, 0..1);
+            pass.set_viewport(0.0, 0.0, cw, ch, 0.0, 1.0);
             if let Some(o) = overlay {
                 let mut pass = pass.forget_lifetime();
                 self.egui.render(&mut pass, &o.primitives, &screen);
-            }
-        }
-        if let Some(o) = overlay {
-            for id in &o.textures.free {
-                self.egui.free_texture(id);
             }
         }
         self.queue.submit(extra.into_iter().chain([enc.finish()]));
