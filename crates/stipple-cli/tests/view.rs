@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 fn tool(name: &str) -> Option<PathBuf> {
@@ -136,63 +136,152 @@ fn wait_for(path: &Path, what: &str) {
     // Written through a temporary file and renamed: complete once it exists.
 }
 
-#[test]
-fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
-    let Some([xvfb, xwd, xdotool]) = tools() else {
-        return;
-    };
-    let display = start_display(&xvfb);
-    let dir = tempdir("view");
-    let (w, h) = (200usize, 150usize);
-    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "view",
-            "--size",
-            &format!("{w}x{h}"),
-            "--backend",
-            "cpu",
-            "--quit-after",
-            "120",
-            "-o",
-            "shot",
-        ])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Wait for the first frame on the screen.
-    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
-    let first = out.next().and_then(|l| l.ok()).unwrap_or_default();
-    assert!(first.starts_with("showing"), "the viewer said {first:?}");
-    let x = |args: &[&str]| {
-        let o = Command::new(&xdotool)
+/// A viewer on its own virtual display: its standard output read line by line (kept open:
+/// a closed pipe would end it), the display's mouse, keys and screen.
+struct Session {
+    viewer: Child,
+    out: std::io::Lines<std::io::BufReader<ChildStdout>>,
+    /// What the viewer printed up to its first frame ("showing …" last).
+    said: Vec<String>,
+    xdotool: PathBuf,
+    xwd: PathBuf,
+    window: String,
+    // Dropped last: the display outlives the viewer's window.
+    display: Display,
+}
+
+impl Session {
+    /// Starts `stipple view ARGS` in `dir` on a display of its own and waits for its first
+    /// frame; the window has the keyboard.
+    fn start(tools: &[PathBuf; 3], dir: &Path, args: &[&str]) -> Session {
+        let [xvfb, xwd, xdotool] = tools.clone();
+        let display = start_display(&xvfb);
+        let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .arg("view")
             .args(args)
+            .args(["--quit-after", "120"])
+            .current_dir(dir)
             .env("DISPLAY", &display.name)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
+        let mut s = Session {
+            viewer,
+            out,
+            said: Vec::new(),
+            xdotool,
+            xwd,
+            window: String::new(),
+            display,
+        };
+        let first = s.line("showing");
+        assert!(first.starts_with("showing"), "the viewer said {:?}", s.said);
+        let id = s.x(&["search", "--sync", "--name", "stipple view"]);
+        s.window = id.lines().next().unwrap().to_string();
+        s.x(&["windowfocus", "--sync", &s.window.clone()]);
+        s
+    }
+
+    /// xdotool on this display; its output.
+    fn x(&self, args: &[&str]) -> String {
+        let o = Command::new(&self.xdotool)
+            .args(args)
+            .env("DISPLAY", &self.display.name)
             .output()
             .unwrap();
         assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
         String::from_utf8_lossy(&o.stdout).trim().to_string()
-    };
-    let id = x(&["search", "--sync", "--name", "stipple view"]);
-    let id = id.lines().next().unwrap().to_string();
-    x(&["windowfocus", "--sync", &id]);
+    }
+
+    /// The next line the viewer prints that starts with `prefix` ("" if it ends first).
+    fn line(&mut self, prefix: &str) -> String {
+        for l in self.out.by_ref().map_while(|l| l.ok()) {
+            self.said.push(l.clone());
+            if l.starts_with(prefix) {
+                return l;
+            }
+        }
+        String::new()
+    }
+
+    /// Waits while the window's title says `what` (nodes loading, shadows refining).
+    fn wait_title_without(&self, what: &str) {
+        let t0 = Instant::now();
+        while self.x(&["getwindowname", &self.window]).contains(what) {
+            assert!(
+                t0.elapsed() < Duration::from_secs(60),
+                "the title kept saying {what}"
+            );
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// The window's pixels more than a level off `reference` once the screen settled.
+    fn settled(&self, reference: &[u8], w: usize, h: usize) -> usize {
+        settled_difference(&self.xwd, &self.display.name, reference, w, h)
+    }
+
+    /// The whole screen now.
+    fn screen(&self) -> (usize, usize, Vec<[u8; 3]>) {
+        let o = Command::new(&self.xwd)
+            .args(["-root", "-silent"])
+            .env("DISPLAY", &self.display.name)
+            .output()
+            .unwrap();
+        read_xwd(&o.stdout)
+    }
+
+    /// Escape, and the viewer's exit.
+    fn close(mut self) -> ExitStatus {
+        self.x(&["key", "Escape"]);
+        let t0 = Instant::now();
+        loop {
+            if let Some(s) = self.viewer.try_wait().unwrap() {
+                return s;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(30),
+                "Escape did not close the viewer"
+            );
+            std::thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
+
+/// `stipple render ARGS` in `dir`, which must succeed; the image it wrote to `out`.
+fn render(dir: &Path, args: &[&str], out: &str) -> Vec<u8> {
+    let mut a = vec!["render"];
+    a.extend(args);
+    a.extend(["--backend", "cpu", "-o", out]);
+    let o = stipple(dir, &a);
+    assert!(o.status.success(), "{}", text(&o));
+    stipple_io::image::read_png(&dir.join(out)).unwrap().2
+}
+
+#[test]
+fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
+    let Some(tools) = tools() else { return };
+    let dir = tempdir("view");
+    let (w, h) = (200usize, 150usize);
+    let size = format!("{w}x{h}");
+    let mut s = Session::start(
+        &tools,
+        &dir,
+        &["--size", &size, "--backend", "cpu", "-o", "shot"],
+    );
     // Orbit: a drag to the right and down with the left button.
-    x(&["mousemove", "--sync", "60", "60"]);
-    x(&["mousedown", "1"]);
-    x(&["mousemove", "--sync", "110", "75"]);
-    x(&["mouseup", "1"]);
+    s.x(&["mousemove", "--sync", "60", "60"]);
+    s.x(&["mousedown", "1"]);
+    s.x(&["mousemove", "--sync", "110", "75"]);
+    s.x(&["mouseup", "1"]);
     std::thread::sleep(Duration::from_millis(500));
     // A double click in the middle picks a point: its coordinates and the point's own
     // position and colour are printed, and the orbit centres on it.
-    x(&["mousemove", "--sync", "100", "75"]);
-    x(&["click", "--repeat", "2", "--delay", "80", "1"]);
-    let picked = out
-        .by_ref()
-        .map_while(|l| l.ok())
-        .find(|l| l.starts_with("picked"))
-        .unwrap_or_default();
+    s.x(&["mousemove", "--sync", "100", "75"]);
+    s.x(&["click", "--repeat", "2", "--delay", "80", "1"]);
+    let picked = s.line("picked");
     let xyz: Vec<f64> = picked
         .split_whitespace()
         .skip(1)
@@ -205,78 +294,41 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
     );
     std::thread::sleep(Duration::from_millis(500));
     // Save the camera (C) and the viewer's own screenshot (P).
-    x(&["key", "c"]);
-    let cam = dir.join("shot-1.json");
-    wait_for(&cam, "the camera");
-    x(&["key", "p"]);
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    s.x(&["key", "p"]);
     let shot = dir.join("shot-1.png");
     wait_for(&shot, "the screenshot");
     // What render draws for the saved camera, and the window as a person sees it.
-    let o = stipple(
-        &dir,
-        &[
-            "render",
-            "--camera",
-            "shot-1.json",
-            "--backend",
-            "cpu",
-            "-o",
-            "ref.png",
-        ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let (rw, rh, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    assert_eq!((rw as usize, rh as usize), (w, h));
-    let off = settled_difference(&xwd, &display.name, &reference, w, h);
-    // Escape closes the window.
-    x(&["key", "Escape"]);
-    let t0 = Instant::now();
-    let status = loop {
-        if let Some(s) = viewer.try_wait().unwrap() {
-            break s;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(30),
-            "Escape did not close the viewer"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    };
-    assert!(status.success(), "the viewer failed");
-    // The camera moved: its eye is not the opening one.
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
-    let o = stipple(
-        &dir,
-        &[
-            "render",
-            "--size",
-            &format!("{w}x{h}"),
-            "--backend",
-            "cpu",
-            "--camera-out",
-            "home.json",
-            "-o",
-            "home.png",
-        ],
-    );
-    assert!(o.status.success(), "{}", text(&o));
-    let home: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("home.json")).unwrap()).unwrap();
-    assert_ne!(json["eye"], home["eye"], "the drag orbited the camera");
-    let (sw, sh, own) = stipple_io::image::read_png(&shot).unwrap();
-    assert_eq!((sw, sh), (rw, rh));
-    assert!(
-        own == reference,
-        "the viewer's screenshot is the render of its camera"
-    );
-    // The window on the screen, at the top-left corner (no window manager).
+    let reference = render(&dir, &["--camera", "shot-1.json"], "ref.png");
+    let off = s.settled(&reference, w, h);
+    assert!(s.close().success(), "the viewer failed");
     assert!(
         off * 1000 <= w * h,
         "{off} of {} window pixels differ from render's image of the saved camera",
         w * h
     );
-    // And the window is not blank: it differs from the opening view.
-    let (_, _, opening) = stipple_io::image::read_png(&dir.join("home.png")).unwrap();
+    let (_, _, own) = stipple_io::image::read_png(&shot).unwrap();
+    assert!(
+        own == reference,
+        "the viewer's screenshot is the render of its camera"
+    );
+    // The camera moved: neither its eye nor its image is the opening one.
+    let opening = render(
+        &dir,
+        &["--size", &size, "--camera-out", "home.json"],
+        "home.png",
+    );
+    let eye = |f: &str| {
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join(f)).unwrap()).unwrap();
+        v["eye"].clone()
+    };
+    assert_ne!(
+        eye("shot-1.json"),
+        eye("home.json"),
+        "the drag orbited the camera"
+    );
     assert!(
         opening != reference,
         "the window moved away from the opening view"
@@ -289,10 +341,7 @@ fn the_window_shows_what_render_draws_for_the_camera_it_saves() {
 /// with every sample for the same camera.
 #[test]
 fn shadows_refine_while_the_view_rests() {
-    let Some([xvfb, xwd, xdotool]) = tools() else {
-        return;
-    };
-    let display = start_display(&xvfb);
+    let Some(tools) = tools() else { return };
     let dir = tempdir("view-shadows");
     std::fs::write(
         dir.join("s.toml"),
@@ -304,72 +353,27 @@ fn shadows_refine_while_the_view_rests() {
     )
     .unwrap();
     let (w, h) = (160usize, 120usize);
-    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "view",
-            "s.toml",
-            "--size",
-            &format!("{w}x{h}"),
-            "--backend",
-            "cpu",
-        ])
-        .args(["--quit-after", "120", "-o", "shot"])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // Kept open to the end: the viewer still prints (a closed pipe would end it).
-    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
-    let mut said = Vec::new();
-    for line in out.by_ref() {
-        let line = line.unwrap();
-        said.push(line.clone());
-        if line.starts_with("shadows refined") {
-            break;
-        }
-    }
-    assert!(
-        said[0].starts_with("shadows: 1 light samples"),
-        "the window opens with one sample: {said:?}"
-    );
-    assert!(
-        said.iter().any(|l| l == "shadows refined: 6 light samples"),
-        "{said:?}"
-    );
-    let x = |args: &[&str]| {
-        let o = Command::new(&xdotool)
-            .args(args)
-            .env("DISPLAY", &display.name)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
-        String::from_utf8_lossy(&o.stdout).trim().to_string()
-    };
-    let id = x(&["search", "--sync", "--name", "stipple view"]);
-    x(&["windowfocus", "--sync", id.lines().next().unwrap()]);
-    std::thread::sleep(Duration::from_millis(500));
-    x(&["key", "c"]);
-    wait_for(&dir.join("shot-1.json"), "the camera");
-    let o = stipple(
+    let size = format!("{w}x{h}");
+    let mut s = Session::start(
+        &tools,
         &dir,
-        &[
-            "render",
-            "s.toml",
-            "--camera",
-            "shot-1.json",
-            "--backend",
-            "cpu",
-            "-o",
-            "ref.png",
-        ],
+        &["s.toml", "--size", &size, "--backend", "cpu", "-o", "shot"],
     );
-    assert!(o.status.success(), "{}", text(&o));
-    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    let off = settled_difference(&xwd, &display.name, &reference, w, h);
-    x(&["key", "Escape"]);
-    let _ = viewer.wait();
+    assert!(
+        s.said[0].starts_with("shadows: 1 light samples"),
+        "the window opens with one sample: {:?}",
+        s.said
+    );
+    assert_eq!(
+        s.line("shadows refined"),
+        "shadows refined: 6 light samples"
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    let reference = render(&dir, &["s.toml", "--camera", "shot-1.json"], "ref.png");
+    let off = s.settled(&reference, w, h);
+    s.close();
     assert!(
         off * 1000 <= w * h,
         "{off} pixels differ from render's fully sampled shadows"
@@ -382,10 +386,7 @@ fn shadows_refine_while_the_view_rests() {
 /// for the same camera (which waits for the whole cut).
 #[test]
 fn a_tree_streams_into_the_window() {
-    let Some([xvfb, xwd, xdotool]) = tools() else {
-        return;
-    };
-    let display = start_display(&xvfb);
+    let Some(tools) = tools() else { return };
     let dir = tempdir("view-tree");
     for args in [
         &["gen", "torus", "-o", "t.ply", "--points", "300000"][..],
@@ -395,79 +396,24 @@ fn a_tree_streams_into_the_window() {
         assert!(o.status.success(), "{args:?}: {}", text(&o));
     }
     let (w, h) = (160usize, 120usize);
-    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "view",
-            "t.stlod",
-            "--size",
-            &format!("{w}x{h}"),
-            "--backend",
-            "cpu",
-        ])
-        .args(["--quit-after", "120", "-o", "shot"])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
-    let first = out.next().and_then(|l| l.ok()).unwrap_or_default();
-    assert!(first.starts_with("showing"), "the viewer said {first:?}");
-    let x = |args: &[&str]| {
-        let o = Command::new(&xdotool)
-            .args(args)
-            .env("DISPLAY", &display.name)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
-        String::from_utf8_lossy(&o.stdout).trim().to_string()
-    };
-    let id = x(&["search", "--sync", "--name", "stipple view"]);
-    let id = id.lines().next().unwrap().to_string();
-    // Until no node is loading any more (the title says so while they are).
-    let t0 = Instant::now();
-    while x(&["getwindowname", &id]).contains("loading") {
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "nodes never finished loading"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    // Zoom in a notch: a new cut, streamed again.
-    x(&["windowfocus", "--sync", &id]);
-    x(&["mousemove", "--sync", "80", "60"]);
-    x(&["click", "4"]);
-    std::thread::sleep(Duration::from_millis(300));
-    let t0 = Instant::now();
-    while x(&["getwindowname", &id]).contains("loading") {
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "nodes never finished loading"
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    std::thread::sleep(Duration::from_millis(300));
-    x(&["key", "c"]);
-    wait_for(&dir.join("shot-1.json"), "the camera");
-    let o = stipple(
+    let size = format!("{w}x{h}");
+    let s = Session::start(
+        &tools,
         &dir,
-        &[
-            "render",
-            "t.stlod",
-            "--camera",
-            "shot-1.json",
-            "--backend",
-            "cpu",
-            "-o",
-            "ref.png",
-        ],
+        &["t.stlod", "--size", &size, "--backend", "cpu", "-o", "shot"],
     );
-    assert!(o.status.success(), "{}", text(&o));
-    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    let off = settled_difference(&xwd, &display.name, &reference, w, h);
-    x(&["key", "Escape"]);
-    let _ = viewer.wait();
+    s.wait_title_without("loading");
+    // Zoom in a notch: a new cut, coarse while moving, streamed and refined at rest.
+    s.x(&["mousemove", "--sync", "80", "60"]);
+    s.x(&["click", "4"]);
+    std::thread::sleep(Duration::from_millis(300));
+    s.wait_title_without("loading");
+    s.wait_title_without("moving");
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    let reference = render(&dir, &["t.stlod", "--camera", "shot-1.json"], "ref.png");
+    let off = s.settled(&reference, w, h);
+    s.close();
     assert!(
         off * 1000 <= w * h,
         "{off} pixels differ from render's cut of the tree"
@@ -481,50 +427,22 @@ fn a_tree_streams_into_the_window() {
 
 /// The panel (Tab) holds every `render` option by its flag's name: filtered to
 /// `no-lighting`, ticked and applied, the window shows what `render --no-lighting` draws for
-/// the same camera; a hidden panel leaves the image whole.
+/// the same camera; the panel opens beside the image and closes again.
 #[test]
 fn the_panel_applies_render_options() {
-    let Some([xvfb, xwd, xdotool]) = tools() else {
-        return;
-    };
-    let display = start_display(&xvfb);
+    let Some(tools) = tools() else { return };
     let dir = tempdir("view-panel");
     let (w, h) = (400usize, 300usize);
-    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args(["view", "--size", &format!("{w}x{h}"), "--backend", "cpu"])
-        .args(["--quit-after", "120", "-o", "shot"])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
-    let first = out.next().and_then(|l| l.ok()).unwrap_or_default();
-    assert!(first.starts_with("showing"), "the viewer said {first:?}");
-    let x = |args: &[&str]| {
-        let o = Command::new(&xdotool)
-            .args(args)
-            .env("DISPLAY", &display.name)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "xdotool {args:?}: {}", text(&o));
-        String::from_utf8_lossy(&o.stdout).trim().to_string()
-    };
-    let screen = || {
-        let o = Command::new(&xwd)
-            .args(["-root", "-silent"])
-            .env("DISPLAY", &display.name)
-            .output()
-            .unwrap();
-        read_xwd(&o.stdout)
-    };
-    let id = x(&["search", "--sync", "--name", "stipple view"]);
-    x(&["windowfocus", "--sync", id.lines().next().unwrap()]);
-    let before = screen();
-    x(&["key", "Tab"]);
+    let size = format!("{w}x{h}");
+    let mut s = Session::start(
+        &tools,
+        &dir,
+        &["--size", &size, "--backend", "cpu", "-o", "shot"],
+    );
+    let before = s.screen();
+    s.x(&["key", "Tab"]);
     std::thread::sleep(Duration::from_millis(700));
-    let with_panel = screen();
+    let with_panel = s.screen();
     let changed = (0..h)
         .flat_map(|y| (0..120).map(move |x| (x, y)))
         .filter(|&(x, y)| before.2[y * before.0 + x] != with_panel.2[y * with_panel.0 + x])
@@ -534,47 +452,32 @@ fn the_panel_applies_render_options() {
         "Tab shows the panel on the left ({changed} pixels changed)"
     );
     // Filter (the text field at the top), tick the one option left, Apply.
-    x(&["mousemove", "--sync", "165", "69", "click", "1"]);
-    x(&["type", "--delay", "20", "no-lighting"]);
+    s.x(&["mousemove", "--sync", "165", "69", "click", "1"]);
+    s.x(&["type", "--delay", "20", "no-lighting"]);
     std::thread::sleep(Duration::from_millis(400));
-    x(&["mousemove", "--sync", "15", "124", "click", "1"]);
+    s.x(&["mousemove", "--sync", "15", "124", "click", "1"]);
     std::thread::sleep(Duration::from_millis(300));
-    x(&["mousemove", "--sync", "32", "92", "click", "1"]);
-    let applied = out
-        .by_ref()
-        .map_while(|l| l.ok())
-        .find(|l| l.starts_with("applied"))
-        .unwrap_or_default();
+    s.x(&["mousemove", "--sync", "32", "92", "click", "1"]);
+    let applied = s.line("applied");
     assert!(
         applied.contains("--no-lighting"),
-        "the viewer said {applied:?}"
+        "the viewer said {:?}",
+        s.said
     );
-    // Hide the panel, save the camera, look at the window (a click on the image first takes
-    // the keyboard from the panel's text field).
-    x(&["mousemove", "--sync", "380", "280", "click", "1"]);
-    x(&["key", "Tab"]);
+    // Hide the panel (a click on the image first takes the keyboard from the text field),
+    // save the camera, look at the window.
+    s.x(&["mousemove", "--sync", "380", "280", "click", "1"]);
+    s.x(&["key", "Tab"]);
     std::thread::sleep(Duration::from_millis(500));
-    x(&["key", "c"]);
+    s.x(&["key", "c"]);
     wait_for(&dir.join("shot-1.json"), "the camera");
-    std::thread::sleep(Duration::from_millis(300));
-    let o = stipple(
+    let reference = render(
         &dir,
-        &[
-            "render",
-            "--camera",
-            "shot-1.json",
-            "--no-lighting",
-            "--backend",
-            "cpu",
-            "-o",
-            "ref.png",
-        ],
+        &["--camera", "shot-1.json", "--no-lighting"],
+        "ref.png",
     );
-    assert!(o.status.success(), "{}", text(&o));
-    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    let off = settled_difference(&xwd, &display.name, &reference, w, h);
-    x(&["key", "Escape"]);
-    let _ = viewer.wait();
+    let off = s.settled(&reference, w, h);
+    s.close();
     assert!(
         off * 1000 <= w * h,
         "{off} pixels differ from render --no-lighting"
@@ -584,48 +487,25 @@ fn the_panel_applies_render_options() {
 
 /// A scripted run on real data: 30 frames of the Stanford bunny along a camera path (an
 /// orbit of keyframes), every frame written to a folder; the window's last frame on the
-/// screen, and the last file, equal `stipple render` of the path's last camera; frame-time
-/// statistics are printed at exit.
+/// screen, and the last file, equal `stipple render` of the path's last camera.
 #[test]
 fn a_camera_path_on_real_data_ends_where_render_draws() {
-    let Some([xvfb, xwd, _]) = tools() else {
-        return;
-    };
+    let Some(tools) = tools() else { return };
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
     let bunny = data.join("stanford/bunny/bun_zipper.ply");
     if !bunny.is_file() {
         eprintln!("skipped: {} is absent", bunny.display());
         return;
     }
-    let display = start_display(&xvfb);
     let dir = tempdir("view-path");
     let (w, h) = (200usize, 150usize);
-    let bunny_s = bunny.to_str().unwrap();
-    let o = stipple(
+    let size = format!("{w}x{h}");
+    let bunny = bunny.to_str().unwrap();
+    let opening = render(
         &dir,
-        &[
-            "render",
-            bunny_s,
-            "--size",
-            &format!("{w}x{h}"),
-            "--backend",
-            "cpu",
-        ],
+        &[bunny, "--size", &size, "--camera-out", "home.json"],
+        "home.png",
     );
-    let o2 = stipple(
-        &dir,
-        &[
-            "render",
-            bunny_s,
-            "--size",
-            &format!("{w}x{h}"),
-            "--camera-out",
-            "home.json",
-            "-o",
-            "home.png",
-        ],
-    );
-    assert!(o.status.success() && o2.status.success(), "{}", text(&o2));
     let home =
         stipple_core::Camera::from_json(&std::fs::read_to_string(dir.join("home.json")).unwrap())
             .unwrap();
@@ -647,57 +527,34 @@ fn a_camera_path_on_real_data_ends_where_render_draws() {
     std::fs::write(dir.join("path.json"), format!("[{}]", keys.join(","))).unwrap();
     std::fs::write(dir.join("last.json"), &keys[29]).unwrap();
     std::fs::create_dir_all(dir.join("frames")).unwrap();
-    let mut viewer = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "view",
-            bunny_s,
-            "--size",
-            &format!("{w}x{h}"),
-            "--backend",
-            "cpu",
-        ])
-        .args(["--camera-path", "path.json", "--screenshot-dir", "frames"])
-        .args(["--quit-after", "120"])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut out = std::io::BufReader::new(viewer.stdout.take().unwrap()).lines();
-    let done = out
-        .by_ref()
-        .map_while(|l| l.ok())
-        .find(|l| l.starts_with("camera path done"))
-        .unwrap_or_default();
-    assert_eq!(done, "camera path done (30 frames)");
-    let o = stipple(
+    let mut s = Session::start(
+        &tools,
         &dir,
         &[
-            "render",
-            bunny_s,
-            "--camera",
-            "last.json",
+            bunny,
+            "--size",
+            &size,
             "--backend",
             "cpu",
-            "-o",
-            "ref.png",
+            "--camera-path",
+            "path.json",
+            "--screenshot-dir",
+            "frames",
         ],
     );
-    assert!(o.status.success(), "{}", text(&o));
-    let (_, _, reference) = stipple_io::image::read_png(&dir.join("ref.png")).unwrap();
-    let off = settled_difference(&xwd, &display.name, &reference, w, h);
-    // Close it (SIGTERM is not needed: the window's close is the quit-after timer or
-    // Escape; here the test ends it by closing its display's window through xdotool-free
-    // means: quit-after is long, so kill and collect).
-    let _ = viewer.kill();
-    let _ = viewer.wait();
+    assert_eq!(s.line("camera path done"), "camera path done (30 frames)");
+    let reference = render(&dir, &[bunny, "--camera", "last.json"], "ref.png");
+    let off = s.settled(&reference, w, h);
+    s.close();
     assert!(
         off * 1000 <= w * h,
         "{off} pixels of the last frame differ from render"
     );
-    let frames = std::fs::read_dir(dir.join("frames")).unwrap().count();
-    assert_eq!(frames, 30, "every frame written");
+    assert_eq!(
+        std::fs::read_dir(dir.join("frames")).unwrap().count(),
+        30,
+        "every frame written"
+    );
     // The files: the last is render's image of the last camera, the first of the first
     // (within the screen's tolerance: the viewer fits near and far to the cloud for every
     // camera of the path, where the keyframes carry the opening camera's).
@@ -706,14 +563,17 @@ fn a_camera_path_on_real_data_ends_where_render_draws() {
             .filter(|&k| (0..3).any(|c| a[4 * k + c].abs_diff(b[4 * k + c]) > 1))
             .count()
     };
-    let (_, _, last) = stipple_io::image::read_png(&dir.join("frames/frame-00030.png")).unwrap();
+    let frame = |n: u32| {
+        stipple_io::image::read_png(&dir.join(format!("frames/frame-{n:05}.png")))
+            .unwrap()
+            .2
+    };
+    let (first, last) = (frame(1), frame(30));
     let d = differ(&last, &reference);
     assert!(
         d * 1000 <= w * h,
         "the last frame written: {d} pixels differ from render"
     );
-    let (_, _, first) = stipple_io::image::read_png(&dir.join("frames/frame-00001.png")).unwrap();
-    let (_, _, opening) = stipple_io::image::read_png(&dir.join("home.png")).unwrap();
     let d = differ(&first, &opening);
     assert!(
         d * 1000 <= w * h,
@@ -729,9 +589,7 @@ fn a_camera_path_on_real_data_ends_where_render_draws() {
 /// `--exit-after N` closes the window after N frames and prints frame-time statistics.
 #[test]
 fn a_scripted_run_prints_frame_statistics() {
-    let Some([xvfb, _, _]) = tools() else {
-        return;
-    };
+    let Some([xvfb, _, _]) = tools() else { return };
     let display = start_display(&xvfb);
     let dir = tempdir("view-stats");
     let o = Command::new(env!("CARGO_BIN_EXE_stipple"))

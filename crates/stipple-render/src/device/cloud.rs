@@ -225,62 +225,47 @@ impl GpuCloud {
             }
             return Ok(());
         };
-        if rb.len() != self.len {
-            return Err(GpuError::TooLarge(format!(
-                "coloured lit sums for {} points, the cloud has {}",
-                rb.len(),
-                self.len
-            )));
-        }
-        let mut made = false;
-        for c in &mut self.chunks {
-            let data = &rb[c.base as usize..(c.base + c.count) as usize];
-            match &c.lit_rb {
-                Some(b) => ctx.queue.write_buffer(b, 0, bytemuck::cast_slice(data)),
-                None => {
-                    c.lit_rb = Some(ctx.device.create_buffer_init(
-                        &wgpu::util::BufferInitDescriptor {
-                            label: Some("lit red and blue"),
-                            contents: bytemuck::cast_slice(data),
-                            usage: BufferUsages::STORAGE
-                                | BufferUsages::COPY_SRC
-                                | BufferUsages::COPY_DST,
-                        },
-                    ));
-                    made = true;
-                }
-            }
-        }
-        if made {
-            self.key = NEXT_KEY.fetch_add(1, Ordering::Relaxed);
-        }
-        ctx.take_errors()
+        self.write_per_point(ctx, rb, "lit red and blue", |c| &mut c.lit_rb)
     }
 
     /// Writes per-point lit sums into the chunks' buffers (made when missing).
     pub fn write_counts(&mut self, ctx: &GpuContext, counts: &[[u16; 4]]) -> Result<(), GpuError> {
-        if counts.len() != self.len {
+        self.write_per_point(ctx, counts, "lit", |c| &mut c.lit)
+    }
+
+    /// Writes one value per point into each chunk's buffer that `slot` picks, making the
+    /// buffers the first time (a new key then, so bind groups are made anew).
+    fn write_per_point<T: bytemuck::Pod>(
+        &mut self,
+        ctx: &GpuContext,
+        values: &[T],
+        label: &'static str,
+        slot: impl Fn(&mut Chunk) -> &mut Option<wgpu::Buffer>,
+    ) -> Result<(), GpuError> {
+        if values.len() != self.len {
             return Err(GpuError::TooLarge(format!(
-                "lit counts for {} points, the cloud has {}",
-                counts.len(),
+                "{label} for {} points, the cloud has {}",
+                values.len(),
                 self.len
             )));
         }
         let mut made = false;
         for c in &mut self.chunks {
-            let data = &counts[c.base as usize..(c.base + c.count) as usize];
-            match &c.lit {
-                Some(b) => ctx.queue.write_buffer(b, 0, bytemuck::cast_slice(data)),
+            let data = bytemuck::cast_slice(&values[c.base as usize..(c.base + c.count) as usize]);
+            let buf = slot(c);
+            match buf {
+                Some(b) => ctx.queue.write_buffer(b, 0, data),
                 None => {
-                    c.lit = Some(ctx.device.create_buffer_init(
-                        &wgpu::util::BufferInitDescriptor {
-                            label: Some("lit"),
-                            contents: bytemuck::cast_slice(data),
-                            usage: BufferUsages::STORAGE
-                                | BufferUsages::COPY_SRC
-                                | BufferUsages::COPY_DST,
-                        },
-                    ));
+                    *buf = Some(
+                        ctx.device
+                            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                label: Some(label),
+                                contents: data,
+                                usage: BufferUsages::STORAGE
+                                    | BufferUsages::COPY_SRC
+                                    | BufferUsages::COPY_DST,
+                            }),
+                    );
                     made = true;
                 }
             }
