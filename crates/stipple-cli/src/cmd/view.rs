@@ -27,7 +27,9 @@ Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, U 
 the up axis between Z (LiDAR) and Y (scanned objects), P saves a \
 screenshot (PNG, the window's size), C saves the camera as JSON (`stipple render --camera \
 FILE` renders exactly that view), Tab shows the panel of every `render` option (Apply redraws \
-with them), Escape quits.")]
+with them), Escape quits.
+Files: screenshots and cameras are written as stipple-view-N.png / .json in the current \
+directory, or PREFIX-N.… with -o PREFIX; never over an existing file.")]
 pub struct ViewArgs {
     #[command(flatten)]
     pub render: RenderArgs,
