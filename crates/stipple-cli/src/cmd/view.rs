@@ -78,6 +78,8 @@ struct Stream {
     cut_for: Option<(stipple_core::Camera, u64, Option<u64>)>,
     /// The budget of cuts while the view moves, adapted to the frame-time target.
     moving_budget: u64,
+    /// Why the tree can no longer be streamed (the last cut stays on screen).
+    failed: Option<String>,
     missing: usize,
     colour: crate::args::ColourArgs,
     opacity: Option<f32>,
@@ -278,6 +280,7 @@ fn build(
             let tree = crate::lod::TreeStream::open(p, &r.lod)?;
             Stream {
                 moving_budget: tree.point_budget(),
+                failed: None,
                 tree,
                 cut_for: None,
                 missing: 0,
@@ -405,8 +408,20 @@ impl App {
         if let Some(st) = &mut self.scene.stream {
             let loads = st.tree.loads();
             let budget = moving.then_some(st.moving_budget);
-            if st.cut_for.as_ref() != Some(&(cam.clone(), loads, budget)) {
-                let (mut cloud, missing) = st.tree.cut(&cam, budget)?;
+            if st.failed.is_none() && st.cut_for.as_ref() != Some(&(cam.clone(), loads, budget)) {
+                // A tree that can no longer be read (a node damaged, the file gone): the
+                // cut drawn so far stays, and the title says why.
+                let (mut cloud, missing) = match st.tree.cut(&cam, budget) {
+                    Ok(c) => c,
+                    Err(e) => {
+                        let m = crate::message(&e);
+                        eprintln!("stipple: {m}");
+                        self.status = format!(" — {m}");
+                        st.failed = Some(m);
+                        st.missing = 0;
+                        return self.draw();
+                    }
+                };
                 st.colour.apply(&mut cloud, &self.scene.label)?;
                 if let Some(o) = st.opacity {
                     cloud.set_opacity(o);
