@@ -134,7 +134,7 @@ pub fn parse_vec3(s: &str) -> std::result::Result<DVec3, String> {
     }
 }
 
-fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
+pub fn parse_size(s: &str) -> std::result::Result<(u32, u32), String> {
     let err =
         || format!("`{s}` is not a size WxH such as 1024x768, or N for N×N (each side 1..=16384)");
     let (w, h) = s.split_once(['x', 'X']).unwrap_or((s, s));
@@ -1101,6 +1101,32 @@ pub struct ColourArgs {
     /// docs/lookup.md and examples/classes.toml.
     #[arg(long, value_name = "FILE")]
     pub lookup: Option<std::path::PathBuf>,
+    /// Keep only the points inside this box, X0,Y0,Z0,X1,Y1,Z1 in world coordinates (the
+    /// file's units, as `stipple info` prints the bounds): a clipping box to look inside a
+    /// scan or cut a tile.
+    #[arg(long, value_name = "X0,Y0,Z0,X1,Y1,Z1", value_parser = parse_box, allow_hyphen_values = true)]
+    pub clip_box: Option<(DVec3, DVec3)>,
+}
+
+/// `--clip-box`: two corners, the low one first.
+fn parse_box(s: &str) -> std::result::Result<(DVec3, DVec3), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| format!("`{s}`: expected six numbers X0,Y0,Z0,X1,Y1,Z1"))?;
+    if v.len() != 6 || v.iter().any(|x| !x.is_finite()) {
+        return Err(format!(
+            "`{s}`: expected six finite numbers X0,Y0,Z0,X1,Y1,Z1"
+        ));
+    }
+    let (lo, hi) = (DVec3::new(v[0], v[1], v[2]), DVec3::new(v[3], v[4], v[5]));
+    if !lo.cmple(hi).all() {
+        return Err(format!(
+            "`{s}`: the first corner must be the low one (X0 ≤ X1, Y0 ≤ Y1, Z0 ≤ Z1)"
+        ));
+    }
+    Ok((lo, hi))
 }
 
 /// `--colour-by`: a built-in attribute's name, else a scalar field's.
@@ -1143,6 +1169,35 @@ impl ColourArgs {
         what: &str,
     ) -> anyhow::Result<Vec<String>> {
         let mut lines = Vec::new();
+        if let Some((lo, hi)) = self.clip_box {
+            let c = &cloud.cloud;
+            let keep: Vec<bool> = (0..c.len())
+                .map(|i| {
+                    let w = c.world(i);
+                    w.cmpge(lo).all() && w.cmple(hi).all()
+                })
+                .collect();
+            let kept = keep.iter().filter(|&&k| k).count();
+            if kept == 0 {
+                return Err(anyhow!(
+                    "{what}: --clip-box keeps none of the {} points (their bounds: {:.3?} … {:.3?})",
+                    c.len(),
+                    c.world_bounds().0.to_array(),
+                    c.world_bounds().1.to_array()
+                ));
+            }
+            if kept < c.len() {
+                let n = c.len();
+                let taken = std::mem::replace(
+                    cloud,
+                    stipple_render::PreparedCloud::new(Default::default()),
+                );
+                *cloud = taken
+                    .retained(&keep)
+                    .map_err(|e| anyhow!("{what}: --clip-box: {e}"))?;
+                lines.push(format!("clip box: {kept} of {n} points inside"));
+            }
+        }
         if let Some(line) = self.colour(cloud, what)? {
             lines.push(line);
         }

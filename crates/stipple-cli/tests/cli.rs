@@ -1241,3 +1241,72 @@ fn a_saved_camera_renders_the_same_view() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--clip-box` keeps the points inside a world-space box: the left half of a plane stays,
+/// the right half shows the background; a box holding no point, or corners the wrong way
+/// round, are errors.
+#[test]
+fn a_clipping_box_keeps_what_is_inside() {
+    let dir = tempdir("clip-box");
+    let mut s = String::new();
+    for j in 0..100 {
+        for i in 0..100 {
+            s.push_str(&format!(
+                "{} {} 0\n",
+                i as f32 / 99.0 * 2.0 - 1.0,
+                j as f32 / 99.0 * 2.0 - 1.0
+            ));
+        }
+    }
+    std::fs::write(dir.join("plane.xyz"), s).unwrap();
+    let view = [
+        "--size",
+        "64",
+        "--backend",
+        "cpu",
+        "--eye",
+        "0,0,3",
+        "--target",
+        "0,0,0",
+        "--up",
+        "0,1,0",
+        "--no-lighting",
+        "--background",
+        "0,0,0",
+    ];
+    let run = |extra: &[&str]| {
+        let mut a = vec!["render", "plane.xyz", "-o", "c.png"];
+        a.extend(view);
+        a.extend(extra);
+        stipple(&dir, &a)
+    };
+    let o = run(&["--clip-box", "-2,-2,-1,0,2,1"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("clip box: 5000 of 10000 points inside"),
+        "{}",
+        text(&o)
+    );
+    let (w, _, rgba) = stipple_io::image::read_png(&dir.join("c.png")).unwrap();
+    let px = |x: usize, y: usize| rgba[4 * (y * w as usize + x)];
+    assert!(px(20, 32) > 100, "the left half stays");
+    assert_eq!(px(44, 32), 0, "the right half is gone");
+    for (bad, want) in [
+        (
+            &["--clip-box", "5,5,5,6,6,6"][..],
+            "keeps none of the 10000 points",
+        ),
+        (&["--clip-box", "1,0,0,0,1,1"][..], "low one"),
+        (&["--clip-box", "1,2,3"][..], "six"),
+    ] {
+        std::fs::remove_file(dir.join("c.png")).ok();
+        let o = run(bad);
+        assert!(
+            !o.status.success() && text(&o).contains(want),
+            "{bad:?}: {}",
+            text(&o)
+        );
+        assert!(!dir.join("c.png").exists());
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -586,6 +586,45 @@ fn a_camera_path_on_real_data_ends_where_render_draws() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `--screenshot-size` makes P render the current view at another size: the file is
+/// `render`'s image of the saved camera at that size.
+#[test]
+fn screenshots_at_a_chosen_size() {
+    let Some(tools) = tools() else { return };
+    let dir = tempdir("view-shot-size");
+    let s = Session::start(
+        &tools,
+        &dir,
+        &[
+            "--size",
+            "160x120",
+            "--backend",
+            "cpu",
+            "-o",
+            "shot",
+            "--screenshot-size",
+            "96x40",
+        ],
+    );
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    s.x(&["key", "p"]);
+    wait_for(&dir.join("shot-1.png"), "the screenshot");
+    s.close();
+    let reference = render(
+        &dir,
+        &["--camera", "shot-1.json", "--size", "96x40"],
+        "ref.png",
+    );
+    let (w, h, shot) = stipple_io::image::read_png(&dir.join("shot-1.png")).unwrap();
+    assert_eq!((w, h), (96, 40));
+    assert!(
+        shot == reference,
+        "the screenshot is render's image at that size"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// `--exit-after N` closes the window after N frames and prints frame-time statistics.
 #[test]
 fn a_scripted_run_prints_frame_statistics() {

@@ -208,6 +208,7 @@ fn render_now(
             // cloud stays as the caller gave it; the normals a render estimates are kept.
             let changes_cloud = a.colour.colour_by.is_some()
                 || a.colour.lookup.is_some()
+                || a.colour.clip_box.is_some()
                 || a.look.opacity.is_some()
                 || a.look.shadows
                 || scene.is_some();

@@ -281,6 +281,28 @@ impl PreparedCloud {
         }
     }
 
+    /// Keeps the points whose flag is set (with their objects and size factors), prepared
+    /// again; the shadow texture is dropped.
+    pub fn retained(mut self, keep: &[bool]) -> Result<PreparedCloud, RenderError> {
+        let mut cloud = std::mem::take(&mut self.cloud);
+        cloud.retain(keep);
+        if cloud.is_empty() {
+            return Err(RenderError::EmptyCloud);
+        }
+        let mut p = PreparedCloud::new(cloud);
+        p.size = self.size.take().map(|mut s| {
+            stipple_core::lookup::retain(&mut s, keep);
+            s
+        });
+        match self.objects.take() {
+            Some(mut o) => {
+                stipple_core::lookup::retain(&mut o.index, keep);
+                p.with_objects(o)
+            }
+            None => Ok(p),
+        }
+    }
+
     /// Applies a lookup table (Gunjee §3; see [`stipple_core::lookup`]): colours (points
     /// without one from the table or the file take `base`'s colour), opacities, splat size
     /// factors and materials per key value, and leaves out hidden points. Materials

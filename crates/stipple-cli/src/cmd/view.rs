@@ -25,7 +25,7 @@ wheel zooms, a double click centres the orbit on the point under the cursor (its
 coordinates and attributes are printed, and the distance to the previous pick).
 Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, U switches \
 the up axis between Z (LiDAR) and Y (scanned objects), P saves a \
-screenshot (PNG, the window's size), C saves the camera as JSON (`stipple render --camera \
+screenshot (PNG, the window's size or --screenshot-size), C saves the camera as JSON (`stipple render --camera \
 FILE` renders exactly that view), Tab shows the panel of every `render` option (Apply redraws \
 with them), Escape quits.
 Files: screenshots and cameras are written as stipple-view-N.png / .json in the current \
@@ -50,6 +50,10 @@ pub struct ViewArgs {
     /// files are not replaced).
     #[arg(long, value_name = "DIR")]
     pub screenshot_dir: Option<PathBuf>,
+    /// P saves screenshots of this size (WxH) instead of the window's: the current view
+    /// rendered again at that size (the vertical field of view kept).
+    #[arg(long, value_name = "WxH", value_parser = crate::args::parse_size)]
+    pub screenshot_size: Option<(u32, u32)>,
     /// Close the window after this many seconds (scripts and tests).
     #[arg(long, value_name = "SECONDS", value_parser = crate::args::finite_f64)]
     pub quit_after: Option<f64>,
@@ -126,6 +130,8 @@ struct App {
     picked: Option<glam::DVec3>,
     /// Milliseconds a frame may take while the view moves (trees coarsen their cut).
     frame_budget: f64,
+    /// The size of P's screenshots (None: the window's).
+    screenshot_size: Option<(u32, u32)>,
     /// The window's size and the open panel's width, in pixels.
     window_size: (u32, u32),
     panel_px: u32,
@@ -211,6 +217,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
         status: String::new(),
         picked: None,
         frame_budget: a.frame_budget.unwrap_or(0.0),
+        screenshot_size: a.screenshot_size,
         window_size: (camera.width, camera.height),
         panel_px: 0,
         path,
@@ -613,9 +620,22 @@ impl App {
         };
         let path = self.free_name("png");
         let mut staged = crate::output::Staged::default();
-        staged.write(&path, |t| {
-            stipple_io::image::write_png(t, s.w, s.h, &s.rgba)
-        })?;
+        match self.screenshot_size {
+            Some((w, h)) => {
+                crate::memory::check_frame(w, h, self.scene.pipe.layers)?;
+                let mut cam = s.camera.clone();
+                cam.width = w;
+                cam.height = h;
+                let f = self
+                    .scene
+                    .renderer
+                    .render(&self.scene.cloud, &cam, &self.scene.pipe)?;
+                staged.write(&path, |t| stipple_io::image::write_png(t, w, h, &f.rgba))?;
+            }
+            None => staged.write(&path, |t| {
+                stipple_io::image::write_png(t, s.w, s.h, &s.rgba)
+            })?,
+        }
         staged.commit()?;
         println!("wrote {}", path.display());
         Ok(())
