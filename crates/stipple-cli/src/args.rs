@@ -1161,12 +1161,35 @@ fn parse_range(s: &str) -> std::result::Result<(f64, f64), String> {
 }
 
 impl ColourArgs {
-    /// Colours the cloud and applies the lookup table as asked; the lines to print. `what`
-    /// names the input in errors.
+    /// Colours the cloud and applies the clipping box and lookup table as asked; the lines
+    /// to print. `what` names the input in errors.
     pub fn apply(
         &self,
         cloud: &mut stipple_render::PreparedCloud,
         what: &str,
+    ) -> anyhow::Result<Vec<String>> {
+        let table = self.load_lookup()?;
+        self.apply_loaded(cloud, what, table.as_ref())
+    }
+
+    /// The `--lookup` table, read and checked (once, for clouds coloured many times: a
+    /// streamed tree's cuts).
+    pub fn load_lookup(
+        &self,
+    ) -> anyhow::Result<Option<(std::path::PathBuf, stipple_core::lookup::LookupTable)>> {
+        let Some(path) = &self.lookup else {
+            return Ok(None);
+        };
+        let table = stipple_io::lookup_table(path).map_err(|e| anyhow!("--lookup {e}"))?;
+        Ok(Some((path.clone(), table)))
+    }
+
+    /// [`ColourArgs::apply`] with the lookup table already read.
+    pub fn apply_loaded(
+        &self,
+        cloud: &mut stipple_render::PreparedCloud,
+        what: &str,
+        lookup: Option<&(std::path::PathBuf, stipple_core::lookup::LookupTable)>,
     ) -> anyhow::Result<Vec<String>> {
         let mut lines = Vec::new();
         if let Some((lo, hi)) = self.clip_box {
@@ -1201,17 +1224,16 @@ impl ColourArgs {
         if let Some(line) = self.colour(cloud, what)? {
             lines.push(line);
         }
-        if let Some(path) = &self.lookup {
-            let table = stipple_io::lookup_table(path).map_err(|e| anyhow!("--lookup {e}"))?;
+        if let Some((path, table)) = lookup {
             let taken = std::mem::replace(
                 cloud,
                 stipple_render::PreparedCloud::new(Default::default()),
             );
             let (c, applied) = taken
-                .with_lookup(&table, &stipple_render::Material::default())
+                .with_lookup(table, &stipple_render::Material::default())
                 .map_err(|e| anyhow!("{what}: --lookup {}: {e}", path.display()))?;
             *cloud = c;
-            lines.push(stipple_core::lookup::summary(path, &table, &applied));
+            lines.push(stipple_core::lookup::summary(path, table, &applied));
         }
         Ok(lines)
     }

@@ -86,6 +86,8 @@ struct Stream {
     failed: Option<String>,
     missing: usize,
     colour: crate::args::ColourArgs,
+    /// The `--lookup` table, read once for every cut.
+    lookup: Option<(PathBuf, stipple_core::lookup::LookupTable)>,
     opacity: Option<f32>,
 }
 
@@ -292,6 +294,7 @@ fn build(
                 cut_for: None,
                 missing: 0,
                 colour: r.colour.clone(),
+                lookup: r.colour.load_lookup()?,
                 opacity: r.look.opacity,
             }
         }),
@@ -429,7 +432,8 @@ impl App {
                         return self.draw();
                     }
                 };
-                st.colour.apply(&mut cloud, &self.scene.label)?;
+                st.colour
+                    .apply_loaded(&mut cloud, &self.scene.label, st.lookup.as_ref())?;
                 if let Some(o) = st.opacity {
                     cloud.set_opacity(o);
                 }
@@ -453,7 +457,7 @@ impl App {
         if let (true, Some(st)) = (moving, &mut self.scene.stream) {
             let target = if self.frame_budget > 0.0 {
                 self.frame_budget
-            } else if self.scene.renderer.describe().starts_with("cpu") {
+            } else if !self.scene.renderer.is_gpu() {
                 60.0
             } else {
                 16.0
