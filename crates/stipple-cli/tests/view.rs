@@ -252,9 +252,14 @@ impl Session {
 
 /// `stipple render ARGS` in `dir`, which must succeed; the image it wrote to `out`.
 fn render(dir: &Path, args: &[&str], out: &str) -> Vec<u8> {
+    render_on(dir, args, out, "cpu")
+}
+
+/// As `render`, on a chosen backend.
+fn render_on(dir: &Path, args: &[&str], out: &str, backend: &str) -> Vec<u8> {
     let mut a = vec!["render"];
     a.extend(args);
-    a.extend(["--backend", "cpu", "-o", out]);
+    a.extend(["--backend", backend, "-o", out]);
     let o = stipple(dir, &a);
     assert!(o.status.success(), "{}", text(&o));
     stipple_io::image::read_png(&dir.join(out)).unwrap().2
@@ -455,7 +460,7 @@ fn the_panel_applies_render_options() {
     s.x(&["mousemove", "--sync", "165", "69", "click", "1"]);
     s.x(&["type", "--delay", "20", "no-lighting"]);
     std::thread::sleep(Duration::from_millis(400));
-    s.x(&["mousemove", "--sync", "15", "124", "click", "1"]);
+    s.x(&["mousemove", "--sync", "15", "147", "click", "1"]);
     std::thread::sleep(Duration::from_millis(300));
     s.x(&["mousemove", "--sync", "32", "92", "click", "1"]);
     let applied = s.line("applied");
@@ -464,16 +469,38 @@ fn the_panel_applies_render_options() {
         "the viewer said {:?}",
         s.said
     );
+    // The panel's screenshot menu: a size typed into its field, Screenshot, Save camera.
+    s.x(&["mousemove", "--sync", "130", "115", "click", "1"]);
+    s.x(&["type", "--delay", "20", "120x90"]);
+    std::thread::sleep(Duration::from_millis(300));
+    s.x(&["mousemove", "--sync", "48", "115", "click", "1"]);
+    wait_for(&dir.join("shot-1.png"), "the panel's screenshot");
+    s.x(&["mousemove", "--sync", "218", "115", "click", "1"]);
+    wait_for(&dir.join("shot-1.json"), "the panel's camera");
+    let shot = render(
+        &dir,
+        &[
+            "--camera",
+            "shot-1.json",
+            "--no-lighting",
+            "--size",
+            "120x90",
+        ],
+        "ref-shot.png",
+    );
+    let (sw, sh, own) = stipple_io::image::read_png(&dir.join("shot-1.png")).unwrap();
+    assert_eq!((sw, sh), (120, 90), "the screenshot has the size typed");
+    assert!(own == shot, "the panel's screenshot is render's image");
     // Hide the panel (a click on the image first takes the keyboard from the text field),
     // save the camera, look at the window.
     s.x(&["mousemove", "--sync", "380", "280", "click", "1"]);
     s.x(&["key", "Tab"]);
     std::thread::sleep(Duration::from_millis(500));
     s.x(&["key", "c"]);
-    wait_for(&dir.join("shot-1.json"), "the camera");
+    wait_for(&dir.join("shot-2.json"), "the camera");
     let reference = render(
         &dir,
-        &["--camera", "shot-1.json", "--no-lighting"],
+        &["--camera", "shot-2.json", "--no-lighting"],
         "ref.png",
     );
     let off = s.settled(&reference, w, h);
@@ -621,6 +648,99 @@ fn screenshots_at_a_chosen_size() {
     assert!(
         shot == reference,
         "the screenshot is render's image at that size"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The GPU backend presents in place: the window's surface is made on the renderer's own
+/// device and the frame never crosses to the host. What the window shows is still `render
+/// --backend gpu` of the camera it saves; a double click (which reads the frame back) picks
+/// a point, and P's screenshot is that render's image too.
+#[test]
+fn the_gpu_backend_presents_in_place() {
+    let Some(tools) = tools() else { return };
+    if !gpu_available() {
+        return;
+    }
+    let dir = tempdir("view-gpu");
+    let (w, h) = (200usize, 150usize);
+    let size = format!("{w}x{h}");
+    let mut s = Session::start(
+        &tools,
+        &dir,
+        &["--size", &size, "--backend", "gpu", "-o", "shot"],
+    );
+    let first = s.said.last().unwrap().clone();
+    assert!(
+        first.contains("on gpu") && first.contains("in place"),
+        "the viewer said {first:?}"
+    );
+    s.x(&["mousemove", "--sync", "60", "60"]);
+    s.x(&["mousedown", "1"]);
+    s.x(&["mousemove", "--sync", "100", "70"]);
+    s.x(&["mouseup", "1"]);
+    std::thread::sleep(Duration::from_millis(500));
+    s.x(&["mousemove", "--sync", "100", "75"]);
+    s.x(&["click", "--repeat", "2", "--delay", "80", "1"]);
+    let picked = s.line("picked");
+    assert!(
+        picked.contains("colour"),
+        "a point was picked: {picked:?} ({:?})",
+        s.said
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    s.x(&["key", "p"]);
+    wait_for(&dir.join("shot-1.png"), "the screenshot");
+    let reference = render_on(&dir, &["--camera", "shot-1.json"], "ref.png", "gpu");
+    let off = s.settled(&reference, w, h);
+    assert!(s.close().success(), "the viewer failed");
+    assert!(
+        off * 1000 <= w * h,
+        "{off} of {} window pixels differ from render's image of the saved camera",
+        w * h
+    );
+    let (_, _, own) = stipple_io::image::read_png(&dir.join("shot-1.png")).unwrap();
+    assert!(own == reference, "the screenshot is render's image");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The GPU device lost mid-run (destroyed as a driver reset would, through a test hook):
+/// the viewer says so, goes on rendering on the CPU with a presenter of its own, and
+/// finishes its frames.
+#[test]
+fn a_lost_gpu_device_moves_the_viewer_to_the_cpu() {
+    let Some([xvfb, _, _]) = tools() else { return };
+    if !gpu_available() {
+        return;
+    }
+    let display = start_display(&xvfb);
+    let dir = tempdir("view-lost");
+    let o = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args([
+            "view",
+            "--size",
+            "96x72",
+            "--backend",
+            "gpu",
+            "--exit-after",
+            "6",
+        ])
+        .args(["--quit-after", "120"])
+        .current_dir(&dir)
+        .env("DISPLAY", &display.name)
+        .env("STIPPLE_VIEW_LOSE_DEVICE", "2")
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    assert!(
+        t.contains("destroying the GPU device after frame 2")
+            && t.contains("the GPU device was lost")
+            && t.contains("rendering on the CPU")
+            && t.contains("6 frames on cpu"),
+        "{t}"
     );
     std::fs::remove_dir_all(&dir).ok();
 }

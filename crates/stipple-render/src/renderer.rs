@@ -118,6 +118,45 @@ impl Renderer {
         camera: &Camera,
         pipe: &Pipeline,
     ) -> Result<Frame, RenderError> {
+        self.render_with(cloud, camera, pipe, true)
+    }
+
+    /// As [`Renderer::render`], except that on the GPU backend the images stay on the
+    /// device: the frame's `rgba`, `depth` and `id` are empty and [`Renderer::image`] holds
+    /// the colour (for a window to present without a copy). The CPU backend renders as
+    /// `render` does.
+    pub fn render_resident(
+        &mut self,
+        cloud: &PreparedCloud,
+        camera: &Camera,
+        pipe: &Pipeline,
+    ) -> Result<Frame, RenderError> {
+        self.render_with(cloud, camera, pipe, false)
+    }
+
+    /// The GPU backend's last frame colour on its device (see [`gpu::GpuRenderer::image`]).
+    pub fn image(&self) -> Option<(&wgpu::Buffer, u32, u32)> {
+        match &self.inner {
+            Inner::Gpu { renderer, .. } => renderer.image(),
+            Inner::Cpu(_) => None,
+        }
+    }
+
+    /// The GPU backend's device (None on the CPU).
+    pub fn gpu_context(&self) -> Option<&std::sync::Arc<gpu::GpuContext>> {
+        match &self.inner {
+            Inner::Gpu { renderer, .. } => Some(renderer.context()),
+            Inner::Cpu(_) => None,
+        }
+    }
+
+    fn render_with(
+        &mut self,
+        cloud: &PreparedCloud,
+        camera: &Camera,
+        pipe: &Pipeline,
+        read: bool,
+    ) -> Result<Frame, RenderError> {
         camera.validate()?;
         if cloud.cloud.is_empty() {
             return Err(RenderError::EmptyCloud);
@@ -141,7 +180,11 @@ impl Renderer {
                     }
                 }
                 let before = t0.elapsed().as_secs_f64() * 1e3;
-                let mut f = renderer.render(up, &v, pipe)?;
+                let mut f = if read {
+                    renderer.render(up, &v, pipe)?
+                } else {
+                    renderer.render_resident(up, &v, pipe)?
+                };
                 f.host_ms.insert(0, ("resolve + upload", before));
                 Ok(f)
             }

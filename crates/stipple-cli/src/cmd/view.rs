@@ -5,7 +5,7 @@
 
 use crate::cmd::render::RenderArgs;
 use crate::view::nav::{pick, Nav};
-use crate::view::present::Presenter;
+use crate::view::present::{Presenter, Source};
 use crate::Result;
 use anyhow::anyhow;
 use std::path::PathBuf;
@@ -27,7 +27,7 @@ Keys: W A S D fly (Q E down and up, shift faster), F frames everything again, U 
 the up axis between Z (LiDAR) and Y (scanned objects), P saves a \
 screenshot (PNG, the window's size or --screenshot-size), C saves the camera as JSON (`stipple render --camera \
 FILE` renders exactly that view), Tab shows the panel of every `render` option (Apply redraws \
-with them), Escape quits.
+with them; Screenshot, with a size field, and Save camera do what P and C do), Escape quits.
 Files: screenshots and cameras are written as stipple-view-N.png / .json in the current \
 directory, or PREFIX-N.… with -o PREFIX; never over an existing file.")]
 pub struct ViewArgs {
@@ -98,6 +98,8 @@ const REST: Duration = Duration::from_millis(300);
 struct Shown {
     w: u32,
     h: u32,
+    /// The images, empty while they are on the GPU only (presented in place): picking and
+    /// screenshots then render the camera again with a read-back.
     rgba: Vec<u8>,
     depth: Vec<f32>,
     /// The point each pixel shows (or a background/hole marker).
@@ -113,6 +115,10 @@ struct App {
     egui_state: Option<egui_winit::State>,
     nav: Nav,
     window: Option<(Arc<Window>, Presenter)>,
+    /// For presenters made again (Apply, a lost device).
+    display: Option<winit::event_loop::OwnedDisplayHandle>,
+    /// Tests: destroy the GPU device after this many frames (STIPPLE_VIEW_LOSE_DEVICE).
+    lose_device_after: Option<u64>,
     shown: Option<Shown>,
     /// The view changed since the last frame.
     dirty: bool,
@@ -132,8 +138,6 @@ struct App {
     picked: Option<glam::DVec3>,
     /// Milliseconds a frame may take while the view moves (trees coarsen their cut).
     frame_budget: f64,
-    /// The size of P's screenshots (None: the window's).
-    screenshot_size: Option<(u32, u32)>,
     /// The window's size and the open panel's width, in pixels.
     window_size: (u32, u32),
     panel_px: u32,
@@ -144,6 +148,8 @@ struct App {
     screenshot_dir: Option<PathBuf>,
     /// Per frame shown: milliseconds of the render, and per pass the milliseconds summed.
     times: Vec<f64>,
+    /// When each frame was presented (the intervals are what a person sees).
+    presented: Vec<Instant>,
     pass_ms: Vec<(&'static str, f64)>,
     done: bool,
     quit_at: Option<Instant>,
@@ -167,10 +173,14 @@ pub fn view(a: ViewArgs) -> Result<()> {
         .skip_while(|t| t != "view")
         .skip(1)
         .collect();
-    let panel = crate::view::panel::Panel::new(
+    let mut panel = crate::view::panel::Panel::new(
         &given,
         r.source.input.as_ref().map(|p| p.display().to_string()),
     );
+    // One screenshot size for P and the panel's button.
+    if let Some((w, h)) = a.screenshot_size {
+        panel.shot_size = format!("{w}x{h}");
+    }
     let path = match &a.camera_path {
         Some(p) => {
             let meta = std::fs::metadata(p).map_err(|e| anyhow!("{}: {e}", p.display()))?;
@@ -207,6 +217,10 @@ pub fn view(a: ViewArgs) -> Result<()> {
         nav: Nav::new(camera.clone(), z_up, lo, hi),
         last_input: Instant::now(),
         window: None,
+        display: None,
+        lose_device_after: std::env::var("STIPPLE_VIEW_LOSE_DEVICE")
+            .ok()
+            .and_then(|v| v.parse().ok()),
         shown: None,
         dirty: true,
         frames: 0,
@@ -219,13 +233,13 @@ pub fn view(a: ViewArgs) -> Result<()> {
         status: String::new(),
         picked: None,
         frame_budget: a.frame_budget.unwrap_or(0.0),
-        screenshot_size: a.screenshot_size,
         window_size: (camera.width, camera.height),
         panel_px: 0,
         path,
         exit_after: a.exit_after,
         screenshot_dir: a.screenshot_dir.clone(),
         times: Vec::new(),
+        presented: Vec::new(),
         pass_ms: Vec::new(),
         done: false,
         quit_at: a
@@ -346,27 +360,43 @@ impl App {
                 self.nav.hi = hi;
                 self.shown = None;
                 println!("applied: {}", argv.join(" "));
+                // A new GPU renderer has a device of its own: the window presents from it.
+                let reopen = match (&self.window, self.scene.renderer.gpu_context()) {
+                    (Some((_, p)), ctx) => p.in_place() || ctx.is_some(),
+                    (None, _) => false,
+                };
+                if reopen {
+                    if let Err(e) = self.reopen_presenter() {
+                        self.error = Some(e);
+                        self.done = true;
+                    }
+                }
                 self.changed();
             }
             Err(e) => self.panel.error = Some(crate::message(&e)),
         }
     }
 
-    /// The panel's triangles for this frame (None while it is hidden). Returns whether
-    /// Apply was pressed too.
-    fn overlay(&mut self) -> (Option<crate::view::present::Overlay>, bool) {
+    /// The panel's triangles for this frame (None while it is hidden), and what its buttons
+    /// asked for.
+    fn overlay(
+        &mut self,
+    ) -> (
+        Option<crate::view::present::Overlay>,
+        crate::view::panel::Actions,
+    ) {
         let (Some((window, _)), Some(state), true) =
             (&self.window, &mut self.egui_state, self.panel.visible)
         else {
-            return (None, false);
+            return (None, Default::default());
         };
         let raw = state.take_egui_input(window);
         let panel = &mut self.panel;
-        let mut apply = false;
+        let mut act = crate::view::panel::Actions::default();
         let mut width = 0.0;
         let out = self.egui.run_ui(raw, |ui| {
             let (a, w) = panel.ui(ui);
-            apply |= a;
+            act = a;
             width = w;
         });
         self.panel_px = (width * out.pixels_per_point).ceil().max(0.0) as u32;
@@ -378,7 +408,7 @@ impl App {
                 textures: out.textures_delta,
                 pixels_per_point: out.pixels_per_point,
             }),
-            apply,
+            act,
         )
     }
 
@@ -389,9 +419,30 @@ impl App {
 
     /// Renders the current view and shows it.
     fn draw(&mut self) -> Result<()> {
-        let (mut overlay, apply) = self.overlay();
-        if apply {
+        let (mut overlay, act) = self.overlay();
+        if act.apply {
             self.apply();
+        }
+        if act.frame_all {
+            self.nav.frame_all();
+            self.changed();
+        }
+        // The panel's screenshot and camera buttons do what P and C do (after this frame's
+        // camera is settled: the shot is of the view as shown).
+        for (asked, r) in [
+            (
+                act.screenshot,
+                Self::screenshot as fn(&mut Self) -> Result<()>,
+            ),
+            (act.save_camera, Self::save_camera),
+        ] {
+            if asked {
+                if let Err(e) = r(self) {
+                    let m = crate::message(&e);
+                    eprintln!("stipple: {m}");
+                    self.panel.error = Some(m);
+                }
+            }
         }
         let moving = self.moving();
         // The frame fills the window right of the panel.
@@ -402,16 +453,29 @@ impl App {
             self.nav.resize(fw, wh.max(1));
             self.dirty = true;
         }
+        self.recover_lost_device()?;
         let Some((window, presenter)) = &mut self.window else {
             return Ok(());
         };
         if let (false, Some(s)) = (self.dirty, &self.shown) {
             // Nothing moved (the window was uncovered, the panel changed): show the last
-            // frame again.
-            if !presenter.show(s.w, s.h, &s.rgba, left, overlay.as_mut())? {
-                window.request_redraw();
+            // frame again, from the device where it stayed there.
+            let source = if !s.rgba.is_empty() {
+                Some(Source::Bytes(&s.rgba))
+            } else {
+                match self.scene.renderer.image() {
+                    Some((b, w, h)) if (w, h) == (s.w, s.h) => Some(Source::Device(b)),
+                    _ => None,
+                }
+            };
+            if let Some(source) = source {
+                if !presenter.show(s.w, s.h, source, left, overlay.as_mut())? {
+                    window.request_redraw();
+                }
+                return Ok(());
             }
-            return Ok(());
+            // The device's image was replaced (a screenshot of another size): render again.
+            self.dirty = true;
         }
         let cam = self.nav.camera.clone();
         // A tree: cut again for a new camera, or when nodes it waited for have loaded.
@@ -448,10 +512,33 @@ impl App {
             }
         }
         let t0 = Instant::now();
-        let frame = self
-            .scene
-            .renderer
-            .render(&self.scene.cloud, &cam, &self.scene.pipe)?;
+        // In place: the GPU's image goes to the window without a read-back (every frame
+        // is read back only when written to --screenshot-dir).
+        let in_place = presenter.in_place() && self.screenshot_dir.is_none();
+        let frame = match if in_place {
+            self.scene
+                .renderer
+                .render_resident(&self.scene.cloud, &cam, &self.scene.pipe)
+        } else {
+            self.scene
+                .renderer
+                .render(&self.scene.cloud, &cam, &self.scene.pipe)
+        } {
+            Ok(f) => f,
+            Err(e) => {
+                if self
+                    .scene
+                    .renderer
+                    .gpu_context()
+                    .and_then(|c| c.lost())
+                    .is_some()
+                {
+                    // The device went during the frame: on the CPU from now on.
+                    return self.draw();
+                }
+                return Err(e.into());
+            }
+        };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         // While moving, the next cut's budget follows the frame-time target.
         if let (true, Some(st)) = (moving, &mut self.scene.stream) {
@@ -472,13 +559,12 @@ impl App {
             };
             st.moving_budget = (next as u64).clamp(st.tree.least_budget(), st.tree.point_budget());
         }
-        let shown = presenter.show(
-            frame.width,
-            frame.height,
-            &frame.rgba,
-            left,
-            overlay.as_mut(),
-        )?;
+        let source = match (frame.rgba.is_empty(), self.scene.renderer.image()) {
+            (true, Some((b, _, _))) => Source::Device(b),
+            (true, None) => return Err(anyhow!("the GPU frame has no image on the device")),
+            (false, _) => Source::Bytes(&frame.rgba),
+        };
+        let shown = presenter.show(frame.width, frame.height, source, left, overlay.as_mut())?;
         if !shown {
             window.request_redraw();
             return Ok(());
@@ -486,6 +572,7 @@ impl App {
         self.dirty = false;
         self.frames += 1;
         self.times.push(ms);
+        self.presented.push(Instant::now());
         for st in &frame.stats {
             match self.pass_ms.iter_mut().find(|p| p.0 == st.name()) {
                 Some(p) => p.1 += st.ms,
@@ -520,12 +607,17 @@ impl App {
         ));
         if self.frames == 1 {
             println!(
-                "showing {} ({}x{}, {ms:.0} ms on {}, presented by {})",
+                "showing {} ({}x{}, {ms:.0} ms on {}, presented by {}{})",
                 self.scene.label,
                 frame.width,
                 frame.height,
                 self.scene.renderer.describe(),
-                presenter.adapter_name
+                presenter.adapter_name,
+                if in_place {
+                    " in place"
+                } else {
+                    " from a copy"
+                }
             );
             use std::io::Write;
             let _ = std::io::stdout().flush();
@@ -541,6 +633,64 @@ impl App {
         if advance {
             self.path_step(self.frames as usize);
         }
+        if self.lose_device_after == Some(self.frames) {
+            // Tests: the device goes as a driver reset would take it.
+            println!(
+                "test: destroying the GPU device after frame {}",
+                self.frames
+            );
+            match (self.scene.renderer.gpu_context(), &self.window) {
+                (Some(c), _) => c.device.destroy(),
+                (None, Some((_, p))) => p.destroy_device(),
+                _ => {}
+            }
+            self.dirty = true;
+            if let Some((w, _)) = &self.window {
+                w.request_redraw();
+            }
+        }
+        Ok(())
+    }
+
+    /// A device lost (a driver reset, a removed GPU): the renderer's moves to the CPU, the
+    /// window gets a presenter of its own, and the title says so. Nothing is lost but time.
+    fn recover_lost_device(&mut self) -> Result<()> {
+        let renderer_lost = self.scene.renderer.gpu_context().and_then(|c| c.lost());
+        let presenter_lost = self.window.as_ref().and_then(|(_, p)| p.lost());
+        let Some(why) = renderer_lost.clone().or(presenter_lost) else {
+            return Ok(());
+        };
+        if renderer_lost.is_some() {
+            self.scene.renderer =
+                stipple_render::Renderer::new(stipple_render::Backend::Cpu, Default::default())?;
+            self.status = format!(" — the GPU device was lost ({why}); rendering on the CPU");
+        } else {
+            self.status = format!(" — the window's GPU device was lost ({why}); reopened");
+        }
+        eprintln!("stipple:{}", self.status.trim_start_matches(" —"));
+        self.shown = None;
+        self.dirty = true;
+        self.reopen_presenter()
+    }
+
+    /// A new presenter for the window (the old one dropped first: a window has one
+    /// swap chain), in place on the renderer's device where it can be.
+    fn reopen_presenter(&mut self) -> Result<()> {
+        let Some((window, presenter)) = self.window.take() else {
+            return Ok(());
+        };
+        drop(presenter);
+        let display = self
+            .display
+            .clone()
+            .ok_or_else(|| anyhow!("the window's display handle is gone"))?;
+        let p = Presenter::new(window.clone(), display, self.scene.renderer.gpu_context())?;
+        // The panel's textures (its font atlas) lived on the old device: a new context sends
+        // them again.
+        self.egui = egui::Context::default();
+        self.egui_state = Some(new_egui_state(&self.egui, &window));
+        self.window = Some((window.clone(), p));
+        window.request_redraw();
         Ok(())
     }
 
@@ -577,6 +727,22 @@ impl App {
         t.sort_by(f64::total_cmp);
         let at = |q: f64| t[((t.len() - 1) as f64 * q).round() as usize];
         let n = t.len() as f64;
+        // From one frame on screen to the next: the render, the presentation and the
+        // event loop (what a person sees; the first frame's is not known).
+        let mut gaps: Vec<f64> = self
+            .presented
+            .windows(2)
+            .map(|p| (p[1] - p[0]).as_secs_f64() * 1e3)
+            .collect();
+        gaps.sort_by(f64::total_cmp);
+        let interval = match gaps.len() {
+            0 => String::new(),
+            k => format!(
+                "; presented every {:.2} ms (median), p99 {:.2}",
+                gaps[k / 2],
+                gaps[((k - 1) as f64 * 0.99).round() as usize]
+            ),
+        };
         let mut passes = self.pass_ms.clone();
         passes.sort_by(|a, b| b.1.total_cmp(&a.1));
         let top: Vec<String> = passes
@@ -585,7 +751,7 @@ impl App {
             .map(|(name, ms)| format!("{name} {:.2}", ms / n))
             .collect();
         println!(
-            "{} frames on {}: render median {:.2} ms, p95 {:.2}, p99 {:.2}, max {:.2}; per frame: {} ms",
+            "{} frames on {}: render median {:.2} ms, p95 {:.2}, p99 {:.2}, max {:.2}; per frame: {} ms{interval}",
             t.len(),
             self.scene.renderer.describe(),
             at(0.5),
@@ -618,13 +784,33 @@ impl App {
             .expect("some number is free")
     }
 
+    /// The shown frame's images on the host: read back by rendering its camera again
+    /// where they stayed on the GPU (the same image: rendering is deterministic).
+    fn shown_on_host(&mut self) -> Result<()> {
+        let Some(s) = &mut self.shown else {
+            return Ok(());
+        };
+        if s.rgba.is_empty() {
+            let f = self
+                .scene
+                .renderer
+                .render(&self.scene.cloud, &s.camera, &self.scene.pipe)?;
+            (s.rgba, s.depth, s.id) = (f.rgba, f.depth, f.id);
+        }
+        Ok(())
+    }
+
     fn screenshot(&mut self) -> Result<()> {
+        let size = self.panel.screenshot_size().map_err(|e| anyhow!(e))?;
+        if size.is_none() {
+            self.shown_on_host()?;
+        }
         let Some(s) = &self.shown else {
             return Ok(());
         };
         let path = self.free_name("png");
         let mut staged = crate::output::Staged::default();
-        match self.screenshot_size {
+        match size {
             Some((w, h)) => {
                 crate::memory::check_frame(w, h, self.scene.pipe.layers)?;
                 let mut cam = s.camera.clone();
@@ -663,6 +849,9 @@ impl App {
     }
 
     fn double_click(&mut self) {
+        if let Err(e) = self.shown_on_host() {
+            return eprintln!("stipple: picking: {}", crate::message(&e));
+        }
         let Some(s) = &self.shown else { return };
         let (x, y) = self.cursor;
         if x < 0.0 || y < 0.0 || x >= s.w as f64 || y >= s.h as f64 {
@@ -753,18 +942,16 @@ impl ApplicationHandler for App {
             Ok(w) => Arc::new(w),
             Err(e) => return self.fail(el, anyhow!("cannot open a window: {e}")),
         };
-        match Presenter::new(window.clone(), el.owned_display_handle()) {
+        self.display = Some(el.owned_display_handle());
+        match Presenter::new(
+            window.clone(),
+            el.owned_display_handle(),
+            self.scene.renderer.gpu_context(),
+        ) {
             Ok(p) => self.window = Some((window.clone(), p)),
             Err(e) => return self.fail(el, e),
         }
-        self.egui_state = Some(egui_winit::State::new(
-            self.egui.clone(),
-            egui::ViewportId::ROOT,
-            &window,
-            Some(window.scale_factor() as f32),
-            None,
-            None,
-        ));
+        self.egui_state = Some(new_egui_state(&self.egui, &window));
         // Keys reach the window without a window manager too (a virtual display).
         window.focus_window();
         window.request_redraw();
@@ -951,4 +1138,16 @@ impl ApplicationHandler for App {
             None => ControlFlow::Wait,
         });
     }
+}
+
+/// The panel's input state for `window`.
+fn new_egui_state(ctx: &egui::Context, window: &Window) -> egui_winit::State {
+    egui_winit::State::new(
+        ctx.clone(),
+        egui::ViewportId::ROOT,
+        window,
+        Some(window.scale_factor() as f32),
+        None,
+        None,
+    )
 }

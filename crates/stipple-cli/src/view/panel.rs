@@ -37,8 +37,23 @@ pub struct Opt {
     pub value: String,
 }
 
+/// What the panel's buttons asked for this frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Actions {
+    /// Apply: redraw with the options.
+    pub apply: bool,
+    /// Screenshot (as P), at [`Panel::screenshot_size`].
+    pub screenshot: bool,
+    /// Save the camera (as C).
+    pub save_camera: bool,
+    /// Frame everything (as F).
+    pub frame_all: bool,
+}
+
 pub struct Panel {
     pub visible: bool,
+    /// The screenshot size field: `WxH`, or empty for the window's size.
+    pub shot_size: String,
     pub options: Vec<Opt>,
     filter: String,
     /// The input (file, scene or tree) the options apply to.
@@ -88,6 +103,7 @@ impl Panel {
         }
         Panel {
             visible: false,
+            shot_size: String::new(),
             options,
             filter: String::new(),
             input,
@@ -110,9 +126,19 @@ impl Panel {
         v
     }
 
-    /// Draws the panel; whether Apply was pressed, and the panel's width in points.
-    pub fn ui(&mut self, ui: &mut egui::Ui) -> (bool, f32) {
-        let mut apply = false;
+    /// The screenshot size field parsed: None for the window's size.
+    pub fn screenshot_size(&self) -> Result<Option<(u32, u32)>, String> {
+        match self.shot_size.trim() {
+            "" => Ok(None),
+            s => crate::args::parse_size(s)
+                .map(Some)
+                .map_err(|e| format!("screenshot size: {e}")),
+        }
+    }
+
+    /// Draws the panel; what its buttons asked for, and the panel's width in points.
+    pub fn ui(&mut self, ui: &mut egui::Ui) -> (Actions, f32) {
+        let mut act = Actions::default();
         let r = egui::Panel::left("stipple-options")
             .default_size(300.0)
             .show(ui, |ui| {
@@ -126,13 +152,33 @@ impl Panel {
                 });
                 ui.horizontal(|ui| {
                     if ui.button("Apply").clicked() {
-                        apply = true;
+                        act.apply = true;
                     }
                     if ui.button("Defaults").clicked() {
                         for o in &mut self.options {
                             o.value.clear();
                         }
                     }
+                });
+                ui.horizontal(|ui| {
+                    act.screenshot = ui
+                        .button("Screenshot")
+                        .on_hover_text(
+                            "P: a PNG of the view (stipple-view-N.png, or -o PREFIX), at the \
+                             size on the right (WxH; empty: the window's)",
+                        )
+                        .clicked();
+                    ui.add(
+                        egui::TextEdit::singleline(&mut self.shot_size)
+                            .desired_width(70.0)
+                            .hint_text("WxH"),
+                    )
+                    .on_hover_text("the screenshot's size (empty: the window's)");
+                    act.save_camera = ui
+                        .button("Save camera")
+                        .on_hover_text("C: the camera as JSON for stipple render --camera")
+                        .clicked();
+                    act.frame_all = ui.button("Frame all").on_hover_text("F").clicked();
                 });
                 if let Some(e) = &self.error {
                     ui.colored_label(egui::Color32::from_rgb(230, 90, 80), e);
@@ -164,7 +210,7 @@ impl Panel {
                     }
                 });
             });
-        (apply, r.response.rect.width())
+        (act, r.response.rect.width())
     }
 }
 

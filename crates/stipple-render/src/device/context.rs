@@ -135,7 +135,7 @@ fn suitability(a: &Adapter) -> Result<(), String> {
 /// The adapters of the backends `WGPU_BACKEND` names; without it, of the primary backends
 /// (Vulkan, Metal, DX12), and of GL only when those offer none (GL lacks 64-bit atomics, and
 /// probing it on a headless machine prints EGL noise).
-fn adapters() -> Vec<Adapter> {
+fn adapters() -> Vec<(wgpu::Instance, Adapter)> {
     let from_env = std::env::var_os("WGPU_BACKEND").is_some();
     let desc = |backends| {
         let mut d = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
@@ -144,21 +144,26 @@ fn adapters() -> Vec<Adapter> {
         }
         d
     };
-    let found = pollster::block_on(
-        wgpu::Instance::new(desc(wgpu::Backends::PRIMARY))
-            .enumerate_adapters(wgpu::Backends::all()),
-    );
+    let on = |backends| {
+        let instance = wgpu::Instance::new(desc(backends));
+        pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
+            .into_iter()
+            .map(|a| (instance.clone(), a))
+            .collect::<Vec<_>>()
+    };
+    let found = on(wgpu::Backends::PRIMARY);
     if !found.is_empty() || from_env {
         return found;
     }
-    pollster::block_on(
-        wgpu::Instance::new(desc(wgpu::Backends::GL)).enumerate_adapters(wgpu::Backends::all()),
-    )
+    on(wgpu::Backends::GL)
 }
 
 /// Every adapter stipple would consider (see `WGPU_BACKEND`).
 pub fn list_adapters() -> Vec<AdapterReport> {
-    adapters().iter().map(AdapterReport::of).collect()
+    adapters()
+        .iter()
+        .map(|(_, a)| AdapterReport::of(a))
+        .collect()
 }
 
 /// How the backend runs (tests and benchmarks use the overrides).
@@ -181,15 +186,21 @@ pub struct GpuContext {
     pub int64_atomics: bool,
     pub timestamps: bool,
     pub options: GpuOptions,
+    /// The instance and adapter the device was opened on (a window's surface made from the
+    /// instance lets the renderer present its frames without a copy; see `stipple view`).
+    pub instance: wgpu::Instance,
+    pub wgpu_adapter: Adapter,
     errors: Arc<Mutex<Vec<String>>>,
+    /// Why the device was lost, once it was (a driver reset, a removed GPU, `destroy`).
+    lost: Arc<Mutex<Option<String>>>,
 }
 
 impl GpuContext {
     /// Opens the preferred suitable adapter.
     pub fn new(options: GpuOptions) -> Result<Arc<GpuContext>, GpuError> {
-        let mut found: Vec<(AdapterReport, Adapter)> = adapters()
+        let mut found: Vec<(AdapterReport, (wgpu::Instance, Adapter))> = adapters()
             .into_iter()
-            .map(|a| (AdapterReport::of(&a), a))
+            .map(|a| (AdapterReport::of(&a.1), a))
             .collect();
         if found.is_empty() {
             return Err(GpuError::NoAdapter(
@@ -209,12 +220,38 @@ impl GpuContext {
             .collect();
         found.retain(|(r, _)| r.suitable.is_ok());
         found.sort_by_key(|(r, _)| r.rank());
-        let Some((report, adapter)) = found.into_iter().next() else {
+        let Some((report, (instance, adapter))) = found.into_iter().next() else {
             return Err(GpuError::NoAdapter(format!(
                 "every adapter lacks something: {}",
                 rejected.join("; ")
             )));
         };
+        Self::open(instance, adapter, report, options)
+    }
+
+    /// Opens a device on a given adapter of `instance` (checked for suitability): for a
+    /// window, the adapter that can present to its surface.
+    pub fn on_adapter(
+        instance: wgpu::Instance,
+        adapter: Adapter,
+        options: GpuOptions,
+    ) -> Result<Arc<GpuContext>, GpuError> {
+        let report = AdapterReport::of(&adapter);
+        if let Err(why) = &report.suitable {
+            return Err(GpuError::NoAdapter(format!(
+                "{} ({:?}): {why}",
+                report.name, report.backend
+            )));
+        }
+        Self::open(instance, adapter, report, options)
+    }
+
+    fn open(
+        instance: wgpu::Instance,
+        adapter: Adapter,
+        report: AdapterReport,
+        options: GpuOptions,
+    ) -> Result<Arc<GpuContext>, GpuError> {
         let features = adapter.features() & WANTED;
         let limits = adapter.limits();
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -232,6 +269,15 @@ impl GpuContext {
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
             sink.lock().unwrap().push(e.to_string());
         }));
+        let lost = Arc::new(Mutex::new(None));
+        let sink = lost.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            *sink.lock().unwrap() = Some(if message.is_empty() {
+                format!("{reason:?}")
+            } else {
+                format!("{reason:?}: {message}")
+            });
+        });
         let int64_atomics = report.int64_atomics && !options.force_32bit;
         Ok(Arc::new(GpuContext {
             device,
@@ -241,8 +287,16 @@ impl GpuContext {
             limits,
             int64_atomics,
             options,
+            instance,
+            wgpu_adapter: adapter,
             errors,
+            lost,
         }))
+    }
+
+    /// Why the device was lost, if it was: every later frame on it fails.
+    pub fn lost(&self) -> Option<String> {
+        self.lost.lock().unwrap().clone()
     }
 
     /// Errors wgpu reported since the last call, as one error.

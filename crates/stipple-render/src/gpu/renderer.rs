@@ -145,6 +145,35 @@ impl GpuRenderer {
         v: &ViewParams,
         pipe: &Pipeline,
     ) -> Result<Frame, GpuError> {
+        self.render_with(cloud, v, pipe, true)
+    }
+
+    /// As [`GpuRenderer::render`], but the images stay on the device: the frame's `rgba`,
+    /// `depth` and `id` are empty, and [`GpuRenderer::image`] holds the colour until the
+    /// next frame (a window presents it from there without a copy to the host).
+    pub fn render_resident(
+        &mut self,
+        cloud: &GpuCloud,
+        v: &ViewParams,
+        pipe: &Pipeline,
+    ) -> Result<Frame, GpuError> {
+        self.render_with(cloud, v, pipe, false)
+    }
+
+    /// The last frame's colour on the device (one `u32` per pixel, row 0 at the top, the
+    /// bytes of the PNG's red, green, blue and alpha from the lowest byte up), its width and
+    /// height; None before the first frame.
+    pub fn image(&self) -> Option<(&wgpu::Buffer, u32, u32)> {
+        self.frame.as_ref().map(|f| (&f.rgba, f.width, f.height))
+    }
+
+    fn render_with(
+        &mut self,
+        cloud: &GpuCloud,
+        v: &ViewParams,
+        pipe: &Pipeline,
+        read: bool,
+    ) -> Result<Frame, GpuError> {
         let t_start = Instant::now();
         self.prepare(v)?;
         let gap = crate::pipeline::layer_gap(pipe, cloud.spacing);
@@ -194,13 +223,17 @@ impl GpuRenderer {
             let sections = finish(rec, shared)?;
             let t_wait = Instant::now();
             let nu = n as usize;
-            let (rgba, depth, id) = read_back_with(&self.ctx, &f.read, 12 * n, |b| {
-                (
-                    b[..4 * nu].to_vec(),
-                    bytemuck::pod_collect_to_vec::<u8, f32>(&b[4 * nu..8 * nu]),
-                    bytemuck::pod_collect_to_vec::<u8, u32>(&b[8 * nu..12 * nu]),
-                )
-            })?;
+            let (rgba, depth, id) = if read {
+                read_back_with(&self.ctx, &f.read, 12 * n, |b| {
+                    (
+                        b[..4 * nu].to_vec(),
+                        bytemuck::pod_collect_to_vec::<u8, f32>(&b[4 * nu..8 * nu]),
+                        bytemuck::pod_collect_to_vec::<u8, u32>(&b[8 * nu..12 * nu]),
+                    )
+                })?
+            } else {
+                Default::default()
+            };
             let t_read = Instant::now();
             let stats = stats(&self.ctx, shared, &sections)?;
             let peeled = stats
