@@ -430,6 +430,111 @@ fn a_tree_streams_into_the_window() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A tree whose file is damaged while it streams: the last cut stays on screen, the title
+/// says why, and the viewer goes on (and closes cleanly).
+#[test]
+fn a_tree_damaged_while_streaming_keeps_the_window() {
+    let Some(tools) = tools() else { return };
+    let dir = tempdir("view-tree-gone");
+    for args in [
+        &["gen", "torus", "-o", "t.ply", "--points", "300000"][..],
+        &[
+            "build-lod",
+            "t.ply",
+            "-o",
+            "t.stlod",
+            "--max-node-points",
+            "4096",
+        ][..],
+    ] {
+        let o = stipple(&dir, args);
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+    }
+    let s = Session::start(
+        &tools,
+        &dir,
+        &[
+            "t.stlod",
+            "--size",
+            "160x120",
+            "--backend",
+            "cpu",
+            "--point-budget",
+            "20000",
+        ],
+    );
+    s.wait_title_without("loading");
+    // The tree's bytes replaced by garbage of the same length (the open file sees them).
+    let len = std::fs::metadata(dir.join("t.stlod")).unwrap().len();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(dir.join("t.stlod"))
+        .and_then(|mut f| {
+            use std::io::Write;
+            f.write_all(&vec![0x5a; len as usize])
+        })
+        .unwrap();
+    // Zoom in: the finer cut needs nodes that can no longer be read.
+    s.x(&["mousemove", "--sync", "80", "60"]);
+    let t0 = Instant::now();
+    let title = loop {
+        s.x(&["click", "4"]);
+        std::thread::sleep(Duration::from_millis(400));
+        let t = s.x(&["getwindowname", &s.window]);
+        if t.contains("corrupt") || t0.elapsed().as_secs() > 40 {
+            break t;
+        }
+    };
+    let screen = s.screen();
+    assert!(
+        s.close().success(),
+        "the viewer ended cleanly after the failure"
+    );
+    assert!(
+        title.contains("do not match their checksum: the file is corrupt"),
+        "the title says why the tree stopped streaming: {title:?}"
+    );
+    let lit = (0..120)
+        .flat_map(|y| (0..160).map(move |x| (x, y)))
+        .filter(|&(x, y)| screen.2[y * screen.0 + x] != screen.2[0])
+        .count();
+    assert!(lit > 160 * 120 / 20, "the last cut stays on screen ({lit})");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The window resized, then unmapped and mapped again (minimised and restored): the frame
+/// follows the new size, and what the window shows is `render` of the camera it saves.
+#[test]
+fn resizing_and_restoring_the_window() {
+    let Some(tools) = tools() else { return };
+    let dir = tempdir("view-resize");
+    let s = Session::start(
+        &tools,
+        &dir,
+        &["--size", "160x120", "--backend", "cpu", "-o", "shot"],
+    );
+    s.x(&["windowsize", "--sync", &s.window, "240", "180"]);
+    std::thread::sleep(Duration::from_millis(500));
+    s.x(&["windowunmap", "--sync", &s.window]);
+    std::thread::sleep(Duration::from_millis(300));
+    s.x(&["windowmap", "--sync", &s.window]);
+    s.x(&["windowfocus", "--sync", &s.window]);
+    std::thread::sleep(Duration::from_millis(500));
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    let cam: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("shot-1.json")).unwrap()).unwrap();
+    assert_eq!(cam["size"], serde_json::json!([240, 180]), "{cam}");
+    let reference = render(&dir, &["--camera", "shot-1.json"], "ref.png");
+    let off = s.settled(&reference, 240, 180);
+    assert!(s.close().success(), "the viewer failed");
+    assert!(
+        off * 1000 <= 240 * 180,
+        "{off} pixels differ from render after the resize"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// The panel (Tab) holds every `render` option by its flag's name: filtered to
 /// `no-lighting`, ticked and applied, the window shows what `render --no-lighting` draws for
 /// the same camera; the panel opens beside the image and closes again.
@@ -675,19 +780,50 @@ fn the_gpu_backend_presents_in_place() {
         first.contains("on gpu") && first.contains("in place"),
         "the viewer said {first:?}"
     );
+    // A double click on pixel (100, 75) of the opening view picks the surface point that
+    // `render --depth-out` puts there: the pixel's ray at that depth.
+    s.x(&["mousemove", "--sync", "100", "75"]);
+    s.x(&["click", "--repeat", "2", "--delay", "80", "1"]);
+    let picked = s.line("picked");
+    let xyz: Vec<f64> = picked
+        .split_whitespace()
+        .skip(1)
+        .take(3)
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    let o = stipple(
+        &dir,
+        &[
+            "render",
+            "--size",
+            &size,
+            "--backend",
+            "gpu",
+            "-o",
+            "home.png",
+            "--camera-out",
+            "home.json",
+            "--depth-out",
+            "home.npy",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let home =
+        stipple_core::Camera::from_json(&std::fs::read_to_string(dir.join("home.json")).unwrap())
+            .unwrap();
+    let (_, _, depth) = stipple_io::image::read_npy(&dir.join("home.npy")).unwrap();
+    let d = depth[75 * w + 100] as f64;
+    let (origin, ray) = home.pixel_ray(100, 75);
+    let known = origin + ray * (d / ray.dot(home.basis().forward));
+    assert!(
+        xyz.len() == 3 && (glam::DVec3::new(xyz[0], xyz[1], xyz[2]) - known).length() < 1e-3,
+        "picked {picked:?}, the surface there is {known}"
+    );
+    std::thread::sleep(Duration::from_millis(500));
     s.x(&["mousemove", "--sync", "60", "60"]);
     s.x(&["mousedown", "1"]);
     s.x(&["mousemove", "--sync", "100", "70"]);
     s.x(&["mouseup", "1"]);
-    std::thread::sleep(Duration::from_millis(500));
-    s.x(&["mousemove", "--sync", "100", "75"]);
-    s.x(&["click", "--repeat", "2", "--delay", "80", "1"]);
-    let picked = s.line("picked");
-    assert!(
-        picked.contains("colour"),
-        "a point was picked: {picked:?} ({:?})",
-        s.said
-    );
     std::thread::sleep(Duration::from_millis(500));
     s.x(&["key", "c"]);
     wait_for(&dir.join("shot-1.json"), "the camera");
