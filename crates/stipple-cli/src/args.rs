@@ -453,7 +453,9 @@ pub struct SplatArgs {
     /// blending: splats graph-coloured into groups, one pass, per-pixel compositing; see
     /// --splat-c) or sorted (Gunjee et al.: every splat bucket-sorted back to front and
     /// blended over the ones behind it with its own opacity: volumes through --transfer,
-    /// particle clouds).
+    /// particle clouds) or transparent (Zhang & Pajarola's Algorithm 2: translucent surfaces
+    /// in one pass, back to front into one image per group, each surface layer blended
+    /// once per group, the groups averaged; see --opacity and scene opacities).
     #[arg(
         long = "splat",
         default_value = "blend",

@@ -128,15 +128,28 @@ pub fn apply_progressively(
             stipple_render::pipeline::MAX_LAYERS
         ));
     }
+    let transparent = pipe
+        .splat
+        .is_some_and(|s| s.mode == stipple_render::SplatMode::Transparent);
+    if transparent && pipe.layers > 1 {
+        if look.layers.is_some() {
+            eprintln!(
+                "stipple: note: transparent splats composite every layer in one pass: --layers \
+                 is not used"
+            );
+        }
+        pipe.layers = 1;
+    }
     if let Some(o) = look.opacity {
         if !(0.0..=1.0).contains(&o) {
             return Err(anyhow!("--opacity {o}: must lie in 0..1"));
         }
         cloud.set_opacity(o);
-        if pipe.layers == 1 {
+        if pipe.layers == 1 && !pipe.splat.is_some_and(|s| s.mode.is_ordered()) {
             eprintln!(
-                "stipple: note: --opacity shows only with depth peeling: add --layers N (the \
-                 number of surfaces a ray crosses, e.g. 2 for a closed surface)"
+                "stipple: note: --opacity shows only with depth peeling or transparent splats: \
+                 add --layers N (the number of surfaces a ray crosses, e.g. 2 for a closed \
+                 surface), or --pipeline splat --splat transparent"
             );
         }
     }

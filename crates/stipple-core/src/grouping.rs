@@ -166,6 +166,76 @@ pub fn grouping(
     })
 }
 
+/// Share of a splat's radius within which it counts as covering a sample (the rest is
+/// margin for the surface between samples).
+const COVER_REACH: f32 = 0.5;
+
+/// Memberships of transparent splats (Zhang & Pajarola §4.2.2, method 1: splats of other
+/// groups duplicated into a group until it covers the surface): bit k of a point's mask is
+/// set when it is drawn in group k. A point belongs to its own group; then, per group, the
+/// samples of the cloud are visited in index order and a sample that no splat of the group
+/// reaches (within half the splat's radius) joins it, reaching in turn its neighbours.
+/// Each group thus ends as a maximal set whose splats reach every sample: the paper's
+/// priority queue on clipped areas, made greedy over the neighbour graph. Returns the masks
+/// and the number of duplicates (memberships beyond the first).
+pub fn coverage_masks(
+    positions: &[Vec3],
+    radii: &[f32],
+    g: &Grouping,
+) -> Result<(Vec<u32>, usize), NormalError> {
+    let n = positions.len();
+    let k_groups = g.groups.clamp(1, MAX_GROUPS);
+    let own: Vec<u32> = g
+        .group
+        .iter()
+        .map(|&k| 1u32 << (k as usize % k_groups))
+        .collect();
+    if n < 3 || k_groups == 1 {
+        return Ok((own, 0));
+    }
+    let nb = neighbours(positions, 16.min(n - 1))?;
+    let reaches = |i: usize, j: usize| {
+        let r = COVER_REACH * radii[i];
+        (positions[j] - positions[i]).length_squared() <= r * r
+    };
+    let added: Vec<Vec<u32>> = (0..k_groups)
+        .into_par_iter()
+        .map(|k| {
+            let mut covered = vec![false; n];
+            let cover = |i: usize, covered: &mut [bool]| {
+                covered[i] = true;
+                for &j in nb.of(i) {
+                    if reaches(i, j as usize) {
+                        covered[j as usize] = true;
+                    }
+                }
+            };
+            for i in 0..n {
+                if g.group[i] as usize % k_groups == k {
+                    cover(i, &mut covered);
+                }
+            }
+            let mut extra = Vec::new();
+            for i in 0..n {
+                if !covered[i] {
+                    cover(i, &mut covered);
+                    extra.push(i as u32);
+                }
+            }
+            extra
+        })
+        .collect();
+    let mut masks = own;
+    let mut dup = 0;
+    for (k, extra) in added.iter().enumerate() {
+        for &i in extra {
+            masks[i as usize] |= 1 << k;
+            dup += 1;
+        }
+    }
+    Ok((masks, dup))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -203,6 +273,41 @@ mod tests {
             }
         }
         assert!(last <= 8, "c = 0.4 gives few groups: {last}");
+    }
+
+    /// With its duplicates, every group's splats reach every sample of the cloud; a point
+    /// stays in its own group.
+    #[test]
+    fn coverage_masks_let_each_group_reach_every_sample() {
+        let pts = sphere(20_000, 5);
+        let radii = crate::normals::splat_radii(&neighbours(&pts, 16).unwrap(), 1.0);
+        let g = grouping(&pts, Some(&pts), &radii, 0.4).unwrap();
+        assert!(g.groups > 1);
+        let (masks, dup) = coverage_masks(&pts, &radii, &g).unwrap();
+        let total: usize = masks.iter().map(|m| m.count_ones() as usize).sum();
+        assert_eq!(total, pts.len() + dup);
+        for (i, m) in masks.iter().enumerate() {
+            assert!(m & (1 << g.group[i]) != 0, "point {i} left its group");
+        }
+        for k in 0..g.groups {
+            let members: Vec<usize> = (0..pts.len())
+                .filter(|&i| masks[i] & (1 << k) != 0)
+                .collect();
+            for i in (0..pts.len()).step_by(37) {
+                assert!(
+                    members
+                        .iter()
+                        .any(|&j| (pts[i] - pts[j]).length() <= radii[j]),
+                    "group {k} leaves sample {i} uncovered"
+                );
+            }
+        }
+        // Far fewer duplicates than a copy of the cloud per group.
+        assert!(
+            dup < pts.len() * g.groups / 2,
+            "{dup} duplicates over {} groups",
+            g.groups
+        );
     }
 
     #[test]

@@ -62,6 +62,8 @@ pub struct PreparedCloud {
     /// Deferred blending's splat groups, computed on first use (see
     /// [`PreparedCloud::groups`]), with the key and c they were made for.
     groups: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<stipple_core::grouping::Grouping>)>>,
+    /// The transparent splats' group memberships (see [`PreparedCloud::coverage`]).
+    coverage: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<Coverage>)>>,
     /// The cloud's bounds, computed on first use for the key they were made for (a frame
     /// needs them; recomputing them read every point, 30 ms a frame at 100 M points).
     bounds: std::sync::Mutex<Option<(u64, stipple_core::Bounds)>>,
@@ -113,6 +115,7 @@ impl PreparedCloud {
             size: None,
             shapes: None,
             groups: Default::default(),
+            coverage: Default::default(),
             bounds: Default::default(),
             lit: None,
             surface: None,
@@ -142,6 +145,7 @@ impl PreparedCloud {
             shapes: self.shapes.clone(),
             // Both are kept per key: made again for the new one on first use.
             groups: Default::default(),
+            coverage: Default::default(),
             bounds: Default::default(),
             lit: self.lit.clone(),
             surface: self.surface.clone(),
@@ -228,7 +232,9 @@ impl PreparedCloud {
         let mut p = pipe.resolved(v, self.spacing, centre, front);
         if let Some(s) = &mut p.splat {
             s.epsilon = Some(self.splat_epsilon(s));
-            if s.mode == SplatMode::Deferred {
+            if matches!(s.mode, SplatMode::Deferred | SplatMode::Transparent) {
+                // Transparent: the bucket sort's slices over the bounds' depths, ε thick
+                // (layers farther apart never share a slice).
                 s.depth_range = Some(self.depth_range(v));
             }
             if s.mode == SplatMode::Sorted {
@@ -509,6 +515,31 @@ impl PreparedCloud {
         gr
     }
 
+    /// The groups transparent splats are drawn in (Zhang & Pajarola §4.2.2): the groups for
+    /// relaxation `c`, each completed with duplicates until it covers the surface
+    /// (`stipple_core::grouping::coverage_masks`); computed on first use and kept until the
+    /// cloud or c changes.
+    pub fn coverage(&self, c: f32) -> std::sync::Arc<Coverage> {
+        let mut g = self.coverage.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((k, cb, cov)) = g.as_ref() {
+            if *k == self.key && *cb == c.to_bits() {
+                return cov.clone();
+            }
+        }
+        let groups = self.groups(c);
+        let radii = self.splat_radii();
+        let (masks, duplicates) =
+            stipple_core::grouping::coverage_masks(&self.cloud.positions, &radii, &groups)
+                .unwrap_or_else(|_| (vec![1; self.cloud.len()], 0));
+        let cov = std::sync::Arc::new(Coverage {
+            masks,
+            groups: groups.groups.clamp(1, stipple_core::grouping::MAX_GROUPS),
+            duplicates,
+        });
+        *g = Some((self.key, c.to_bits(), cov.clone()));
+        cov
+    }
+
     /// The cloud's bounds (local coordinates), cached per [`PreparedCloud::key`]: code that
     /// moves points must give the cloud a new key, as the GPU copy needs anyway.
     pub fn bounds(&self) -> stipple_core::Bounds {
@@ -640,4 +671,15 @@ mod tests {
             .all(|(a, b)| (*a - *b).length() < 1e-5));
         assert!(trusted.cloud.radius.is_some() && trusted.shapes.is_some());
     }
+}
+
+/// The groups transparent splats are drawn in ([`PreparedCloud::coverage`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Coverage {
+    /// Per point, the groups it is drawn in (bit k: group k).
+    pub masks: Vec<u32>,
+    /// The number of groups K.
+    pub groups: usize,
+    /// Memberships beyond each point's own group.
+    pub duplicates: usize,
 }

@@ -178,6 +178,9 @@ impl Renderer {
                     if let Some(sp) = pipe.splat.filter(|s| s.mode == SplatMode::Deferred) {
                         renderer.set_splat_groups(up, &cloud.groups(sp.c))?;
                     }
+                    if let Some(sp) = pipe.splat.filter(|s| s.mode == SplatMode::Transparent) {
+                        renderer.set_splat_masks(up, sp.c, &cloud.coverage(sp.c))?;
+                    }
                 }
                 let before = t0.elapsed().as_secs_f64() * 1e3;
                 let mut f = if read {

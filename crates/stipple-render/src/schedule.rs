@@ -145,10 +145,7 @@ fn layer<X: PassExec>(
         }
     }
     // Sorted splats are shaded per point and blended as they are drawn.
-    if !pipe
-        .splat
-        .is_some_and(|s| s.mode == crate::SplatMode::Sorted)
-    {
+    if !pipe.splat.is_some_and(|s| s.mode.is_ordered()) {
         x.shade()?;
     }
     for pass in &pipe.colour {

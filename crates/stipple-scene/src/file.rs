@@ -43,6 +43,20 @@ pub struct CameraSpec {
     pub size: Option<[u32; 2]>,
 }
 
+/// How a scene's translucent clouds are drawn (`[render] transparency`).
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Transparency {
+    /// Depth peeling (Dobrev §4–5), `layers` deep.
+    #[serde(rename = "peel")]
+    Peel,
+    /// Transparent splats (Zhang & Pajarola Algorithm 2): one pass.
+    #[serde(rename = "splat-1pass")]
+    Splat1Pass,
+    /// Algorithm 3 (refused: not built yet).
+    #[serde(rename = "splat-2pass")]
+    Splat2Pass,
+}
+
 #[derive(Deserialize, Debug, Default, Clone)]
 #[serde(deny_unknown_fields)]
 pub struct RenderSpec {
@@ -58,6 +72,10 @@ pub struct RenderSpec {
     pub falloff: Option<f64>,
     /// A shadow cache file, relative to the scene file.
     pub shadow_cache: Option<PathBuf>,
+    /// How translucent clouds are drawn: "peel" (Dobrev's depth peeling, `layers` deep; the
+    /// default) or "splat-1pass" (Zhang & Pajarola's transparent splats, every layer in one
+    /// pass; `layers` is then not used).
+    pub transparency: Option<Transparency>,
 }
 
 #[derive(Deserialize, Debug, Clone)]
@@ -127,6 +145,7 @@ pub struct LightSpec {
 }
 
 /// A scene's settings once its clouds are loaded and merged (the cloud is returned apart).
+#[derive(Clone, Debug)]
 pub struct LoadedScene {
     pub lights: Vec<Light>,
     pub camera: CameraSpec,
@@ -351,6 +370,13 @@ pub fn build(
                 "falloff = {f}: a distance above zero (where lights shine at full strength)"
             )));
         }
+    }
+    if spec.render.transparency == Some(Transparency::Splat2Pass) {
+        return Err(err(
+            "transparency = \"splat-2pass\": Zhang & Pajarola's Algorithm 3 (the nearest layer \
+             drawn apart) is not built yet; use \"splat-1pass\" or \"peel\""
+                .into(),
+        ));
     }
     if let Some(l) = spec.render.layers {
         if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&l) {
@@ -650,6 +676,17 @@ impl LoadedScene {
         if let Some(l) = self.render.layers {
             pipe.layers = l;
         }
+        if self.render.transparency == Some(Transparency::Splat1Pass) {
+            // Splats drawn back to front with their opacities, every layer in one pass.
+            let s = pipe.splat.unwrap_or_default();
+            pipe.splat = Some(stipple_render::SplatSettings {
+                mode: stipple_render::SplatMode::Transparent,
+                ..s
+            });
+            pipe.geometry.clear();
+            pipe.backface_culling = false;
+            pipe.layers = 1;
+        }
         // The command line's --light-falloff wins.
         if let (Some(f), None) = (self.render.falloff, pipe.falloff) {
             pipe.falloff = Some(f as f32);
@@ -894,6 +931,14 @@ samples = 8
                 "999 samples",
             ),
             ("[[cloud]]\ndemo = \"sphere\"\n[render]\nlayers = 0\n", "layers = 0"),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\n[render]\ntransparency = \"splat-2pass\"\n",
+                "Algorithm 3",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\n[render]\ntransparency = \"glass\"\n",
+                "unknown variant `glass`",
+            ),
         ] {
             let p = write(&d, "bad.toml", text);
             let e = load(&p)
@@ -990,6 +1035,17 @@ samples = 8
             kept.background,
             stipple_render::Pipeline::default().background
         );
+        // Transparency by splats: one pass of transparent splats, no peeling, no fills.
+        let mut t = s.clone();
+        t.render.transparency = Some(Transparency::Splat1Pass);
+        let mut pipe = stipple_render::Pipeline::default();
+        t.apply_to(&mut pipe, false);
+        assert_eq!(
+            pipe.splat.map(|s| s.mode),
+            Some(stipple_render::SplatMode::Transparent)
+        );
+        assert_eq!(pipe.layers, 1);
+        assert!(pipe.geometry.is_empty());
     }
 
     /// The scene's camera: its size, fov and target, the framing's direction kept, near and

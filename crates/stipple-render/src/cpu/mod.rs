@@ -234,7 +234,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let vis = &r.vis;
 
         r.blended_valid = false;
-        if let Some(sp) = splat.filter(|s| s.mode == crate::SplatMode::Sorted) {
+        if let Some(sp) = splat.filter(|s| s.mode.is_ordered()) {
             // The images shade would size (the colour passes read them).
             let n = v.pixels();
             r.colour.0.resize(n, [0.0; 3]);
@@ -261,26 +261,53 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 let col = shade::shade_points(glam::Vec3::from(v.eye), forward, &input, &params);
                 (col, 1, 0)
             });
-            let si = crate::passes::splat::sorted::SortedInput {
-                positions: &c.positions,
-                radii: &radii,
-                scale: sp.scale,
-                alpha: cloud.alpha.as_deref(),
-                colour: &colours,
-            };
             let (col, sd) = (&mut r.colour.0, &mut r.surface_depth);
-            timed(stats, PassId::Splat, || {
-                let f = crate::passes::splat::sorted::composite(
-                    v,
-                    &si,
-                    &sorted.order,
-                    params.background,
-                    col,
-                    &mut ga.depth,
-                    &mut ga.id,
-                );
-                ((), 1, f)
-            });
+            if sp.mode == crate::SplatMode::Transparent {
+                let cov = cloud.coverage(sp.c);
+                let ti = crate::passes::splat::transparent::TransparentInput {
+                    positions: &c.positions,
+                    normals: c.normals.as_deref(),
+                    radii: &radii,
+                    scale: sp.scale,
+                    masks: &cov.masks,
+                    groups: cov.groups,
+                    alpha: cloud.alpha.as_deref(),
+                    colour: &colours,
+                    epsilon: eps,
+                };
+                timed(stats, PassId::Splat, || {
+                    let f = crate::passes::splat::transparent::composite(
+                        v,
+                        &ti,
+                        &sorted.order,
+                        params.background,
+                        col,
+                        &mut ga.depth,
+                        &mut ga.id,
+                    );
+                    ((), 1, f)
+                });
+            } else {
+                let si = crate::passes::splat::sorted::SortedInput {
+                    positions: &c.positions,
+                    radii: &radii,
+                    scale: sp.scale,
+                    alpha: cloud.alpha.as_deref(),
+                    colour: &colours,
+                };
+                timed(stats, PassId::Splat, || {
+                    let f = crate::passes::splat::sorted::composite(
+                        v,
+                        &si,
+                        &sorted.order,
+                        params.background,
+                        col,
+                        &mut ga.depth,
+                        &mut ga.id,
+                    );
+                    ((), 1, f)
+                });
+            }
             sd.copy_from_slice(&ga.depth);
             return Ok(Some(sorted.order.len() as u64));
         }

@@ -441,6 +441,16 @@ mod tests {
                 "SORTED_ID_WEIGHT",
                 p::splat::sorted::ID_WEIGHT as f64,
             ),
+            (
+                &SORTED_MODULE,
+                "T_DRAW_SCALE",
+                p::splat::transparent::DRAW_SCALE as f64,
+            ),
+            (
+                &SORTED_MODULE,
+                "T_MAX_GROUPS",
+                stipple_core::grouping::MAX_GROUPS as f64,
+            ),
         ];
         for &(m, name, rust) in pairs {
             let w = wgsl_const(m, name);

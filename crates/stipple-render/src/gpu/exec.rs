@@ -82,7 +82,7 @@ impl PassExec for GpuExec<'_> {
         self.cur = Cursor::default();
         let (rec, b, cloud) = (&mut self.rec, self.b, self.cloud);
         match (splat, self.projection, &b.f.targets) {
-            (Some(sp), _, _) if sp.mode == crate::SplatMode::Sorted => {
+            (Some(sp), _, _) if sp.mode.is_ordered() => {
                 let sg = self.splat.as_deref_mut().ok_or_else(|| {
                     GpuError::Wgpu("sorted splats asked for where splats are not set up".into())
                 })?;

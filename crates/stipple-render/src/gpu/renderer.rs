@@ -87,6 +87,16 @@ impl GpuRenderer {
         self.splat.set_groups(&self.ctx, cloud, groups)
     }
 
+    /// Uploads an uploaded cloud's transparent-splat group masks, unless they are there.
+    pub fn set_splat_masks(
+        &mut self,
+        cloud: &GpuCloud,
+        c: f32,
+        cov: &crate::Coverage,
+    ) -> Result<(), GpuError> {
+        self.splat.set_masks(&self.ctx, cloud, c, cov)
+    }
+
     /// Uploads an uploaded cloud's splat radii (unscaled) and shapes (None: flat splats)
     /// for the splat pass, unless they are there already.
     pub fn set_splat_shapes(

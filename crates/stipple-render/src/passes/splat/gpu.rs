@@ -85,9 +85,13 @@ pub(crate) struct SplatGpu {
     /// (radius, A, B, C) per point, per chunk of the cloud uploaded last (keyed by its
     /// upload key), and whether it has shapes.
     radii: Option<(u64, Vec<Buffer>, bool)>,
-    /// Sorted splats: the bucket sort's buffers and the per-point splats (two vec4 each) of
-    /// the cloud uploaded last (keyed by its upload key), made on its first sorted frame.
+    /// Sorted splats: the bucket sort's buffers and the per-point splats (four vec4 each)
+    /// of the cloud uploaded last (keyed by its upload key), made on its first sorted frame.
     sorted: Option<(u64, crate::passes::bucket_sort::gpu::SortBuffers, Buffer)>,
+    /// Transparent splats: the group masks of the cloud uploaded last (upload key, c bits,
+    /// masks, K), and the K images per pixel kept between dispatches (its size in bytes).
+    masks: Option<(u64, u32, Buffer, usize)>,
+    group_acc: Option<(u64, Buffer)>,
 }
 
 impl SplatGpu {
@@ -102,7 +106,7 @@ impl SplatGpu {
             return Ok(());
         }
         self.sorted = None;
-        let bytes = 32 * cloud.len as u64;
+        let bytes = 64 * cloud.len as u64;
         let limit = ctx
             .limits
             .max_storage_buffer_binding_size
@@ -223,6 +227,8 @@ impl SplatGpu {
             scratch: None,
             radii: None,
             sorted: None,
+            masks: None,
+            group_acc: None,
         }
     }
 
@@ -301,6 +307,72 @@ impl SplatGpu {
         let buf = util::storage_init(&ctx.device, "splat groups", bytemuck::cast_slice(&packed));
         self.groups = Some((cloud.key, g.c.to_bits(), buf, g.groups));
         ctx.take_errors()
+    }
+
+    /// Uploads an uploaded cloud's transparent-splat group masks
+    /// (`PreparedCloud::coverage`), unless they are there.
+    pub fn set_masks(
+        &mut self,
+        ctx: &GpuContext,
+        cloud: &GpuCloud,
+        c: f32,
+        cov: &crate::Coverage,
+    ) -> Result<(), GpuError> {
+        if self
+            .masks
+            .as_ref()
+            .is_some_and(|x| x.0 == cloud.key && x.1 == c.to_bits())
+        {
+            return Ok(());
+        }
+        if cov.masks.len() != cloud.len {
+            return Err(GpuError::Wgpu(format!(
+                "splat: {} group masks for a cloud of {} points",
+                cov.masks.len(),
+                cloud.len
+            )));
+        }
+        let data: &[u32] = if cov.masks.is_empty() {
+            &[0]
+        } else {
+            &cov.masks
+        };
+        let buf = util::storage_init(&ctx.device, "transparent masks", bytemuck::cast_slice(data));
+        self.masks = Some((cloud.key, c.to_bits(), buf, cov.groups));
+        ctx.take_errors()
+    }
+
+    /// The transparent splats' masks of `cloud` and its K.
+    pub(crate) fn masks(&self, cloud: &GpuCloud) -> Result<(&Buffer, usize), GpuError> {
+        match &self.masks {
+            Some((k, _, b, g)) if *k == cloud.key => Ok((b, *g)),
+            _ => Err(GpuError::Wgpu(
+                "transparent splats: the cloud's group masks were not uploaded".into(),
+            )),
+        }
+    }
+
+    /// The K images per pixel of transparent splats (kept between frames of one size).
+    pub(crate) fn group_acc(&mut self, ctx: &GpuContext, bytes: u64) -> Result<&Buffer, GpuError> {
+        let limit = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
+        if bytes > limit {
+            return Err(GpuError::TooLarge(format!(
+                "transparent splats: the group images need {} MiB, more than the device's \
+                 binding limit of {} MiB (a smaller image, or --splat-c lower for fewer groups)",
+                bytes >> 20,
+                limit >> 20
+            )));
+        }
+        if self.group_acc.as_ref().map(|x| x.0) != Some(bytes) {
+            self.group_acc = Some((
+                bytes,
+                util::storage(&ctx.device, "transparent images", bytes),
+            ));
+        }
+        Ok(&self.group_acc.as_ref().expect("made above").1)
     }
 
     /// Records the pass: clears, then the five dispatches (six with `blend`), into `pass`
@@ -426,9 +498,9 @@ impl SplatGpu {
                     crate::SplatMode::Voronoi => 0,
                     crate::SplatMode::Blend => 1,
                     crate::SplatMode::Deferred => 2,
-                    crate::SplatMode::Sorted => {
+                    crate::SplatMode::Sorted | crate::SplatMode::Transparent => {
                         return Err(GpuError::Wgpu(
-                            "sorted splats are drawn by sorted_gpu, not the splat pass".into(),
+                            "ordered splats are drawn by sorted_gpu, not the splat pass".into(),
                         ))
                     }
                 },

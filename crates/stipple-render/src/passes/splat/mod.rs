@@ -65,6 +65,7 @@ pub mod cpu;
 pub mod gpu;
 pub mod sorted;
 pub(crate) mod sorted_gpu;
+pub mod transparent;
 
 use crate::params::ViewParams;
 use glam::Vec3;
@@ -91,6 +92,19 @@ pub enum SplatMode {
     /// splats with the "over" operator, each with its own opacity and shading ([`sorted`]):
     /// for volumes, transfer functions and particle clouds.
     Sorted,
+    /// Zhang & Pajarola's transparent splats (§4.2, §5.2.1 Algorithm 2): the deferred
+    /// mode's groups, each duplicated until it covers the surface, drawn back to front as
+    /// flat discs with per-point opacity into one image per group (a fragment within ε of
+    /// the last one blended there is of the same layer and culled), then averaged
+    /// ([`transparent`]).
+    Transparent,
+}
+
+impl SplatMode {
+    /// Drawn back to front in one pass, shaded per point (no shade pass, no ε-z test).
+    pub fn is_ordered(self) -> bool {
+        matches!(self, SplatMode::Sorted | SplatMode::Transparent)
+    }
 }
 
 /// Settings of the splat pass.

@@ -16,6 +16,12 @@ struct SortedChunk {
     has_albedo: u32,
     has_style: u32,
     has_lit: u32,
+    // 0: sorted splats (Gunjee), 1: transparent splats (Zhang & Pajarola Algorithm 2).
+    mode: u32,
+    // 1: the chunk's normals orient the discs (lit or not).
+    disc_normals: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 struct SortedComposite {
@@ -27,8 +33,9 @@ struct SortedComposite {
     end: u32,
     first: u32,
     last: u32,
-    pad0: u32,
-    pad1: u32,
+    // Transparent splats: the number of groups K and the culling ε.
+    groups: u32,
+    epsilon: f32,
     pad2: u32,
 }
 
@@ -47,7 +54,9 @@ fn lit8(sum: u32, s: u32) -> f32 {
 }
 // (radius, bend…) and the clip planes: three vec4 per point (the splat pass's shapes).
 @group(0) @binding(17) var<storage, read> s_shapes: array<vec4<f32>>;
-// Per point of the cloud: (centre x, centre y, radius, depth), (linear colour, τ).
+// Per point of the cloud, four vec4. Sorted: (centre x, centre y, radius, depth), (linear
+// colour, τ). Transparent: (point, r²), (unit normal, α), (linear colour, group mask's
+// bits), (pixel rectangle x0, y0, x1, y1; x0 > x1: none).
 @group(0) @binding(18) var<storage, read_write> s_splats: array<vec4<f32>>;
 @group(0) @binding(19) var<storage, read> s_order: array<u32>;
 @group(0) @binding(20) var<storage, read> s_counts: array<u32>;
@@ -61,6 +70,53 @@ const SORTED_MAX_ALPHA: f32 = 0.999;
 const SORTED_ID_WEIGHT: f32 = 0.1;
 const SORTED_MIN_RADIUS: f32 = 0.70710677;
 const MAX_FOOTPRINT: f32 = 256.0;
+
+// Chunk point `local` at q shaded as shade::cpu::shade_points shades it.
+fn shaded_point(local: u32, q: vec3<f32>, object: u32) -> vec3<f32> {
+    var albedo = sp.base_colour;
+    if (sc.has_albedo == 1u) {
+        let bits = s_albedo[local];
+        albedo = vec3<f32>(to_linear[bits & 0xffu], to_linear[(bits >> 8u) & 0xffu], to_linear[(bits >> 16u) & 0xffu]);
+    }
+    let mat = materials[object];
+    var m = array<vec3<f32>, 4>(vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0));
+    if (sc.has_lit != 0u) {
+        let lw = s_lit[local];
+        for (var l = 0u; l < 4u; l++) {
+            if (sp.samples[l] > 0u) {
+                let w = select(lw.y, lw.x, l < 2u);
+                let g = (w >> (16u * (l % 2u))) & 0xffffu;
+                if (sc.has_lit == 1u) {
+                    m[l] = vec3<f32>(f32(g) / f32(sp.samples[l] * 255u));
+                } else {
+                    // shade::cpu::lit_rgb: each channel rounded to 8 bits.
+                    let rb = s_lit_rb[local][l];
+                    m[l] = vec3<f32>(lit8(rb & 0xffffu, sp.samples[l]), lit8(g, sp.samples[l]), lit8(rb >> 16u, sp.samples[l]));
+                }
+            }
+        }
+    }
+    var c = albedo;
+    if (sc.has_normals == 0u) {
+        if (sc.has_lit != 0u) {
+            c = unlit(albedo, m, mat);
+        }
+    } else {
+        let n = vec3<f32>(s_normals[3u * local], s_normals[3u * local + 1u], s_normals[3u * local + 2u]);
+        var to_eye = -view.forward;
+        if (view.perspective == 1u) {
+            let e = view.eye - q;
+            let len = sqrt(dot3(e, e));
+            if (len > 0.0) {
+                to_eye = e * (1.0 / len);
+            } else {
+                to_eye = vec3<f32>(0.0);
+            }
+        }
+        c = phong_lights(albedo, n, to_eye, q, m, mat);
+    }
+    return c;
+}
 
 @compute @workgroup_size(256)
 fn sorted_points(
@@ -104,52 +160,10 @@ fn sorted_points(
     }
     let w_sum = sc.overlap * widened * widened;
     let tau = -log(1.0 - min(alpha, SORTED_MAX_ALPHA)) / max(w_sum, 1e-6);
-    // shade::cpu::shade_points
-    var albedo = sp.base_colour;
-    if (sc.has_albedo == 1u) {
-        let bits = s_albedo[local];
-        albedo = vec3<f32>(to_linear[bits & 0xffu], to_linear[(bits >> 8u) & 0xffu], to_linear[(bits >> 16u) & 0xffu]);
-    }
-    let mat = materials[object];
-    var m = array<vec3<f32>, 4>(vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0));
-    if (sc.has_lit != 0u) {
-        let lw = s_lit[local];
-        for (var l = 0u; l < 4u; l++) {
-            if (sp.samples[l] > 0u) {
-                let w = select(lw.y, lw.x, l < 2u);
-                let g = (w >> (16u * (l % 2u))) & 0xffffu;
-                if (sc.has_lit == 1u) {
-                    m[l] = vec3<f32>(f32(g) / f32(sp.samples[l] * 255u));
-                } else {
-                    // shade::cpu::lit_rgb: each channel rounded to 8 bits.
-                    let rb = s_lit_rb[local][l];
-                    m[l] = vec3<f32>(lit8(rb & 0xffffu, sp.samples[l]), lit8(g, sp.samples[l]), lit8(rb >> 16u, sp.samples[l]));
-                }
-            }
-        }
-    }
-    var c = albedo;
-    if (sc.has_normals == 0u) {
-        if (sc.has_lit != 0u) {
-            c = unlit(albedo, m, mat);
-        }
-    } else {
-        let n = vec3<f32>(s_normals[3u * local], s_normals[3u * local + 1u], s_normals[3u * local + 2u]);
-        var to_eye = -view.forward;
-        if (view.perspective == 1u) {
-            let e = view.eye - q;
-            let len = sqrt(dot3(e, e));
-            if (len > 0.0) {
-                to_eye = e * (1.0 / len);
-            } else {
-                to_eye = vec3<f32>(0.0);
-            }
-        }
-        c = phong_lights(albedo, n, to_eye, q, m, mat);
-    }
+    let c = shaded_point(local, q, object);
     let g = sc.base + local;
-    s_splats[2u * g] = vec4<f32>(fx, fy, rho, z);
-    s_splats[2u * g + 1u] = vec4<f32>(c, tau);
+    s_splats[4u * g] = vec4<f32>(fx, fy, rho, z);
+    s_splats[4u * g + 1u] = vec4<f32>(c, tau);
 }
 
 var<workgroup> tile_a: array<vec4<f32>, 256>;
@@ -198,8 +212,8 @@ fn sorted_composite(
         var id = 0u;
         if (k < kept) {
             id = s_order[k];
-            a = s_splats[2u * id];
-            b = s_splats[2u * id + 1u];
+            a = s_splats[4u * id];
+            b = s_splats[4u * id + 1u];
             // A splat that misses the tile is skipped by every thread.
             if (a.x + a.z < tx0 || a.x - a.z > tx0 + 16.0 || a.y + a.z < ty0 || a.y - a.z > ty0 + 16.0) {
                 a.z = -1.0;
@@ -243,6 +257,268 @@ fn sorted_composite(
         if (scomp.last == 1u) {
             colour[pix] = vec4<f32>(acc.xyz + (1.0 - acc.w) * sp.background, 1.0);
             surface_depth[pix] = dep;
+        }
+    }
+}
+
+// ---- transparent splats (Zhang & Pajarola Algorithm 2), twin of transparent.rs ----
+//   transparent_points     per chunk: each point's disc, shaded colour, opacity, group mask
+//                          and pixel rectangle (transparent::bound)
+//   transparent_composite  one 16×16 tile a workgroup, one pixel a thread: the splats in the
+//                          bucket sort's order, 128 at a time through workgroup memory, each
+//                          fragment blended into its groups' images unless within ε of the
+//                          last one blended there; the K images kept per pixel between
+//                          dispatches and averaged by the last
+
+// Per pixel and group between dispatches: colour and the depth of the last fragment blended.
+@group(0) @binding(26) var<storage, read_write> t_acc: array<vec4<f32>>;
+// The groups each point of the cloud is drawn in (bit k: group k).
+@group(0) @binding(27) var<storage, read> t_masks: array<u32>;
+
+const T_MAX_GROUPS: u32 = 32u;
+// transparent::DRAW_SCALE
+const T_DRAW_SCALE: f32 = 1.2;
+
+// transparent::bound, operation for operation; (1, 1, 0, 0) when none.
+fn t_bound(p: vec3<f32>, r: f32) -> vec4<f32> {
+    let none = vec4<f32>(1.0, 1.0, 0.0, 0.0);
+    let d = p - view.eye;
+    let x = dot3(d, view.right);
+    let y = dot3(d, view.up);
+    let z = dot3(d, view.forward);
+    let w = f32(view.width);
+    let h = f32(view.height);
+    if (z + r <= view.near) {
+        return none;
+    }
+    var x0 = 0.0;
+    var x1 = 0.0;
+    var y0 = 0.0;
+    var y1 = 0.0;
+    var cx = 0.0;
+    var cy = 0.0;
+    if (view.perspective == 1u) {
+        let zn = max(z - r, view.near);
+        let zf = z + r;
+        let zc = max(z, zn);
+        x0 = (ext_lo(x - r, zn, zf) * view.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = (ext_hi(x + r, zn, zf) * view.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - ext_hi(y + r, zn, zf) * view.sy) * 0.5 * h - 0.5;
+        y1 = (1.0 - ext_lo(y - r, zn, zf) * view.sy) * 0.5 * h - 0.5;
+        cx = (x * view.sx / zc + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * view.sy / zc) * 0.5 * h - 0.5;
+    } else {
+        x0 = ((x - r) * view.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = ((x + r) * view.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - (y + r) * view.sy) * 0.5 * h - 0.5;
+        y1 = (1.0 - (y - r) * view.sy) * 0.5 * h - 0.5;
+        cx = (x * view.sx + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * view.sy) * 0.5 * h - 0.5;
+    }
+    let half = MAX_FOOTPRINT * 0.5;
+    let bx0 = max(floor(max(x0, cx - half)) - 1.0, 0.0);
+    let bx1 = min(ceil(min(x1, cx + half)) + 1.0, w - 1.0);
+    let by0 = max(floor(max(y0, cy - half)) - 1.0, 0.0);
+    let by1 = min(ceil(min(y1, cy + half)) + 1.0, h - 1.0);
+    if (!(bx0 <= bx1 && by0 <= by1)) {
+        return none;
+    }
+    return vec4<f32>(bx0, by0, bx1, by1);
+}
+
+fn ext_lo(c: f32, zn: f32, zf: f32) -> f32 {
+    if (c >= 0.0) {
+        return c / zf;
+    }
+    return c / zn;
+}
+
+fn ext_hi(c: f32, zn: f32, zf: f32) -> f32 {
+    if (c >= 0.0) {
+        return c / zn;
+    }
+    return c / zf;
+}
+
+@compute @workgroup_size(256)
+fn transparent_points(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let local = group_index(wg, groups) * 256u + li;
+    if (local >= sc.count) {
+        return;
+    }
+    let g = sc.base + local;
+    let q = vec3<f32>(s_positions[3u * local], s_positions[3u * local + 1u], s_positions[3u * local + 2u]);
+    let r = s_shapes[3u * local].x * sc.scale * T_DRAW_SCALE;
+    var n = -view.forward;
+    if (sc.disc_normals == 1u) {
+        n = vec3<f32>(s_normals[3u * local], s_normals[3u * local + 1u], s_normals[3u * local + 2u]);
+    } else if (view.perspective == 1u) {
+        n = view.eye - q;
+    }
+    // glam's normalize_or_zero
+    let rcp = 1.0 / sqrt(dot3(n, n));
+    var ok = rcp > 0.0 && rcp < infinity();
+    if (ok) {
+        n = n * rcp;
+    }
+    var alpha = 1.0;
+    var object = 0u;
+    if (sc.has_style == 1u) {
+        let st = s_style[local];
+        alpha = f32((st >> 8u) & 0xffu) / 255.0;
+        object = st & 0xffu;
+    }
+    let mask = t_masks[g];
+    var rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
+    if (ok && r > 0.0 && mask != 0u) {
+        rect = t_bound(q, r);
+    }
+    let c = shaded_point(local, q, object);
+    s_splats[4u * g] = vec4<f32>(q, r * r);
+    s_splats[4u * g + 1u] = vec4<f32>(n, alpha);
+    s_splats[4u * g + 2u] = vec4<f32>(c, bitcast<f32>(mask));
+    s_splats[4u * g + 3u] = rect;
+}
+
+var<workgroup> t_tile_p: array<vec4<f32>, 128>;
+var<workgroup> t_tile_n: array<vec4<f32>, 128>;
+var<workgroup> t_tile_c: array<vec4<f32>, 128>;
+var<workgroup> t_tile_r: array<vec4<f32>, 128>;
+var<workgroup> t_tile_id: array<u32, 128>;
+var<workgroup> t_kept: u32;
+
+@compute @workgroup_size(16, 16)
+fn transparent_composite(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let px = wg.x * 16u + lid.x;
+    let py = wg.y * 16u + lid.y;
+    let inside = px < view.width && py < view.height;
+    let npix = view.width * view.height;
+    let pix = py * view.width + px;
+    let tx0 = f32(wg.x * 16u);
+    let ty0 = f32(wg.y * 16u);
+    if (li == 0u) {
+        t_kept = min(s_counts[2u * scomp.n], scomp.end);
+    }
+    let kept = workgroupUniformLoad(&t_kept);
+    let k_groups = min(max(scomp.groups, 1u), T_MAX_GROUPS);
+    var acc: array<vec4<f32>, 32>;
+    for (var g = 0u; g < k_groups; g++) {
+        acc[g] = vec4<f32>(sp.background, infinity());
+    }
+    var dep = infinity();
+    var pid = BACKGROUND;
+    if (inside && scomp.first == 0u) {
+        for (var g = 0u; g < k_groups; g++) {
+            acc[g] = t_acc[g * npix + pix];
+        }
+        dep = s_depth[pix];
+        pid = s_id[pix];
+    }
+    // transparent::pixel_ray
+    let sxn = (2.0 * f32(px) + 1.0) / f32(view.width) - 1.0;
+    let syn = 1.0 - (2.0 * f32(py) + 1.0) / f32(view.height);
+    let offset = view.right * (sxn / view.sx) + view.up * (syn / view.sy);
+    var ro = view.eye;
+    var rd = view.forward + offset;
+    if (view.perspective != 1u) {
+        ro = view.eye + offset;
+        rd = view.forward;
+    }
+    let fx = f32(px);
+    let fy = f32(py);
+    var base = scomp.begin;
+    loop {
+        if (base >= kept) {
+            break;
+        }
+        if (li < 128u) {
+            let k = base + li;
+            var rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
+            var id = 0u;
+            if (k < kept) {
+                id = s_order[k];
+                rect = s_splats[4u * id + 3u];
+                // A splat that misses the tile is skipped by every thread.
+                if (rect.z < tx0 || rect.x > tx0 + 15.0 || rect.w < ty0 || rect.y > ty0 + 15.0) {
+                    rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
+                }
+                t_tile_p[li] = s_splats[4u * id];
+                t_tile_n[li] = s_splats[4u * id + 1u];
+                t_tile_c[li] = s_splats[4u * id + 2u];
+            }
+            t_tile_r[li] = rect;
+            t_tile_id[li] = id;
+        }
+        workgroupBarrier();
+        let m = min(128u, kept - base);
+        if (inside) {
+            for (var j = 0u; j < m; j++) {
+                let rect = t_tile_r[j];
+                if (fx < rect.x || fx > rect.z || fy < rect.y || fy > rect.w) {
+                    continue;
+                }
+                let sp4 = t_tile_p[j];
+                let nn = t_tile_n[j];
+                // transparent::flat_hit
+                let dn = dot3(rd, nn.xyz);
+                if (dn == 0.0) {
+                    continue;
+                }
+                let a = ro - sp4.xyz;
+                let t = -dot3(a, nn.xyz) / dn;
+                let hit = a + rd * t;
+                if (!(t > view.near && dot3(hit, hit) < sp4.w)) {
+                    continue;
+                }
+                let cm = t_tile_c[j];
+                let al = nn.w;
+                var bits = bitcast<u32>(cm.w);
+                loop {
+                    if (bits == 0u) {
+                        break;
+                    }
+                    let g = firstTrailingBit(bits);
+                    bits = bits & (bits - 1u);
+                    if (g >= k_groups) {
+                        break;
+                    }
+                    let s = acc[g];
+                    if (t >= s.w - scomp.epsilon) {
+                        continue;
+                    }
+                    acc[g] = vec4<f32>(al * cm.xyz + (1.0 - al) * s.xyz, t);
+                    if (t < dep) {
+                        dep = t;
+                        pid = t_tile_id[j];
+                    }
+                }
+            }
+        }
+        workgroupBarrier();
+        base = base + 128u;
+    }
+    if (inside) {
+        s_depth[pix] = dep;
+        s_id[pix] = pid;
+        if (scomp.last == 1u) {
+            var sum = vec3<f32>(0.0);
+            for (var g = 0u; g < k_groups; g++) {
+                sum = sum + acc[g].xyz;
+            }
+            colour[pix] = vec4<f32>(sum * (1.0 / f32(k_groups)), 1.0);
+            surface_depth[pix] = dep;
+        } else {
+            for (var g = 0u; g < k_groups; g++) {
+                t_acc[g * npix + pix] = acc[g];
+            }
         }
     }
 }

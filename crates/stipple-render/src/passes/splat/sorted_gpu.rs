@@ -35,6 +35,11 @@ pub(crate) struct SortedChunk {
     pub has_albedo: u32,
     pub has_style: u32,
     pub has_lit: u32,
+    /// 0: sorted (Gunjee), 1: transparent (Zhang & Pajarola Algorithm 2).
+    pub mode: u32,
+    /// 1: the chunk's normals orient the discs (lit or not).
+    pub disc_normals: u32,
+    pub pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -45,17 +50,22 @@ pub(crate) struct SortedComposite {
     pub end: u32,
     pub first: u32,
     pub last: u32,
-    pub pad: [u32; 3],
+    /// Transparent splats: the number of groups and the culling ε.
+    pub groups: u32,
+    pub epsilon: f32,
+    pub pad: u32,
 }
 
 /// Splats a composite dispatch draws at most (see sorted.wgsl: on lavapipe one dispatch drew
 /// only the first 65 536 splats of larger clouds).
 pub(crate) const BATCH: u32 = 16384;
 
-/// The two kernels.
+/// The kernels: sorted and transparent splats' points and composites.
 pub(crate) struct SortedGpu {
     points: Pass,
     composite: Pass,
+    t_points: Pass,
+    t_composite: Pass,
 }
 
 const SKIP: Slot = Slot::Skip;
@@ -76,15 +86,21 @@ impl GpuPass for SortedGpu {
             SKIP, SKIP, SKIP, SKIP, SKIP, SKIP, SKIP, WRITE, READ, READ, UNIFORM, WRITE, WRITE,
             WRITE,
         ];
+        let mut t_points = points.to_vec();
+        t_points.extend([SKIP, READ]);
+        let mut t_composite = composite.to_vec();
+        t_composite.extend([SKIP, WRITE]);
         SortedGpu {
             points: Pass::new(d, m, "sorted_points", &points),
             composite: Pass::new(d, m, "sorted_composite", &composite),
+            t_points: Pass::new(d, m, "transparent_points", &t_points),
+            t_composite: Pass::new(d, m, "transparent_composite", &t_composite),
         }
     }
 }
 
-/// Records a frame of sorted splats into geometry image 0 (depth, id), colour image 0 and
-/// the surface depth.
+/// Records a frame of sorted (or transparent) splats into geometry image 0 (depth, id),
+/// colour image 0 and the surface depth.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn record(
     rec: &mut Rec<'_>,
@@ -101,8 +117,23 @@ pub(crate) fn record(
         GpuError::Wgpu("sorted splats: the pipeline was not resolved for the view".into())
     })?;
     let slicing = Slicing::new(lo, hi, s.epsilon.unwrap_or(0.0));
+    let transparent = s.mode == crate::SplatMode::Transparent;
     let q = rec.section();
     splat.make_sorted_buffers(ctx, cloud)?;
+    let masks = if transparent {
+        let (m, k) = splat.masks(cloud)?;
+        Some((m.clone(), k))
+    } else {
+        None
+    };
+    let group_acc = match &masks {
+        Some((_, k)) => Some(
+            splat
+                .group_acc(ctx, 16 * *k as u64 * f.width as u64 * f.height as u64)?
+                .clone(),
+        ),
+        None => None,
+    };
     let (shapes, _) = splat.shapes(cloud)?;
     let (sorted, splats) = splat.sorted_buffers(cloud)?;
     crate::passes::bucket_sort::gpu::record_sort(
@@ -115,6 +146,11 @@ pub(crate) fn record(
         sorted,
     );
     let pass = b.shared.pass::<SortedGpu>(ctx);
+    let (points_pass, composite_pass) = if transparent {
+        (&pass.t_points, &pass.t_composite)
+    } else {
+        (&pass.points, &pass.composite)
+    };
     let uniform = |label, bytes: &[u8]| {
         d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some(label),
@@ -127,7 +163,7 @@ pub(crate) fn record(
     let overlap = expected_overlap() * s.scale * s.scale;
     {
         let mut c = rec.enc.begin_compute_pass(&Default::default());
-        c.set_pipeline(&pass.points.pipeline);
+        c.set_pipeline(&points_pass.pipeline);
         let mut keep = Vec::new();
         for (ch, shape) in cloud.chunks.iter().zip(shapes) {
             let sc = uniform(
@@ -147,40 +183,44 @@ pub(crate) fn record(
                         (Some(_), None) => 1,
                         (None, _) => 0,
                     },
+                    mode: transparent as u32,
+                    disc_normals: ch.normals.is_some() as u32,
+                    pad: [0; 2],
                 }),
             );
-            let or_dummy = |x: &Option<wgpu::Buffer>| x.as_ref().unwrap_or(&cloud.dummy).clone();
-            let g = pass.points.bind(
-                d,
-                &[
-                    Res::Buf(&b.shared.view),
-                    Res::Buf(&sp),
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Buf(&b.shared.to_linear),
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Buf(&mats),
-                    Res::Buf(&sc),
-                    Res::Buf(&ch.positions),
-                    Res::Buf(&or_dummy(&ch.normals)),
-                    Res::Buf(&or_dummy(&ch.albedo)),
-                    Res::Buf(&or_dummy(&ch.style)),
-                    Res::Buf(&or_dummy(&ch.lit)),
-                    Res::Buf(shape),
-                    Res::Buf(splats),
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Skip,
-                    Res::Buf(&or_dummy(&ch.lit_rb)),
-                ],
-            );
+            let dummy = &cloud.dummy;
+            let mut res = vec![
+                Res::Buf(&b.shared.view),
+                Res::Buf(&sp),
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Buf(&b.shared.to_linear),
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Buf(&mats),
+                Res::Buf(&sc),
+                Res::Buf(&ch.positions),
+                Res::Buf(ch.normals.as_ref().unwrap_or(dummy)),
+                Res::Buf(ch.albedo.as_ref().unwrap_or(dummy)),
+                Res::Buf(ch.style.as_ref().unwrap_or(dummy)),
+                Res::Buf(ch.lit.as_ref().unwrap_or(dummy)),
+                Res::Buf(shape),
+                Res::Buf(splats),
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Skip,
+                Res::Buf(ch.lit_rb.as_ref().unwrap_or(dummy)),
+            ];
+            if let Some((m, _)) = &masks {
+                res.extend([Res::Skip, Res::Buf(m)]);
+            }
+            let g = points_pass.bind(d, &res);
             c.set_bind_group(0, &g, &[]);
             let (gx, gy) = flat_groups(ctx, ch.count as u64);
             c.dispatch_workgroups(gx, gy, 1);
@@ -200,43 +240,46 @@ pub(crate) fn record(
                 end: (k + 1) * BATCH,
                 first: (k == 0) as u32,
                 last: (k + 1 == dispatches) as u32,
-                pad: [0; 3],
+                groups: masks.as_ref().map_or(0, |m| m.1 as u32),
+                epsilon: s.epsilon.unwrap_or(0.0),
+                pad: 0,
             }),
         );
-        groups.push(pass.composite.bind(
-            d,
-            &[
-                Res::Buf(&b.shared.view),
-                Res::Buf(&sp),
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Buf(&f.colour[0]),
-                Res::Buf(&f.surface),
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Skip,
-                Res::Buf(splats),
-                Res::Buf(&sorted.order),
-                Res::Buf(&sorted.counts),
-                Res::Buf(&comp),
-                Res::Buf(&f.depth[0]),
-                Res::Buf(&f.id[0]),
-                Res::Buf(&f.acc),
-            ],
-        ));
+        let mut res = vec![
+            Res::Buf(&b.shared.view),
+            Res::Buf(&sp),
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Buf(&f.colour[0]),
+            Res::Buf(&f.surface),
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Skip,
+            Res::Buf(splats),
+            Res::Buf(&sorted.order),
+            Res::Buf(&sorted.counts),
+            Res::Buf(&comp),
+            Res::Buf(&f.depth[0]),
+            Res::Buf(&f.id[0]),
+            Res::Buf(&f.acc),
+        ];
+        if let Some(acc) = &group_acc {
+            res.extend([Res::Skip, Res::Buf(acc)]);
+        }
+        groups.push(composite_pass.bind(d, &res));
     }
     {
         let mut c = rec.timed_pass(q);
-        c.set_pipeline(&pass.composite.pipeline);
+        c.set_pipeline(&composite_pass.pipeline);
         for g in &groups {
             c.set_bind_group(0, g, &[]);
             c.dispatch_workgroups(f.width.div_ceil(16), f.height.div_ceil(16), 1);

@@ -1,0 +1,363 @@
+//! # Transparent splats: Zhang & Pajarola's Algorithm 2 (§3.3, §4.2, §5.2.1)
+//!
+//! How it works: the splats are graph-coloured into K groups (`stipple_core::grouping`, the
+//! deferred mode's groups) and drawn back to front (the bucket sort, slices ε thick) as flat
+//! discs, each group into its own image I_k that starts as the background. A fragment
+//! (where a pixel's centre ray meets a disc within its radius) of opacity α blends over its
+//! group's image, I_k ← α c + (1 − α) I_k, unless it lies within ε of the fragment last
+//! blended into I_k at that pixel: that one is of the same surface layer (§4.2.1, fragment
+//! culling), so each layer blends once per group image however many splats overlap there.
+//! The pixel is the mean of the K images (§3.3, Fig. 6: the mean interpolates between
+//! neighbouring splats, which sit in different groups; the α-blending inside each image
+//! composites the layers). Colours are each point's own Phong shading
+//! (`shade::cpu::shade_points`, as the sorted splats).
+//!
+//! Surface coverage (§4.2.2): a group holds splats that barely overlap, so alone it leaves
+//! holes, and a hole lets one K-th of the background through. Splats of other groups are
+//! duplicated into each group until its splats reach every sample of the cloud, the paper's
+//! method (1) (`stipple_core::grouping::coverage_masks`; a point is drawn once per group it
+//! belongs to). The overlap this adds is harmless: culling keeps one fragment per layer.
+//! The paper's method (2), enlarged radii, is not built: the Largest-First colouring's last
+//! groups hold few points, which no radius factor makes cover the surface.
+//!
+//! Deviations from the paper, and why:
+//! - Fragment culling compares depths (within ε of the last blended fragment) instead of
+//!   quantising them (Eq. 6): two fragments of one layer on either side of a quantisation
+//!   step would both blend, a speckle of double opacity along every step.
+//! - The slices of the back-to-front order are ε thick (the paper uses a BSP tree): layers
+//!   more than ε apart never share a slice, and closer ones are one layer to the culling.
+//! - Shading is per point (forward), not deferred per fragment (§5.2.4), and there are no
+//!   environment reflections or refractions yet.
+//!
+//! The CPU draws bands of rows in parallel (each band takes, in order, the splats that reach
+//! it); the GPU (`transparent.wgsl` in sorted.wgsl's module) draws one 16×16 tile per
+//! workgroup, one pixel per thread, with the splats in order through workgroup memory, and
+//! keeps the K images per pixel between its dispatches. Both compute a pixel's ray and a
+//! disc's hit with the same operations ([`pixel_ray`], [`flat_hit`]).
+
+use super::MAX_FOOTPRINT;
+use crate::gbuffer::BACKGROUND;
+use crate::params::ViewParams;
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// A transparent frame's points.
+pub struct TransparentInput<'a> {
+    pub positions: &'a [Vec3],
+    /// Unit normals (None: discs face the eye).
+    pub normals: Option<&'a [Vec3]>,
+    /// Splat radii (world units), before `scale`.
+    pub radii: &'a [f32],
+    pub scale: f32,
+    /// The groups each point is drawn in (bit k: group k), and the number of groups.
+    pub masks: &'a [u32],
+    pub groups: usize,
+    /// 8-bit opacity per point (None: opaque).
+    pub alpha: Option<&'a [u8]>,
+    /// Shaded linear colour per point.
+    pub colour: &'a [[f32; 3]],
+    /// Fragments within this depth of the last one blended into their group's image at a
+    /// pixel are of its layer and culled.
+    pub epsilon: f32,
+}
+
+/// A disc ready to draw: point, unit normal, squared radius, pixel rectangle.
+type FlatDisc = (Vec3, Vec3, f32, [u32; 4]);
+
+/// Transparent splats are drawn this much larger than their radius: the blend modes'
+/// radii (0.6 × the 16th neighbour's distance) leave rare gaps in randomly sampled
+/// surfaces, which the image-space passes never see there (no fill runs after the splats)
+/// and a translucent surface shows as spots (measured on random spheres: at 1.15 none left;
+/// overlap costs nothing, culling keeps one fragment per layer).
+pub const DRAW_SCALE: f32 = 1.2;
+
+/// Rows per band of the parallel compositing.
+const BAND: usize = 16;
+
+/// The ray through pixel (x, y)'s centre: origin and direction, the direction's component
+/// along the view axis 1 (so a hit's parameter is its view depth). As transparent.wgsl.
+#[inline]
+pub fn pixel_ray(v: &ViewParams, x: u32, y: u32) -> (Vec3, Vec3) {
+    let (w, h) = (v.width as f32, v.height as f32);
+    let (r, u, f) = (Vec3::from(v.right), Vec3::from(v.up), Vec3::from(v.forward));
+    let eye = Vec3::from(v.eye);
+    let sx = (2.0 * x as f32 + 1.0) / w - 1.0;
+    let sy = 1.0 - (2.0 * y as f32 + 1.0) / h;
+    let offset = r * (sx / v.sx) + u * (sy / v.sy);
+    if v.perspective == 1 {
+        (eye, f + offset)
+    } else {
+        (eye + offset, f)
+    }
+}
+
+/// The pixel rectangle (x0, y0, x1, y1), inclusive, that may hold fragments of a disc of
+/// radius `r` about `p`: its bounding sphere's box projected, one pixel wider on each side
+/// (so that rounding never decides a pixel: the hit test does), at most [`MAX_FOOTPRINT`]
+/// pixels across about the centre; None when off screen or behind the near plane. As
+/// transparent.wgsl.
+#[inline]
+pub fn bound(v: &ViewParams, p: Vec3, r: f32) -> Option<[u32; 4]> {
+    let d = p - Vec3::from(v.eye);
+    let x = d.dot(Vec3::from(v.right));
+    let y = d.dot(Vec3::from(v.up));
+    let z = d.dot(Vec3::from(v.forward));
+    let (w, h) = (v.width as f32, v.height as f32);
+    let (x0, x1, y0, y1, cx, cy);
+    if z + r <= v.near {
+        return None;
+    }
+    if v.perspective == 1 {
+        let zn = (z - r).max(v.near);
+        let zf = z + r;
+        let zc = z.max(zn);
+        let lo = |c: f32| if c >= 0.0 { c / zf } else { c / zn };
+        let hi = |c: f32| if c >= 0.0 { c / zn } else { c / zf };
+        x0 = (lo(x - r) * v.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = (hi(x + r) * v.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - hi(y + r) * v.sy) * 0.5 * h - 0.5;
+        y1 = (1.0 - lo(y - r) * v.sy) * 0.5 * h - 0.5;
+        cx = (x * v.sx / zc + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * v.sy / zc) * 0.5 * h - 0.5;
+    } else {
+        x0 = ((x - r) * v.sx + 1.0) * 0.5 * w - 0.5;
+        x1 = ((x + r) * v.sx + 1.0) * 0.5 * w - 0.5;
+        y0 = (1.0 - (y + r) * v.sy) * 0.5 * h - 0.5;
+        y1 = (1.0 - (y - r) * v.sy) * 0.5 * h - 0.5;
+        cx = (x * v.sx + 1.0) * 0.5 * w - 0.5;
+        cy = (1.0 - y * v.sy) * 0.5 * h - 0.5;
+    }
+    let half = MAX_FOOTPRINT * 0.5;
+    let x0 = (x0.max(cx - half).floor() - 1.0).max(0.0);
+    let x1 = (x1.min(cx + half).ceil() + 1.0).min(w - 1.0);
+    let y0 = (y0.max(cy - half).floor() - 1.0).max(0.0);
+    let y1 = (y1.min(cy + half).ceil() + 1.0).min(h - 1.0);
+    if !(x0 <= x1 && y0 <= y1) {
+        return None;
+    }
+    Some([x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+}
+
+/// Where the ray (o, d) meets the flat disc about `p` with unit normal `n` and squared radius
+/// `r2`: the hit's view depth, if it is within the disc and beyond `near`. As
+/// transparent.wgsl.
+#[inline]
+pub fn flat_hit(o: Vec3, d: Vec3, p: Vec3, n: Vec3, r2: f32, near: f32) -> Option<f32> {
+    let dn = d.dot(n);
+    if dn == 0.0 {
+        return None;
+    }
+    let a = o - p;
+    let t = -a.dot(n) / dn;
+    let hit = a + d * t;
+    (t > near && hit.dot(hit) < r2).then_some(t)
+}
+
+/// Draws the points of `order` (back to front) over `background` into K group images and
+/// writes their mean (linear colour), and per pixel the nearest blended fragment's depth and
+/// point. Returns the fragments blended.
+#[allow(clippy::too_many_arguments)]
+pub fn composite(
+    v: &ViewParams,
+    input: &TransparentInput,
+    order: &[u32],
+    background: [f32; 3],
+    colour: &mut [[f32; 3]],
+    depth: &mut [f32],
+    id: &mut [u32],
+) -> u64 {
+    let (w, h) = (v.width as usize, v.height as usize);
+    let k_groups = input.groups.max(1);
+    let eye = Vec3::from(v.eye);
+    // Per splat in order: the disc (point, normal, squared radius) and its pixel rectangle.
+    let discs: Vec<Option<FlatDisc>> = order
+        .par_iter()
+        .with_min_len(4096)
+        .map(|&i| {
+            let i = i as usize;
+            let p = input.positions[i];
+            let r = input.radii[i] * input.scale * DRAW_SCALE;
+            if r.is_nan() || r <= 0.0 || input.masks[i] == 0 {
+                return None;
+            }
+            let n = match input.normals {
+                Some(n) => n[i].normalize_or_zero(),
+                None if v.perspective == 1 => (eye - p).normalize_or_zero(),
+                None => -Vec3::from(v.forward),
+            };
+            if n == Vec3::ZERO {
+                return None;
+            }
+            bound(v, p, r).map(|rect| (p, n, r * r, rect))
+        })
+        .collect();
+    let bands = h.div_ceil(BAND);
+    let mut per_band: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for (k, d) in discs.iter().enumerate() {
+        if let Some((_, _, _, [_, y0, _, y1])) = d {
+            for b in (*y0 as usize / BAND)..=(*y1 as usize / BAND).min(bands - 1) {
+                per_band[b].push(k as u32);
+            }
+        }
+    }
+    colour
+        .par_chunks_mut(w * BAND)
+        .zip(depth.par_chunks_mut(w * BAND))
+        .zip(id.par_chunks_mut(w * BAND))
+        .zip(per_band.par_iter())
+        .enumerate()
+        .map(|(b, (((crow, drow), irow), list))| {
+            let rows = crow.len() / w;
+            let y_base = b * BAND;
+            // Per group and pixel: colour so far and the depth of the last fragment blended.
+            let mut acc = vec![
+                [background[0], background[1], background[2], f32::INFINITY];
+                k_groups * crow.len()
+            ];
+            drow.fill(f32::INFINITY);
+            irow.fill(BACKGROUND);
+            let rays: Vec<(Vec3, Vec3)> = (0..crow.len())
+                .map(|p| pixel_ray(v, (p % w) as u32, (y_base + p / w) as u32))
+                .collect();
+            let mut frags = 0u64;
+            for &k in list {
+                let Some((p, n, r2, [x0, y0, x1, y1])) = discs[k as usize] else {
+                    continue;
+                };
+                let i = order[k as usize] as usize;
+                let c = input.colour[i];
+                let alpha = input.alpha.map_or(1.0, |a| a[i] as f32 / 255.0);
+                let mask = input.masks[i];
+                let ylo = (y0 as usize).max(y_base);
+                let yhi = (y1 as usize).min(y_base + rows - 1);
+                for y in ylo..=yhi {
+                    for x in x0 as usize..=x1 as usize {
+                        let pix = (y - y_base) * w + x;
+                        let (o, d) = rays[pix];
+                        let Some(z) = flat_hit(o, d, p, n, r2, v.near) else {
+                            continue;
+                        };
+                        let mut bits = mask;
+                        while bits != 0 {
+                            let g = bits.trailing_zeros() as usize;
+                            bits &= bits - 1;
+                            if g >= k_groups {
+                                break;
+                            }
+                            let s = &mut acc[g * crow.len() + pix];
+                            if z >= s[3] - input.epsilon {
+                                // The layer of the fragment last blended here (§4.2.1).
+                                continue;
+                            }
+                            for ch in 0..3 {
+                                s[ch] = alpha * c[ch] + (1.0 - alpha) * s[ch];
+                            }
+                            s[3] = z;
+                            if z < drow[pix] {
+                                drow[pix] = z;
+                                irow[pix] = i as u32;
+                            }
+                            frags += 1;
+                        }
+                    }
+                }
+            }
+            let inv = 1.0 / k_groups as f32;
+            for (pix, o) in crow.iter_mut().enumerate() {
+                let mut sum = [0.0f32; 3];
+                for g in 0..k_groups {
+                    let s = &acc[g * rows * w + pix];
+                    for ch in 0..3 {
+                        sum[ch] += s[ch];
+                    }
+                }
+                *o = sum.map(|s| s * inv);
+            }
+            frags
+        })
+        .sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two parallel translucent planes over a background, each sampled densely in two
+    /// groups: every pixel of their overlap is the analytic front-to-back composite, a
+    /// pixel of one plane alone that plane over the background.
+    #[test]
+    fn two_translucent_planes_composite_exactly() {
+        let v = ViewParams::axis_aligned(48, 48, false, 1.0);
+        let mut positions = Vec::new();
+        let mut colour = Vec::new();
+        let mut alpha = Vec::new();
+        let mut masks = Vec::new();
+        // Plane A (far, z 2, red, α 0.6) over x in [0, 1]; plane B (near, z 1, blue,
+        // α 0.5) over x in [0, 0.5]; points 0.02 apart in a grid, groups by checkerboard.
+        for (z, xmax, c, a) in [
+            (2.0, 1.0, [1.0, 0.0, 0.0], 153u8),
+            (1.0, 0.5, [0.0, 0.0, 1.0], 128),
+        ] {
+            for iy in 0..=50 {
+                for ix in 0..=(xmax * 50.0) as i32 {
+                    positions.push(Vec3::new(ix as f32 * 0.02, iy as f32 * 0.02, z));
+                    colour.push(c);
+                    alpha.push(a);
+                    masks.push(1u32 << ((ix + iy) % 2));
+                }
+            }
+        }
+        let normals = vec![Vec3::new(0.0, 0.0, -1.0); positions.len()];
+        let radii = vec![0.03; positions.len()];
+        let input = TransparentInput {
+            positions: &positions,
+            normals: Some(&normals),
+            radii: &radii,
+            scale: 1.0,
+            masks: &masks,
+            groups: 2,
+            alpha: Some(&alpha),
+            colour: &colour,
+            epsilon: 0.05,
+        };
+        // Back to front: plane A, then B.
+        let order: Vec<u32> = (0..positions.len() as u32).collect();
+        let bg = [0.2, 0.6, 0.2];
+        let n = v.pixels();
+        let (mut c, mut d, mut id) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0; n]);
+        composite(&v, &input, &order, bg, &mut c, &mut d, &mut id);
+        let (aa, ab) = (153.0 / 255.0f32, 128.0 / 255.0f32);
+        let over_a: [f32; 3] =
+            std::array::from_fn(|k| aa * [1.0, 0.0, 0.0][k] + (1.0 - aa) * bg[k]);
+        let both: [f32; 3] =
+            std::array::from_fn(|k| ab * [0.0, 0.0, 1.0][k] + (1.0 - ab) * over_a[k]);
+        let at = |x: f32, y: f32| {
+            crate::passes::project::cpu::project_point(&v, Vec3::new(x, y, 1.0))
+                .unwrap()
+                .0
+        };
+        for (x, y, want) in [
+            (0.25, 0.5, both),
+            (0.1, 0.8, both),
+            (0.75, 0.5, over_a),
+            (0.9, 0.3, over_a),
+        ] {
+            let k = at(x, y);
+            for ch in 0..3 {
+                assert!(
+                    (c[k][ch] - want[ch]).abs() < 0.5 / 255.0,
+                    "({x}, {y}) channel {ch}: {:?} vs {want:?}",
+                    c[k]
+                );
+            }
+        }
+        // The nearest layer's depth where both are, the far one's elsewhere.
+        assert!((d[at(0.25, 0.5)] - 1.0).abs() < 1e-5);
+        assert!((d[at(0.75, 0.5)] - 2.0).abs() < 1e-5);
+        // Drawn in the wrong order (front first), the far plane is culled behind the near one.
+        let rev: Vec<u32> = order.iter().rev().copied().collect();
+        let (mut c2, mut d2, mut id2) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0; n]);
+        composite(&v, &input, &rev, bg, &mut c2, &mut d2, &mut id2);
+        assert!((c2[at(0.25, 0.5)][0] - both[0]).abs() > 0.05);
+    }
+}
