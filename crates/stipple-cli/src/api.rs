@@ -131,6 +131,20 @@ pub fn prepare_progressively(
         renderer,
         first_samples,
     )?;
+    if let Some(sp) = pipe
+        .splat
+        .filter(|s| s.mode == stipple_render::SplatMode::Transparent)
+    {
+        // Computed once here (kept by the cloud for every frame): say what it made.
+        let cov = cloud.coverage(sp.c);
+        note(&format!(
+            "transparent splats: {} groups, {} splats duplicated (+{:.0}%) so that each group \
+             covers the surface",
+            cov.groups,
+            cov.duplicates,
+            100.0 * cov.duplicates as f64 / cloud.cloud.len().max(1) as f64
+        ));
+    }
     if a.layer_images.is_some() {
         if pipe.layers == 1 {
             return Err(anyhow::anyhow!("--layer-images needs --layers N (N > 1)"));

@@ -533,7 +533,9 @@ impl PreparedCloud {
                 .unwrap_or_else(|_| (vec![1; self.cloud.len()], 0));
         let cov = std::sync::Arc::new(Coverage {
             masks,
-            groups: groups.groups.clamp(1, stipple_core::grouping::MAX_GROUPS),
+            groups: groups
+                .groups
+                .clamp(1, stipple_core::grouping::TRANSPARENT_GROUPS),
             duplicates,
         });
         *g = Some((self.key, c.to_bits(), cov.clone()));
