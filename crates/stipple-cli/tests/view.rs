@@ -842,6 +842,24 @@ fn the_gpu_backend_presents_in_place() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `stipple view --size 96x72 --backend BACKEND --exit-after FRAMES` of the demo scene on a
+/// display of its own, with `env`; it must succeed; what it printed.
+fn scripted(xvfb: &Path, dir: &Path, backend: &str, frames: u32, env: &[(&str, &str)]) -> String {
+    let display = start_display(xvfb);
+    let frames = frames.to_string();
+    let o = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args(["view", "--size", "96x72", "--backend", backend])
+        .args(["--exit-after", &frames, "--quit-after", "120"])
+        .current_dir(dir)
+        .env("DISPLAY", &display.name)
+        .envs(env.iter().copied())
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert!(o.status.success(), "{t}");
+    t
+}
+
 /// The GPU device lost mid-run (destroyed as a driver reset would, through a test hook):
 /// the viewer says so, goes on rendering on the CPU with a presenter of its own, and
 /// finishes its frames.
@@ -851,26 +869,8 @@ fn a_lost_gpu_device_moves_the_viewer_to_the_cpu() {
     if !gpu_available() {
         return;
     }
-    let display = start_display(&xvfb);
     let dir = tempdir("view-lost");
-    let o = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "view",
-            "--size",
-            "96x72",
-            "--backend",
-            "gpu",
-            "--exit-after",
-            "6",
-        ])
-        .args(["--quit-after", "120"])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .env("STIPPLE_VIEW_LOSE_DEVICE", "2")
-        .output()
-        .unwrap();
-    let t = text(&o);
-    assert!(o.status.success(), "{t}");
+    let t = scripted(&xvfb, &dir, "gpu", 6, &[("STIPPLE_VIEW_LOSE_DEVICE", "2")]);
     assert!(
         t.contains("destroying the GPU device after frame 2")
             && t.contains("the GPU device was lost")
@@ -885,25 +885,8 @@ fn a_lost_gpu_device_moves_the_viewer_to_the_cpu() {
 #[test]
 fn a_scripted_run_prints_frame_statistics() {
     let Some([xvfb, _, _]) = tools() else { return };
-    let display = start_display(&xvfb);
     let dir = tempdir("view-stats");
-    let o = Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "view",
-            "--size",
-            "96x72",
-            "--backend",
-            "cpu",
-            "--exit-after",
-            "5",
-        ])
-        .args(["--quit-after", "120"])
-        .current_dir(&dir)
-        .env("DISPLAY", &display.name)
-        .output()
-        .unwrap();
-    let t = text(&o);
-    assert!(o.status.success(), "{t}");
+    let t = scripted(&xvfb, &dir, "cpu", 5, &[]);
     assert!(
         t.contains("5 frames on cpu") && t.contains("median") && t.contains("p99"),
         "{t}"

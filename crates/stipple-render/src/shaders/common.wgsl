@@ -42,3 +42,19 @@ fn group_index(wg: vec3<u32>, groups: vec3<u32>) -> u32 {
 fn is_finite(d: f32) -> bool {
     return d < infinity();
 }
+
+// The extremes of c / z over a splat's depths [zn, zf] (its screen bounds: splat.wgsl's
+// footprint, sorted.wgsl's transparent splats).
+fn ext_lo(c: f32, zn: f32, zf: f32) -> f32 {
+    if (c >= 0.0) {
+        return c / zf;
+    }
+    return c / zn;
+}
+
+fn ext_hi(c: f32, zn: f32, zf: f32) -> f32 {
+    if (c >= 0.0) {
+        return c / zn;
+    }
+    return c / zf;
+}

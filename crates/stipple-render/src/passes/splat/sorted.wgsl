@@ -326,20 +326,6 @@ fn t_bound(p: vec3<f32>, r: f32) -> vec4<f32> {
     return vec4<f32>(bx0, by0, bx1, by1);
 }
 
-fn ext_lo(c: f32, zn: f32, zf: f32) -> f32 {
-    if (c >= 0.0) {
-        return c / zf;
-    }
-    return c / zn;
-}
-
-fn ext_hi(c: f32, zn: f32, zf: f32) -> f32 {
-    if (c >= 0.0) {
-        return c / zn;
-    }
-    return c / zf;
-}
-
 @compute @workgroup_size(256)
 fn transparent_points(
     @builtin(workgroup_id) wg: vec3<u32>,

@@ -238,20 +238,6 @@ fn footprint_ext(n: vec3<f32>, a: vec3<f32>, r: f32, hb: f32) -> f32 {
     return r * sqrt(max(1.0 - c * c, 0.0)) + hb * c;
 }
 
-fn ext_lo(c: f32, zn: f32, zf: f32) -> f32 {
-    if (c >= 0.0) {
-        return c / zf;
-    }
-    return c / zn;
-}
-
-fn ext_hi(c: f32, zn: f32, zf: f32) -> f32 {
-    if (c >= 0.0) {
-        return c / zn;
-    }
-    return c / zf;
-}
-
 fn proj(v0: vec3<f32>, vx: vec3<f32>, vy: vec3<f32>, axis: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(dot3(v0, axis), dot3(vx, axis), dot3(vy, axis));
 }
