@@ -145,13 +145,27 @@ pub fn apply_progressively(
             return Err(anyhow!("--opacity {o}: must lie in 0..1"));
         }
         cloud.set_opacity(o);
-        if pipe.layers == 1 && !pipe.splat.is_some_and(|s| s.mode.is_ordered()) {
+    }
+    // A translucent cloud drawn with blending splats and no peeling: transparent splats show
+    // it through (one pass, every layer); asked-for peeling (--layers) keeps peeling.
+    if let (true, 1, Some(s)) = (cloud.mean_alpha < 1.0, pipe.layers, &mut pipe.splat) {
+        if s.mode == stipple_render::SplatMode::Blend {
+            s.mode = stipple_render::SplatMode::Transparent;
             eprintln!(
-                "stipple: note: --opacity shows only with depth peeling or transparent splats: \
-                 add --layers N (the number of surfaces a ray crosses, e.g. 2 for a closed \
-                 surface), or --pipeline splat --splat transparent"
+                "stipple: note: translucent points: drawn as transparent splats (Zhang & \
+                 Pajarola, every layer in one pass; --layers N peels instead)"
             );
         }
+    }
+    if look.opacity.is_some_and(|o| o < 1.0)
+        && pipe.layers == 1
+        && !pipe.splat.is_some_and(|s| s.mode.is_ordered())
+    {
+        eprintln!(
+            "stipple: note: --opacity shows only with depth peeling or transparent splats: \
+             add --layers N (the number of surfaces a ray crosses, e.g. 2 for a closed \
+             surface), or --pipeline splat --splat transparent"
+        );
     }
     let wanted = match scene {
         Some(s) => !look.no_shadows && (look.shadows || s.render.shadows.unwrap_or(true)),

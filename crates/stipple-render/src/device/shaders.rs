@@ -449,7 +449,7 @@ mod tests {
             (
                 &SORTED_MODULE,
                 "T_MAX_GROUPS",
-                stipple_core::grouping::MAX_GROUPS as f64,
+                stipple_core::grouping::TRANSPARENT_GROUPS as f64,
             ),
         ];
         for &(m, name, rust) in pairs {

@@ -270,12 +270,14 @@ fn sorted_composite(
 //                          last one blended there; the K images kept per pixel between
 //                          dispatches and averaged by the last
 
-// Per pixel and group between dispatches: colour and the depth of the last fragment blended.
+// Per pixel and group between dispatches, three vec4 (transparent::Layered): (colour behind
+// the current layer, its fragment's α), (the fragment's colour, depth), ((d/r)², point).
 @group(0) @binding(26) var<storage, read_write> t_acc: array<vec4<f32>>;
 // The groups each point of the cloud is drawn in (bit k: group k).
 @group(0) @binding(27) var<storage, read> t_masks: array<u32>;
 
-const T_MAX_GROUPS: u32 = 32u;
+// stipple_core::grouping::TRANSPARENT_GROUPS
+const T_MAX_GROUPS: u32 = 4u;
 // transparent::DRAW_SCALE
 const T_DRAW_SCALE: f32 = 1.2;
 
@@ -395,18 +397,22 @@ fn transparent_composite(
     }
     let kept = workgroupUniformLoad(&t_kept);
     let k_groups = min(max(scomp.groups, 1u), T_MAX_GROUPS);
-    var acc: array<vec4<f32>, 32>;
+    // transparent::Layered per group
+    var st0: array<vec4<f32>, 4>;
+    var st1: array<vec4<f32>, 4>;
+    var st2: array<vec4<f32>, 4>;
     for (var g = 0u; g < k_groups; g++) {
-        acc[g] = vec4<f32>(sp.background, infinity());
+        st0[g] = vec4<f32>(sp.background, 0.0);
+        st1[g] = vec4<f32>(0.0, 0.0, 0.0, infinity());
+        st2[g] = vec4<f32>(0.0, bitcast<f32>(BACKGROUND), 0.0, 0.0);
     }
-    var dep = infinity();
-    var pid = BACKGROUND;
     if (inside && scomp.first == 0u) {
         for (var g = 0u; g < k_groups; g++) {
-            acc[g] = t_acc[g * npix + pix];
+            let b = 3u * (g * npix + pix);
+            st0[g] = t_acc[b];
+            st1[g] = t_acc[b + 1u];
+            st2[g] = t_acc[b + 2u];
         }
-        dep = s_depth[pix];
-        pid = s_id[pix];
     }
     // transparent::pixel_ray
     let sxn = (2.0 * f32(px) + 1.0) / f32(view.width) - 1.0;
@@ -461,9 +467,12 @@ fn transparent_composite(
                 let a = ro - sp4.xyz;
                 let t = -dot3(a, nn.xyz) / dn;
                 let hit = a + rd * t;
-                if (!(t > view.near && dot3(hit, hit) < sp4.w)) {
+                let d2 = dot3(hit, hit);
+                if (!(t > view.near && d2 < sp4.w)) {
                     continue;
                 }
+                let q = d2 / sp4.w;
+                let id = t_tile_id[j];
                 let cm = t_tile_c[j];
                 let al = nn.w;
                 var bits = bitcast<u32>(cm.w);
@@ -476,15 +485,23 @@ fn transparent_composite(
                     if (g >= k_groups) {
                         break;
                     }
-                    let s = acc[g];
-                    if (t >= s.w - scomp.epsilon) {
-                        continue;
+                    // transparent::Layered::add
+                    let depth = st1[g].w;
+                    if (t < depth - scomp.epsilon) {
+                        if (depth < infinity()) {
+                            let s0 = st0[g];
+                            st0[g] = vec4<f32>(s0.w * st1[g].xyz + (1.0 - s0.w) * s0.xyz, s0.w);
+                        }
+                    } else {
+                        let cq = st2[g].x;
+                        let cid = bitcast<u32>(st2[g].y);
+                        if (q > cq || (q == cq && id >= cid)) {
+                            continue;
+                        }
                     }
-                    acc[g] = vec4<f32>(al * cm.xyz + (1.0 - al) * s.xyz, t);
-                    if (t < dep) {
-                        dep = t;
-                        pid = t_tile_id[j];
-                    }
+                    st0[g].w = al;
+                    st1[g] = vec4<f32>(cm.xyz, t);
+                    st2[g] = vec4<f32>(q, bitcast<f32>(id), 0.0, 0.0);
                 }
             }
         }
@@ -492,18 +509,32 @@ fn transparent_composite(
         base = base + 128u;
     }
     if (inside) {
-        s_depth[pix] = dep;
-        s_id[pix] = pid;
         if (scomp.last == 1u) {
             var sum = vec3<f32>(0.0);
+            var dep = infinity();
+            var pid = BACKGROUND;
             for (var g = 0u; g < k_groups; g++) {
-                sum = sum + acc[g].xyz;
+                // transparent::Layered::composite
+                var c = st0[g].xyz;
+                if (st1[g].w < infinity()) {
+                    c = st0[g].w * st1[g].xyz + (1.0 - st0[g].w) * st0[g].xyz;
+                }
+                sum = sum + c;
+                if (st1[g].w < dep) {
+                    dep = st1[g].w;
+                    pid = bitcast<u32>(st2[g].y);
+                }
             }
             colour[pix] = vec4<f32>(sum * (1.0 / f32(k_groups)), 1.0);
             surface_depth[pix] = dep;
+            s_depth[pix] = dep;
+            s_id[pix] = pid;
         } else {
             for (var g = 0u; g < k_groups; g++) {
-                t_acc[g * npix + pix] = acc[g];
+                let b = 3u * (g * npix + pix);
+                t_acc[b] = st0[g];
+                t_acc[b + 1u] = st1[g];
+                t_acc[b + 2u] = st2[g];
             }
         }
     }

@@ -129,7 +129,7 @@ pub(crate) fn record(
     let group_acc = match &masks {
         Some((_, k)) => Some(
             splat
-                .group_acc(ctx, 16 * *k as u64 * f.width as u64 * f.height as u64)?
+                .group_acc(ctx, 48 * *k as u64 * f.width as u64 * f.height as u64)?
                 .clone(),
         ),
         None => None,

@@ -3,10 +3,13 @@
 //! How it works: the splats are graph-coloured into K groups (`stipple_core::grouping`, the
 //! deferred mode's groups) and drawn back to front (the bucket sort, slices ε thick) as flat
 //! discs, each group into its own image I_k that starts as the background. A fragment
-//! (where a pixel's centre ray meets a disc within its radius) of opacity α blends over its
-//! group's image, I_k ← α c + (1 − α) I_k, unless it lies within ε of the fragment last
-//! blended into I_k at that pixel: that one is of the same surface layer (§4.2.1, fragment
-//! culling), so each layer blends once per group image however many splats overlap there.
+//! (where a pixel's centre ray meets a disc within its radius) of opacity α that lies more
+//! than ε in front of I_k's current layer at that pixel starts a new layer: the current one
+//! is composited, I_k ← α c + (1 − α) I_k, and the fragment becomes current. A fragment
+//! within ε is of the current layer (§4.2.1, fragment culling): of the two, the one nearer
+//! its splat's centre relative to its radius stays (Voronoi rasterization, §5.1, Eq. 10's
+//! second term; ties: the smaller point), so each layer blends once per group image however
+//! many splats overlap there, with the colour of the sample nearest the pixel.
 //! The pixel is the mean of the K images (§3.3, Fig. 6: the mean interpolates between
 //! neighbouring splats, which sit in different groups; the α-blending inside each image
 //! composites the layers). Colours are each point's own Phong shading
@@ -21,9 +24,12 @@
 //! groups hold few points, which no radius factor makes cover the surface.
 //!
 //! Deviations from the paper, and why:
-//! - Fragment culling compares depths (within ε of the last blended fragment) instead of
-//!   quantising them (Eq. 6): two fragments of one layer on either side of a quantisation
-//!   step would both blend, a speckle of double opacity along every step.
+//! - Fragment culling compares depths (within ε of the current layer) instead of quantising
+//!   them (Eq. 6): two fragments of one layer on either side of a quantisation step would
+//!   both blend, a speckle of double opacity along every step. Keeping the current layer's
+//!   fragment until a nearer layer comes makes the Voronoi choice inside a layer
+//!   independent of the order of its fragments (the back-to-front order only separates
+//!   layers), so the two backends agree although their sorts order a slice differently.
 //! - The slices of the back-to-front order are ε thick (the paper uses a BSP tree): layers
 //!   more than ε apart never share a slice, and closer ones are one layer to the culling.
 //! - Shading is per point (forward), not deferred per fragment (§5.2.4), and there are no
@@ -142,7 +148,7 @@ pub fn bound(v: &ViewParams, p: Vec3, r: f32) -> Option<[u32; 4]> {
 /// `r2`: the hit's view depth, if it is within the disc and beyond `near`. As
 /// transparent.wgsl.
 #[inline]
-pub fn flat_hit(o: Vec3, d: Vec3, p: Vec3, n: Vec3, r2: f32, near: f32) -> Option<f32> {
+pub fn flat_hit(o: Vec3, d: Vec3, p: Vec3, n: Vec3, r2: f32, near: f32) -> Option<(f32, f32)> {
     let dn = d.dot(n);
     if dn == 0.0 {
         return None;
@@ -150,7 +156,58 @@ pub fn flat_hit(o: Vec3, d: Vec3, p: Vec3, n: Vec3, r2: f32, near: f32) -> Optio
     let a = o - p;
     let t = -a.dot(n) / dn;
     let hit = a + d * t;
-    (t > near && hit.dot(hit) < r2).then_some(t)
+    let d2 = hit.dot(hit);
+    (t > near && d2 < r2).then_some((t, d2 / r2))
+}
+
+/// One group image at one pixel: the colour of the layers composited so far behind the
+/// current one, and the current (nearest) layer's fragment: colour, opacity, depth, (d/r)²
+/// and point.
+#[derive(Clone, Copy, Debug)]
+struct Layered {
+    behind: [f32; 3],
+    colour: [f32; 3],
+    alpha: f32,
+    depth: f32,
+    q: f32,
+    id: u32,
+}
+
+impl Layered {
+    fn new(background: [f32; 3]) -> Layered {
+        Layered {
+            behind: background,
+            colour: [0.0; 3],
+            alpha: 0.0,
+            depth: f32::INFINITY,
+            q: 0.0,
+            id: BACKGROUND,
+        }
+    }
+
+    /// A fragment, in back-to-front order: nearer than the current layer by more than ε, it
+    /// starts a new layer (the current one composited behind it); otherwise it is of the
+    /// current layer, and of the two the fragment nearer its splat's centre (relative to its
+    /// radius; ties: the smaller point) stays, Voronoi rasterization (§5.1) within the layer.
+    #[inline]
+    fn add(&mut self, z: f32, q: f32, id: u32, colour: [f32; 3], alpha: f32, epsilon: f32) {
+        if z < self.depth - epsilon {
+            if self.depth.is_finite() {
+                self.behind = self.composite();
+            }
+        } else if (q, id) >= (self.q, self.id) {
+            return;
+        }
+        (self.colour, self.alpha, self.depth, self.q, self.id) = (colour, alpha, z, q, id);
+    }
+
+    #[inline]
+    fn composite(&self) -> [f32; 3] {
+        if !self.depth.is_finite() {
+            return self.behind;
+        }
+        std::array::from_fn(|c| self.alpha * self.colour[c] + (1.0 - self.alpha) * self.behind[c])
+    }
 }
 
 /// Draws the points of `order` (back to front) over `background` into K group images and
@@ -210,10 +267,7 @@ pub fn composite(
             let rows = crow.len() / w;
             let y_base = b * BAND;
             // Per group and pixel: colour so far and the depth of the last fragment blended.
-            let mut acc = vec![
-                [background[0], background[1], background[2], f32::INFINITY];
-                k_groups * crow.len()
-            ];
+            let mut acc = vec![Layered::new(background); k_groups * crow.len()];
             drow.fill(f32::INFINITY);
             irow.fill(BACKGROUND);
             let rays: Vec<(Vec3, Vec3)> = (0..crow.len())
@@ -234,7 +288,7 @@ pub fn composite(
                     for x in x0 as usize..=x1 as usize {
                         let pix = (y - y_base) * w + x;
                         let (o, d) = rays[pix];
-                        let Some(z) = flat_hit(o, d, p, n, r2, v.near) else {
+                        let Some((z, q)) = flat_hit(o, d, p, n, r2, v.near) else {
                             continue;
                         };
                         let mut bits = mask;
@@ -244,19 +298,7 @@ pub fn composite(
                             if g >= k_groups {
                                 break;
                             }
-                            let s = &mut acc[g * crow.len() + pix];
-                            if z >= s[3] - input.epsilon {
-                                // The layer of the fragment last blended here (§4.2.1).
-                                continue;
-                            }
-                            for ch in 0..3 {
-                                s[ch] = alpha * c[ch] + (1.0 - alpha) * s[ch];
-                            }
-                            s[3] = z;
-                            if z < drow[pix] {
-                                drow[pix] = z;
-                                irow[pix] = i as u32;
-                            }
+                            acc[g * crow.len() + pix].add(z, q, i as u32, c, alpha, input.epsilon);
                             frags += 1;
                         }
                     }
@@ -267,8 +309,14 @@ pub fn composite(
                 let mut sum = [0.0f32; 3];
                 for g in 0..k_groups {
                     let s = &acc[g * rows * w + pix];
+                    let c = s.composite();
                     for ch in 0..3 {
-                        sum[ch] += s[ch];
+                        sum[ch] += c[ch];
+                    }
+                    // The nearest layer's fragment over the groups (ties: the first group).
+                    if s.depth < drow[pix] {
+                        drow[pix] = s.depth;
+                        irow[pix] = s.id;
                     }
                 }
                 *o = sum.map(|s| s * inv);
