@@ -643,6 +643,29 @@ fn transparent_splats_from_the_command_line_and_a_scene() {
         ],
         "t.png",
     );
+    // The default: a translucent cloud that the automatic choice draws as splats is drawn
+    // as transparent splats (peeling only when --layers asks for it).
+    let sparse = |extra: &[&str], out: &str| {
+        let mut a = vec![
+            "render",
+            "--demo",
+            "sphere",
+            "--points",
+            "3000",
+            "--opacity",
+            "0.5",
+        ];
+        a.extend(["--size", "128x128", "--backend", "cpu", "-o", out]);
+        a.extend(extra);
+        let said = ok(&dir, &a);
+        (stipple_io::image::read_png(&dir.join(out)).unwrap().2, said)
+    };
+    let (auto, said) = sparse(&[], "a.png");
+    let (explicit, _) = sparse(&["--pipeline", "splat", "--splat", "transparent"], "e.png");
+    assert!(
+        auto == explicit && said.contains("drawn as transparent splats"),
+        "--opacity alone draws transparent splats: {said}"
+    );
     let peeled = shot(&["--opacity", "0.5", "--layers", "2"], "p.png");
     let opaque = shot(&["--pipeline", "splat", "--splat", "transparent"], "o.png");
     let mean_diff = |a: &[u8], b: &[u8]| {
