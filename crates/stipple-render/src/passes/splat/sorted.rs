@@ -51,7 +51,25 @@ pub struct SortedInput<'a> {
 }
 
 /// Rows per band of the parallel compositing.
-const BAND: usize = 16;
+pub(super) const BAND: usize = 16;
+
+/// Per band of [`BAND`] rows of an image `h` rows high, the splats (their index in
+/// `rows`, in order) whose inclusive row span reaches it (None: off screen).
+pub(super) fn band_lists(
+    h: usize,
+    rows: impl Iterator<Item = Option<(usize, usize)>>,
+) -> Vec<Vec<u32>> {
+    let bands = h.div_ceil(BAND);
+    let mut per_band: Vec<Vec<u32>> = vec![Vec::new(); bands];
+    for (k, span) in rows.enumerate() {
+        if let Some((y0, y1)) = span {
+            for b in (y0 / BAND)..=(y1 / BAND).min(bands - 1) {
+                per_band[b].push(k as u32);
+            }
+        }
+    }
+    per_band
+}
 
 /// The weights of a surface's splats at a pixel add up to this on average (see the module
 /// documentation): RADIUS_FACTOR² · 16 · (1 − e⁻³) / 3.
@@ -113,19 +131,15 @@ pub fn composite(
         })
         .collect();
     // Each band's splats, in order.
-    let bands = h.div_ceil(BAND);
-    let mut per_band: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    for (k, s) in splats.iter().enumerate() {
-        let y0 = (s[1] - s[2]).floor().max(0.0);
-        let y1 = (s[1] + s[2]).ceil().min(h as f32 - 1.0);
-        let inside = y0 <= y1 && s[0] + s[2] >= 0.0 && s[0] - s[2] <= w as f32;
-        if !inside {
-            continue;
-        }
-        for b in (y0 as usize / BAND)..=(y1 as usize / BAND).min(bands - 1) {
-            per_band[b].push(k as u32);
-        }
-    }
+    let per_band = band_lists(
+        h,
+        splats.iter().map(|s| {
+            let y0 = (s[1] - s[2]).floor().max(0.0);
+            let y1 = (s[1] + s[2]).ceil().min(h as f32 - 1.0);
+            let inside = y0 <= y1 && s[0] + s[2] >= 0.0 && s[0] - s[2] <= w as f32;
+            inside.then_some((y0 as usize, y1 as usize))
+        }),
+    );
     colour
         .par_chunks_mut(w * BAND)
         .zip(depth.par_chunks_mut(w * BAND))

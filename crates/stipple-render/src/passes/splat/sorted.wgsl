@@ -71,6 +71,15 @@ const SORTED_ID_WEIGHT: f32 = 0.1;
 const SORTED_MIN_RADIUS: f32 = 0.70710677;
 const MAX_FOOTPRINT: f32 = 256.0;
 
+// Chunk point `local`'s style word: object in the low byte, 8-bit opacity in the next
+// (opaque, object 0 without styles).
+fn point_style(local: u32) -> u32 {
+    if (sc.has_style == 1u) {
+        return s_style[local];
+    }
+    return 0xff00u;
+}
+
 // Chunk point `local` at q shaded as shade::cpu::shade_points shades it.
 fn shaded_point(local: u32, q: vec3<f32>, object: u32) -> vec3<f32> {
     var albedo = sp.base_colour;
@@ -147,13 +156,9 @@ fn sorted_points(
     let fy = (1.0 - ny) * 0.5 * f32(view.height);
     let raw = s_shapes[3u * local].x * sc.scale * per;
     let rho = clamp(raw, SORTED_MIN_RADIUS, MAX_FOOTPRINT / 2.0);
-    var alpha = 1.0;
-    var object = 0u;
-    if (sc.has_style == 1u) {
-        let st = s_style[local];
-        alpha = f32((st >> 8u) & 0xffu) / 255.0;
-        object = st & 0xffu;
-    }
+    let st = point_style(local);
+    let alpha = f32((st >> 8u) & 0xffu) / 255.0;
+    let object = st & 0xffu;
     var widened = 1.0;
     if (raw > 0.0) {
         widened = rho / raw;
@@ -353,13 +358,9 @@ fn transparent_points(
     if (ok) {
         n = n * rcp;
     }
-    var alpha = 1.0;
-    var object = 0u;
-    if (sc.has_style == 1u) {
-        let st = s_style[local];
-        alpha = f32((st >> 8u) & 0xffu) / 255.0;
-        object = st & 0xffu;
-    }
+    let st = point_style(local);
+    let alpha = f32((st >> 8u) & 0xffu) / 255.0;
+    let object = st & 0xffu;
     let mask = t_masks[g];
     var rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
     if (ok && r > 0.0 && mask != 0u) {

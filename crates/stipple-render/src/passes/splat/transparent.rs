@@ -41,6 +41,7 @@
 //! keeps the K images per pixel between its dispatches. Both compute a pixel's ray and a
 //! disc's hit with the same operations ([`pixel_ray`], [`flat_hit`]).
 
+use super::sorted::{band_lists, BAND};
 use super::MAX_FOOTPRINT;
 use crate::gbuffer::BACKGROUND;
 use crate::params::ViewParams;
@@ -76,9 +77,6 @@ type FlatDisc = (Vec3, Vec3, f32, [u32; 4]);
 /// and a translucent surface shows as spots (measured on random spheres: at 1.15 none left;
 /// overlap costs nothing, culling keeps one fragment per layer).
 pub const DRAW_SCALE: f32 = 1.2;
-
-/// Rows per band of the parallel compositing.
-const BAND: usize = 16;
 
 /// The ray through pixel (x, y)'s centre: origin and direction, the direction's component
 /// along the view axis 1 (so a hit's parameter is its view depth). As transparent.wgsl.
@@ -248,15 +246,12 @@ pub fn composite(
             bound(v, p, r).map(|rect| (p, n, r * r, rect))
         })
         .collect();
-    let bands = h.div_ceil(BAND);
-    let mut per_band: Vec<Vec<u32>> = vec![Vec::new(); bands];
-    for (k, d) in discs.iter().enumerate() {
-        if let Some((_, _, _, [_, y0, _, y1])) = d {
-            for b in (*y0 as usize / BAND)..=(*y1 as usize / BAND).min(bands - 1) {
-                per_band[b].push(k as u32);
-            }
-        }
-    }
+    let per_band = band_lists(
+        h,
+        discs
+            .iter()
+            .map(|d| d.map(|(_, _, _, [_, y0, _, y1])| (y0 as usize, y1 as usize))),
+    );
     colour
         .par_chunks_mut(w * BAND)
         .zip(depth.par_chunks_mut(w * BAND))
@@ -266,7 +261,7 @@ pub fn composite(
         .map(|(b, (((crow, drow), irow), list))| {
             let rows = crow.len() / w;
             let y_base = b * BAND;
-            // Per group and pixel: colour so far and the depth of the last fragment blended.
+            // Per group and pixel: the layers behind and the current layer's fragment.
             let mut acc = vec![Layered::new(background); k_groups * crow.len()];
             drow.fill(f32::INFINITY);
             irow.fill(BACKGROUND);
