@@ -9,6 +9,7 @@ pub mod figures;
 pub mod lod;
 pub mod look;
 pub mod memory;
+pub mod oom;
 pub mod output;
 pub mod view;
 

@@ -652,6 +652,23 @@ fn memory_needs_are_checked_before_allocating() {
         .unwrap();
     let t = text(&o);
     assert!(o.status.success() && t.contains("points      3"), "{t}");
+    // A --memory budget above what `ulimit -v` allows passes the estimate; the refused
+    // allocation is then a one-line error with exit status 1, not an abort, and no output
+    // appears.
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 400000 && exec '{bin}' render --demo sphere --points 1000 --size 4096 \
+             --memory 100G --backend cpu -o big.png"
+        ))
+        .env_remove("RUST_BACKTRACE")
+        .current_dir(&dir)
+        .output()
+        .unwrap();
+    let t = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{t}");
+    assert!(t.contains("stipple: error: out of memory"), "{t}");
+    assert!(!dir.join("big.png").exists());
     std::fs::remove_dir_all(dir).ok();
 }
 

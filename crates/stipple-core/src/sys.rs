@@ -46,3 +46,35 @@ pub fn address_space_limit() -> Option<u64> {
         .parse()
         .ok()
 }
+
+/// Reserves room for `more` elements in `v`, or returns an error naming `what` and the memory
+/// the system refused (instead of aborting, as `Vec::reserve` does when it is refused).
+pub fn try_reserve<T>(v: &mut Vec<T>, more: usize, what: &str) -> Result<(), String> {
+    v.try_reserve(more).map_err(|_| {
+        format!(
+            "out of memory: {what} ({more} of {} bytes) need {} MiB, which the system \
+             refused; free memory, raise `ulimit -v`, or read a smaller file",
+            std::mem::size_of::<T>(),
+            (more as u64)
+                .saturating_mul(std::mem::size_of::<T>() as u64)
+                .div_ceil(1 << 20)
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn try_reserve_reports_a_refusal_and_grants_a_small_request() {
+        let mut v: Vec<u64> = Vec::new();
+        let e = try_reserve(&mut v, usize::MAX / 16, "the test's points").unwrap_err();
+        assert!(
+            e.contains("the test's points") && e.contains("out of memory"),
+            "{e}"
+        );
+        try_reserve(&mut v, 10, "ten").unwrap();
+        assert!(v.capacity() >= 10);
+    }
+}

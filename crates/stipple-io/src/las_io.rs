@@ -284,9 +284,12 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         origin = DVec3::ZERO;
     }
     let cap = count.min(file_len) as usize;
+    let mut positions = Vec::new();
+    stipple_core::sys::try_reserve(&mut positions, cap, "the points' positions")
+        .map_err(|m| IoError::invalid(path, m))?;
     let mut cloud = PointCloud {
         origin,
-        positions: Vec::with_capacity(cap),
+        positions,
         intensity: Some(Vec::with_capacity(cap)),
         classification: Some(Vec::with_capacity(cap)),
         return_number: Some(Vec::with_capacity(cap)),

@@ -651,7 +651,7 @@ fn read_elements(
         if is_vertex {
             seen_vertex = true;
             let m = VertexMap::new(el)?;
-            world.reserve(cap);
+            stipple_core::sys::try_reserve(&mut world, cap, "the vertices' positions")?;
             if m.normal.iter().all(Option::is_some) {
                 normals = Some(Vec::with_capacity(cap));
             }
