@@ -10,13 +10,14 @@
 //!    the covariance of the point and its neighbours (computed in f64 about their centroid).
 //!    Degenerate neighbourhoods have a defined answer: on a line, any direction perpendicular
 //!    to it; all neighbours at one position, +z.
-//! 3. **Orientation** (Hoppe et al. 1992): a minimum spanning tree over the symmetric graph
-//!    of each point's [`TREE_K`] nearest neighbours with edge weight 1 − |nᵢ·nⱼ|, grown by Prim's algorithm from the highest
-//!    point of each connected component, whose normal is turned up (+z; or away from the
-//!    cloud's centre where it is nearly horizontal). Each point takes the sign that agrees
-//!    with its parent in the tree, so orientation propagates along smooth surface first and
-//!    crosses sharp creases last. The queue is a bucket queue over 1024 weight levels, so the
-//!    tree is built in linear time.
+//! 3. **Orientation** (Hoppe et al. 1992): a minimum spanning forest over the graph of each
+//!    point's [`TREE_K`] nearest neighbours with edge weight 1 − |nᵢ·nⱼ| (Kruskal's
+//!    algorithm over a counting sort of 1024 weight levels, with the signs carried as
+//!    parities in its union–find: [`orient`](orient_components)). Each point takes the sign
+//!    that agrees with its neighbours in the tree, so orientation propagates along smooth
+//!    surface first and crosses sharp creases last; the highest point of each connected
+//!    component is turned up (+z; or away from the cloud's centre where it is nearly
+//!    horizontal), and its component with it.
 //! 4. **Given normals** keep their axes; only their signs may change. Step 3 propagates an
 //!    orientation over each connected component, which is then turned to agree with the
 //!    majority of the given signs there (open surfaces keep the side they were given); a
@@ -46,6 +47,9 @@
 use crate::cloud::Bounds;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
+
+mod orient;
+pub use orient::orient_components;
 
 /// Default neighbourhood size.
 pub const DEFAULT_K: usize = 16;
@@ -177,16 +181,7 @@ impl Grid {
                 _ => runs.push((k, s as u32, 1)),
             }
         }
-        let size = (runs.len() * 2).next_power_of_two().max(16);
-        let mask = size - 1;
-        let mut table = vec![(u64::MAX, 0, 0); size];
-        for r in runs {
-            let mut h = hash(r.0) & mask;
-            while table[h].0 != u64::MAX {
-                h = (h + 1) & mask;
-            }
-            table[h] = r;
-        }
+        let (table, mask) = Grid::table(&runs);
         Grid {
             min,
             inv_cell,
@@ -196,6 +191,87 @@ impl Grid {
             table,
             mask,
         }
+    }
+
+    /// The open-addressing table of cell runs (key, start, length).
+    fn table(runs: &[(u64, u32, u32)]) -> (Vec<(u64, u32, u32)>, usize) {
+        let size = (runs.len() * 2).next_power_of_two().max(16);
+        let mask = size - 1;
+        let mut table = vec![(u64::MAX, 0, 0); size];
+        for &r in runs {
+            let mut h = hash(r.0) & mask;
+            while table[h].0 != u64::MAX {
+                h = (h + 1) & mask;
+            }
+            table[h] = r;
+        }
+        (table, mask)
+    }
+
+    /// Takes exact copies of a position (the same bits) out of the grid, keeping the copy of
+    /// the smallest index (copies share a cell, where indices ascend). Returns (copy, kept)
+    /// pairs; nothing changes when there are none, or when fewer than `min_distinct`
+    /// positions would remain.
+    fn remove_copies(&mut self, min_distinct: usize) -> Vec<(u32, u32)> {
+        let bits = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+        let mut runs: Vec<(u64, u32, u32)> = self
+            .table
+            .iter()
+            .copied()
+            .filter(|r| r.0 != u64::MAX)
+            .collect();
+        runs.sort_unstable_by_key(|r| r.1);
+        let (pts, ids) = (&self.pts, &self.ids);
+        let copies: Vec<(u32, u32)> = runs
+            .par_iter()
+            .flat_map_iter(|&(_, s, len)| {
+                let (s, len) = (s as usize, len as usize);
+                let run = &pts[s..s + len];
+                let mut out = Vec::new();
+                if len <= 64 {
+                    for a in 1..len {
+                        let b = bits(run[a]);
+                        if let Some(first) = (0..a).find(|&c| bits(run[c]) == b) {
+                            out.push((ids[s + a], ids[s + first]));
+                        }
+                    }
+                } else {
+                    let mut order: Vec<usize> = (0..len).collect();
+                    order.sort_unstable_by_key(|&a| (bits(run[a]), a));
+                    let mut first = order[0];
+                    for w in 1..len {
+                        let (a, prev) = (order[w], order[w - 1]);
+                        if bits(run[a]) == bits(run[prev]) {
+                            out.push((ids[s + a], ids[s + first]));
+                        } else {
+                            first = a;
+                        }
+                    }
+                }
+                out
+            })
+            .collect();
+        if copies.is_empty() || self.pts.len() - copies.len() < min_distinct {
+            return Vec::new();
+        }
+        let mut gone = vec![false; self.pts.len()];
+        for &(c, _) in &copies {
+            gone[c as usize] = true;
+        }
+        let (mut pts, mut ids) = (Vec::new(), Vec::new());
+        for r in runs.iter_mut() {
+            let start = ids.len() as u32;
+            for t in r.1 as usize..(r.1 + r.2) as usize {
+                if !gone[self.ids[t] as usize] {
+                    pts.push(self.pts[t]);
+                    ids.push(self.ids[t]);
+                }
+            }
+            *r = (r.0, start, ids.len() as u32 - start);
+        }
+        (self.table, self.mask) = Grid::table(&runs);
+        (self.pts, self.ids) = (pts, ids);
+        copies
     }
 
     #[inline]
@@ -324,6 +400,133 @@ impl Grid {
     }
 }
 
+/// The points of the 3 × 3 × 3 cells around one cell, gathered once for all the queries in
+/// that cell (structure of arrays, so distances to all of them vectorise), and the last
+/// query's k-th distance, which bounds the next one's.
+/// The first bound [`Grid::knn_nearby`] tries, in previous k-th distances.
+const GUESS: f32 = 1.2;
+
+#[derive(Default)]
+struct Nearby {
+    cell: Option<[i64; 3]>,
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    id: Vec<u32>,
+    d2: Vec<f32>,
+    keys: Vec<u64>,
+    /// The previous query and its k-th distance.
+    last: Option<(Vec3, f32)>,
+}
+
+impl Grid {
+    /// [`Grid::knn`] of the point at grid position `t` (queried in grid order), from the
+    /// points of the 27 cells around its cell: the distances to all of them at once, then
+    /// the k smallest of those within a bound. The bound is the previous query's k-th
+    /// distance plus the distance between the two queries (the previous query and its k
+    /// neighbours, all distinct from this point, lie within it: the triangle inequality);
+    /// candidates beyond it are dropped without sorting. None when the answer is not
+    /// certain from these cells (fewer than k within the bound, or a k-th distance beyond
+    /// the 27 cells' reach): [`Grid::knn`] then searches outwards. Points are distinct
+    /// (see [`neighbours`]), so distance 0 is the query itself. Same answer as `knn`.
+    fn knn_nearby(
+        &self,
+        t: usize,
+        k: usize,
+        out: &mut Vec<(f32, u32)>,
+        cache: &mut CellCache,
+        near: &mut Nearby,
+    ) -> Option<usize> {
+        let q = self.pts[t];
+        let c = self.cell_of(q);
+        if near.cell != Some(c) {
+            near.cell = Some(c);
+            near.x.clear();
+            near.y.clear();
+            near.z.clear();
+            near.id.clear();
+            if cache.cell != c {
+                cache.cell = c;
+                for (at, run) in cache.runs.iter_mut().enumerate() {
+                    let o = [at as i64 % 3 - 1, at as i64 / 3 % 3 - 1, at as i64 / 9 - 1];
+                    *run = self.lookup([c[0] + o[0], c[1] + o[1], c[2] + o[2]]);
+                }
+            }
+            for &(s, len) in cache.runs.iter().flatten() {
+                for u in s..s + len {
+                    let p = self.pts[u];
+                    near.x.push(p.x);
+                    near.y.push(p.y);
+                    near.z.push(p.z);
+                }
+                near.id.extend_from_slice(&self.ids[s..s + len]);
+            }
+        }
+        let m = near.id.len();
+        if m <= k {
+            return None;
+        }
+        near.d2.resize(m, 0.0);
+        for (((d, &x), &y), &z) in near.d2.iter_mut().zip(&near.x).zip(&near.y).zip(&near.z) {
+            let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
+            *d = dx * dx + dy * dy + dz * dz;
+        }
+        // Distance from q to the outside of the 27 cells: nothing nearer lies beyond them.
+        let base = self.min + Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) * self.cell;
+        let local = q - base;
+        let reach = (local + Vec3::splat(self.cell))
+            .min(Vec3::splat(2.0 * self.cell) - local)
+            .min_element();
+        // First a guess a little beyond the previous query's k-th distance (neighbouring
+        // queries have about the same): if k candidates lie within it, the k nearest of them
+        // are the k nearest of all the candidates, whatever the guess. Else the bound that
+        // must hold, the previous k-th distance plus the distance between the queries.
+        let mut kept = 0;
+        for bound in match near.last {
+            Some((p, kth)) => {
+                let sure = (kth + (q - p).length()) * (1.0 + 1e-5);
+                [(GUESS * kth).min(sure).powi(2), sure * sure]
+            }
+            None => [f32::INFINITY; 2],
+        } {
+            kept = 0;
+            near.keys.resize(m, 0);
+            for (&d, &id) in near.d2.iter().zip(&near.id) {
+                near.keys[kept] = ((d.to_bits() as u64) << 32) | id as u64;
+                kept += (d <= bound && d > 0.0) as usize;
+            }
+            if kept >= k {
+                break;
+            }
+        }
+        if kept < k {
+            near.last = None;
+            return None;
+        }
+        let keys = &mut near.keys[..kept];
+        if kept > 64 {
+            keys.select_nth_unstable(k - 1);
+            keys[..k].sort_unstable();
+        } else {
+            // Small sorts are sorting networks: faster than a selection.
+            keys.sort_unstable();
+        }
+        let keys = &keys[..k];
+        let kth2 = f32::from_bits((keys[k - 1] >> 32) as u32);
+        if kth2.is_nan() || kth2 > reach * reach {
+            near.last = None;
+            return None;
+        }
+        near.last = Some((q, kth2.sqrt()));
+        out.clear();
+        out.extend(
+            keys.iter()
+                .map(|&e| (f32::from_bits((e >> 32) as u32), e as u32)),
+        );
+        Some(k)
+    }
+}
+
 fn check(positions: &[Vec3], k: usize) -> Result<usize, NormalError> {
     if !(3..=64).contains(&k) {
         return Err(NormalError::BadK(k));
@@ -340,51 +543,6 @@ fn check(positions: &[Vec3], k: usize) -> Result<usize, NormalError> {
 /// The k nearest neighbours of every point (k is reduced to n − 1 for tiny clouds), other
 /// than its exact duplicates.
 pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalError> {
-    check(positions, k)?;
-    // Exact duplicates (merged scans, a file written twice): the search runs over the
-    // distinct positions, and every copy takes its position's neighbours; otherwise a point
-    // repeated k times has only its copies as neighbours (radius 0, no normal) and one
-    // repeated a few times fills its neighbours' lists with copies of itself.
-    let mut order: Vec<u32> = (0..positions.len() as u32).collect();
-    let bits = |i: u32| {
-        let p = positions[i as usize];
-        [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()]
-    };
-    order.par_sort_unstable_by_key(|&i| (bits(i), i));
-    let mut rep: Vec<u32> = Vec::new();
-    let mut uid = vec![0u32; positions.len()];
-    for (t, &i) in order.iter().enumerate() {
-        if t == 0 || bits(i) != bits(order[t - 1]) {
-            rep.push(i);
-        }
-        uid[i as usize] = rep.len() as u32 - 1;
-    }
-    if rep.len() == positions.len() || rep.len() < 4 {
-        return neighbours_distinct(positions, k);
-    }
-    let distinct: Vec<Vec3> = rep.iter().map(|&i| positions[i as usize]).collect();
-    let nb = neighbours_distinct(&distinct, k)?;
-    let k = nb.k;
-    let mut index = vec![0u32; positions.len() * k];
-    index
-        .par_chunks_mut(k)
-        .zip(uid.par_iter())
-        .for_each(|(row, &u)| {
-            let u = u as usize;
-            for (dst, &j) in row.iter_mut().zip(&nb.index[u * k..(u + 1) * k]) {
-                *dst = rep[j as usize];
-            }
-        });
-    Ok(Neighbours {
-        k,
-        index,
-        kth: uid.iter().map(|&u| nb.kth[u as usize]).collect(),
-        found: uid.iter().map(|&u| nb.found[u as usize]).collect(),
-    })
-}
-
-/// [`neighbours`] of points without exact duplicates.
-fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalError> {
     let k = check(positions, k)?;
     let cloud = crate::PointCloud::from_positions(positions.to_vec());
     let mut spacing = cloud.estimate_spacing();
@@ -412,12 +570,19 @@ fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, Norma
     if !pilot.is_empty() {
         let mid = pilot.len() / 2;
         let dk = *pilot.select_nth_unstable_by(mid, f32::total_cmp).1;
-        let better = 1.5 * dk;
+        let better = 1.8 * dk;
         if better.is_finite() && better > 0.0 && (better / cell - 1.0).abs() > 0.15 {
             grid = Grid::new(positions, better);
         }
     }
-    let n = positions.len();
+    // Exact duplicates (merged scans, a file written twice) are taken out of the search, and
+    // every copy takes the neighbours of the copy kept; otherwise a point repeated k times
+    // has only its copies as neighbours (radius 0, no normal) and one repeated a few times
+    // fills its neighbours' lists with copies of itself. (Fewer than four distinct
+    // positions: kept, and every point finds what it can.)
+    let copies = grid.remove_copies(4);
+    let k = k.min(grid.pts.len() - 1);
+    let n = grid.pts.len();
     // Queries run in the grid's cell order (neighbouring queries touch the same cells, which
     // stay in cache) and are scattered back to the points' order.
     const BLOCK: usize = 1024;
@@ -430,13 +595,21 @@ fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, Norma
             }
             let mut buf = Vec::with_capacity(k + 1);
             let mut cache = CellCache::new();
+            let mut near = Nearby::default();
             let range = b * BLOCK..((b + 1) * BLOCK).min(n);
             let mut idx = Vec::with_capacity(range.len() * k);
             let mut kd = Vec::with_capacity(range.len());
             let mut fd = Vec::with_capacity(range.len());
             for t in range {
                 let i = grid.ids[t];
-                let m = grid.knn(grid.pts[t], i, k, &mut buf, &mut cache);
+                let m = match grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near) {
+                    Some(m) => m,
+                    None => {
+                        let m = grid.knn(grid.pts[t], i, k, &mut buf, &mut cache);
+                        near.last = (m == k).then(|| (grid.pts[t], buf[k - 1].0.sqrt()));
+                        m
+                    }
+                };
                 fd.push(m as u8);
                 for s in 0..k {
                     idx.push(buf.get(s).or(buf.last()).map_or(i, |e| e.1));
@@ -454,9 +627,10 @@ fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, Norma
         })
         .collect();
     go_on()?;
-    let mut index = vec![0u32; n * k];
-    let mut kth = vec![f32::INFINITY; n];
-    let mut found = vec![0u8; n];
+    let all = positions.len();
+    let mut index = vec![0u32; all * k];
+    let mut kth = vec![f32::INFINITY; all];
+    let mut found = vec![0u8; all];
     for (b, (idx, kd, fd)) in rows.into_iter().enumerate() {
         for (r, t) in (b * BLOCK..(b * BLOCK + kd.len())).enumerate() {
             let i = grid.ids[t] as usize;
@@ -464,6 +638,12 @@ fn neighbours_distinct(positions: &[Vec3], k: usize) -> Result<Neighbours, Norma
             kth[i] = kd[r];
             found[i] = fd[r];
         }
+    }
+    for &(copy, kept) in &copies {
+        let (c, o) = (copy as usize, kept as usize);
+        index.copy_within(o * k..(o + 1) * k, c * k);
+        kth[c] = kth[o];
+        found[c] = found[o];
     }
     Ok(Neighbours {
         k,
@@ -617,141 +797,6 @@ pub fn same_layer(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> b
 /// sign.
 pub fn orient(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> usize {
     orient_components(positions, normals, nb).0
-}
-
-/// [`orient`], also returning each point's connected component (0, 1, ...).
-pub fn orient_components(
-    positions: &[Vec3],
-    normals: &mut [Vec3],
-    nb: &Neighbours,
-) -> (usize, Vec<u32>) {
-    let n = positions.len();
-    // Symmetric adjacency (CSR) of the TREE_K nearest neighbours: the tree only needs a
-    // connected graph along the surface, and fewer edges both halve the time and make
-    // shortcuts across thin parts rarer.
-    let layer_nb: Vec<Vec<u32>> = {
-        let nr: &[Vec3] = normals;
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let all = nb.of(i);
-                all[..all.len().min(TREE_K)]
-                    .iter()
-                    .copied()
-                    .filter(|&j| same_layer(positions, nr, i, j as usize))
-                    .collect()
-            })
-            .collect()
-    };
-    let of = |i: usize| &layer_nb[i][..];
-    let mut deg = vec![0u32; n + 1];
-    for i in 0..n {
-        for &j in of(i) {
-            if j as usize != i {
-                deg[i] += 1;
-                deg[j as usize] += 1;
-            }
-        }
-    }
-    let mut start = vec![0u32; n + 1];
-    for i in 0..n {
-        start[i + 1] = start[i] + deg[i];
-    }
-    let mut fill = start.clone();
-    let mut adj = vec![0u32; start[n] as usize];
-    for i in 0..n {
-        for &j in of(i) {
-            if j as usize != i {
-                adj[fill[i] as usize] = j;
-                fill[i] += 1;
-                adj[fill[j as usize] as usize] = i as u32;
-                fill[j as usize] += 1;
-            }
-        }
-    }
-    drop(fill);
-    let centre = Bounds::from_points(positions).center();
-    let mut order: Vec<u32> = (0..n as u32).collect();
-    order.par_sort_unstable_by(|&a, &b| {
-        positions[b as usize]
-            .z
-            .total_cmp(&positions[a as usize].z)
-            .then(a.cmp(&b))
-    });
-    const LEVELS: usize = 1024;
-    // Edge weights 1 − |nᵢ·nⱼ| as bucket levels, in parallel (a sign flip during the walk
-    // leaves |nᵢ·nⱼ| unchanged).
-    let nr: &[Vec3] = normals;
-    let level: Vec<u16> = (0..n)
-        .into_par_iter()
-        .flat_map_iter(|i| {
-            let ni = nr[i];
-            adj[start[i] as usize..start[i + 1] as usize]
-                .iter()
-                .map(move |&j| {
-                    let w = 1.0 - ni.dot(nr[j as usize]).abs();
-                    ((w.clamp(0.0, 1.0) * (LEVELS - 1) as f32) as usize).min(LEVELS - 1) as u16
-                })
-        })
-        .collect();
-    let mut buckets: Vec<Vec<(u32, u32)>> = vec![Vec::new(); LEVELS];
-    let mut visited = vec![false; n];
-    let mut flipped = 0;
-    let mut label = vec![u32::MAX; n];
-    let mut components = 0u32;
-    for &seed in &order {
-        let seed = seed as usize;
-        if visited[seed] {
-            continue;
-        }
-        let comp = components;
-        components += 1;
-        label[seed] = comp;
-        let nz = normals[seed];
-        let s = if nz.z.abs() > 0.3 {
-            nz.z
-        } else {
-            nz.dot(positions[seed] - centre)
-        };
-        if s < 0.0 {
-            normals[seed] = -normals[seed];
-            flipped += 1;
-        }
-        visited[seed] = true;
-        let mut lo = LEVELS;
-        let push = |i: usize,
-                    buckets: &mut Vec<Vec<(u32, u32)>>,
-                    lo: &mut usize,
-                    visited: &[bool],
-                    _: &[Vec3]| {
-            let range = start[i] as usize..start[i + 1] as usize;
-            for (&j, &b) in adj[range.clone()].iter().zip(&level[range]) {
-                if !visited[j as usize] {
-                    buckets[b as usize].push((j, i as u32));
-                    *lo = (*lo).min(b as usize);
-                }
-            }
-        };
-        push(seed, &mut buckets, &mut lo, &visited, normals);
-        while lo < LEVELS {
-            let Some((j, parent)) = buckets[lo].pop() else {
-                lo += 1;
-                continue;
-            };
-            let j = j as usize;
-            if visited[j] {
-                continue;
-            }
-            visited[j] = true;
-            label[j] = comp;
-            if normals[j].dot(normals[parent as usize]) < 0.0 {
-                normals[j] = -normals[j];
-                flipped += 1;
-            }
-            push(j, &mut buckets, &mut lo, &visited, normals);
-        }
-    }
-    (flipped, label)
 }
 
 /// Orients given normals (keeping their axes) per connected component: the orientation
@@ -1640,6 +1685,55 @@ mod tests {
             assert_eq!(nb.of(i), &want[..], "point {i}");
             assert!((nb.kth[i] - all[15].0.sqrt()).abs() < 1e-6);
         }
+    }
+
+    /// The same, point by point, on a cloud with everything the search special-cases:
+    /// exact copies (each takes the neighbours of its first copy; copies are nobody's
+    /// neighbours), a lattice (ties, broken by the smaller index), a denser cluster and a
+    /// sparser one (bounds from the previous query that fail, searches beyond 27 cells).
+    #[test]
+    fn knn_matches_brute_force_with_copies_ties_and_uneven_density() {
+        let mut pts = sphere(2000, 11);
+        for j in 0..12 {
+            for i in 0..12 {
+                pts.push(Vec3::new(i as f32 * 0.05 - 0.3, j as f32 * 0.05 - 0.3, 1.5));
+            }
+        }
+        let mut r = Rng::new(5);
+        for _ in 0..300 {
+            pts.push(Vec3::new(r.f32(), r.f32(), r.f32()) * 0.05 + Vec3::new(0.0, 0.0, -1.2));
+        }
+        for _ in 0..60 {
+            pts.push(Vec3::new(r.f32(), r.f32(), r.f32()) + Vec3::new(2.0, 0.0, 0.0));
+        }
+        for t in 0..80 {
+            let p = pts[t * 31];
+            pts.push(p);
+            if t % 4 == 0 {
+                pts.push(p);
+            }
+        }
+        let bits = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
+        let mut seen = std::collections::HashMap::new();
+        let firsts: Vec<usize> = (0..pts.len())
+            .map(|i| *seen.entry(bits(pts[i])).or_insert(i))
+            .collect();
+        let first = |i: usize| firsts[i];
+        let nb = neighbours(&pts, 16).unwrap();
+        let mut checked = 0;
+        for i in 0..pts.len() {
+            let mut all: Vec<(f32, u32)> = (0..pts.len())
+                .filter(|&j| first(j) == j && bits(pts[j]) != bits(pts[i]))
+                .map(|j| ((pts[j] - pts[i]).length_squared(), j as u32))
+                .collect();
+            all.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            if nb.found[i] as usize == 16 {
+                let want: Vec<u32> = all[..16].iter().map(|e| e.1).collect();
+                assert_eq!(nb.of(i), &want[..], "point {i}");
+                checked += 1;
+            }
+        }
+        assert!(checked > pts.len() - 60, "{checked} of {}", pts.len());
     }
 
     #[test]
