@@ -544,37 +544,50 @@ fn check(positions: &[Vec3], k: usize) -> Result<usize, NormalError> {
 /// than its exact duplicates.
 pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalError> {
     let k = check(positions, k)?;
-    let cloud = crate::PointCloud::from_positions(positions.to_vec());
-    let mut spacing = cloud.estimate_spacing();
-    let b = Bounds::from_points(positions);
-    if !(spacing > 0.0 && spacing.is_finite()) {
-        spacing = (b.diagonal() / (positions.len() as f32).cbrt()).max(1e-12);
-    }
-    let cell = 1.5 * spacing * (k as f32 / std::f32::consts::PI).sqrt();
-    let mut grid = Grid::new(positions, cell);
     // The nearest-neighbour spacing understates the k-th neighbour's distance where the
     // sampling is uneven (mesh vertices: the Dragon's d₁₆ is 3.4 × its spacing, not 2.3),
     // and a search that must reach the second shell of cells visits 125 cells instead of 27.
-    // So a sample of queries measures d_k, and the grid is rebuilt with cells 1.5 × that
-    // (measured on the Dragon: 1.2 leaves 30% of queries a second shell; 1.9 scans more).
-    let step = (positions.len() / 512).max(1);
+    // So a pilot of 512 queries measures d_k, and the grid's cells are 1.8 × that (measured
+    // on the Dragon: 1.5 to 2.2 are equally fast; 1.2 sends more queries past the 27 cells,
+    // 2.6 scans more points). A large cloud's pilot runs on every 8th point with k/8
+    // neighbours, which reach about as far: one grid of the whole cloud is built, not two.
+    const THIN: usize = 8;
+    let thin = positions.len() >= 64 * 512 && k >= 2 * THIN;
+    let sample: Vec<Vec3> = if thin {
+        positions.iter().step_by(THIN).copied().collect()
+    } else {
+        positions.to_vec()
+    };
+    let kk = if thin { k / THIN } else { k };
+    let mut spacing = crate::PointCloud::from_positions(sample.clone()).estimate_spacing();
+    if !(spacing > 0.0 && spacing.is_finite()) {
+        let b = Bounds::from_points(&sample);
+        spacing = (b.diagonal() / (sample.len() as f32).cbrt()).max(1e-12);
+    }
+    let cell = 1.5 * spacing * (kk as f32 / std::f32::consts::PI).sqrt();
+    let pilot_grid = Grid::new(&sample, cell);
+    let step = (sample.len() / 512).max(1);
     let mut buf = Vec::with_capacity(k + 1);
     let mut cache = CellCache::new();
-    let mut pilot: Vec<f32> = (0..positions.len())
+    let mut pilot: Vec<f32> = (0..sample.len())
         .step_by(step)
         .filter_map(|i| {
-            let m = grid.knn(positions[i], i as u32, k, &mut buf, &mut cache);
-            (m == k).then(|| buf[k - 1].0.sqrt())
+            let m = pilot_grid.knn(sample[i], i as u32, kk, &mut buf, &mut cache);
+            (m == kk).then(|| buf[kk - 1].0.sqrt())
         })
         .collect();
-    if !pilot.is_empty() {
+    let better = if pilot.is_empty() {
+        None
+    } else {
         let mid = pilot.len() / 2;
         let dk = *pilot.select_nth_unstable_by(mid, f32::total_cmp).1;
-        let better = 1.8 * dk;
-        if better.is_finite() && better > 0.0 && (better / cell - 1.0).abs() > 0.15 {
-            grid = Grid::new(positions, better);
-        }
-    }
+        Some(1.8 * dk).filter(|b| b.is_finite() && *b > 0.0)
+    };
+    let mut grid = match better {
+        Some(b) if thin || (b / cell - 1.0).abs() > 0.15 => Grid::new(positions, b),
+        _ if thin => Grid::new(positions, cell),
+        _ => pilot_grid,
+    };
     // Exact duplicates (merged scans, a file written twice) are taken out of the search, and
     // every copy takes the neighbours of the copy kept; otherwise a point repeated k times
     // has only its copies as neighbours (radius 0, no normal) and one repeated a few times
@@ -584,23 +597,26 @@ pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalErro
     let k = k.min(grid.pts.len() - 1);
     let n = grid.pts.len();
     // Queries run in the grid's cell order (neighbouring queries touch the same cells, which
-    // stay in cache) and are scattered back to the points' order.
+    // stay in cache), into rows in that order, which are then gathered into the points'
+    // order.
     const BLOCK: usize = 1024;
     let stop = crate::cancel::token();
-    let rows: Vec<(Vec<u32>, Vec<f32>, Vec<u8>)> = (0..n.div_ceil(BLOCK))
-        .into_par_iter()
-        .map(|b| {
+    let mut g_index = vec![0u32; n * k];
+    let mut g_kth = vec![f32::INFINITY; n];
+    let mut g_found = vec![0u8; n];
+    g_index
+        .par_chunks_mut(BLOCK * k)
+        .zip(g_kth.par_chunks_mut(BLOCK))
+        .zip(g_found.par_chunks_mut(BLOCK))
+        .enumerate()
+        .for_each(|(b, ((idx, kd), fd))| {
             if crate::cancel::is_set(&stop) {
-                return Default::default();
+                return;
             }
             let mut buf = Vec::with_capacity(k + 1);
             let mut cache = CellCache::new();
             let mut near = Nearby::default();
-            let range = b * BLOCK..((b + 1) * BLOCK).min(n);
-            let mut idx = Vec::with_capacity(range.len() * k);
-            let mut kd = Vec::with_capacity(range.len());
-            let mut fd = Vec::with_capacity(range.len());
-            for t in range {
+            for (r, t) in (b * BLOCK..b * BLOCK + kd.len()).enumerate() {
                 let i = grid.ids[t];
                 let m = match grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near) {
                     Some(m) => m,
@@ -610,35 +626,42 @@ pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalErro
                         m
                     }
                 };
-                fd.push(m as u8);
-                for s in 0..k {
-                    idx.push(buf.get(s).or(buf.last()).map_or(i, |e| e.1));
+                fd[r] = m as u8;
+                for (s, dst) in idx[r * k..(r + 1) * k].iter_mut().enumerate() {
+                    *dst = buf.get(s).or(buf.last()).map_or(i, |e| e.1);
                 }
-                kd.push(if m == k {
+                kd[r] = if m == k {
                     buf[k - 1].0.sqrt()
                 } else if let Some(l) = buf.last() {
                     // Fewer than k in reach: extrapolate the k-th distance from the farthest.
                     l.0.sqrt() * (k as f32 / m as f32).sqrt()
                 } else {
                     f32::INFINITY
-                });
+                };
             }
-            (idx, kd, fd)
-        })
-        .collect();
+        });
     go_on()?;
     let all = positions.len();
-    let mut index = vec![0u32; all * k];
-    let mut kth = vec![f32::INFINITY; all];
-    let mut found = vec![0u8; all];
-    for (b, (idx, kd, fd)) in rows.into_iter().enumerate() {
-        for (r, t) in (b * BLOCK..(b * BLOCK + kd.len())).enumerate() {
-            let i = grid.ids[t] as usize;
-            index[i * k..(i + 1) * k].copy_from_slice(&idx[r * k..(r + 1) * k]);
-            kth[i] = kd[r];
-            found[i] = fd[r];
-        }
+    // Grid position of every point (copies: none, filled from their kept copy below).
+    let mut at = vec![u32::MAX; all];
+    for (t, &i) in grid.ids.iter().enumerate() {
+        at[i as usize] = t as u32;
     }
+    let mut index = vec![0u32; all * k];
+    index.par_chunks_mut(k).zip(&at).for_each(|(row, &t)| {
+        if t != u32::MAX {
+            let t = t as usize;
+            row.copy_from_slice(&g_index[t * k..(t + 1) * k]);
+        }
+    });
+    let mut kth: Vec<f32> = at
+        .par_iter()
+        .map(|&t| g_kth.get(t as usize).copied().unwrap_or(f32::INFINITY))
+        .collect();
+    let mut found: Vec<u8> = at
+        .par_iter()
+        .map(|&t| g_found.get(t as usize).copied().unwrap_or(0))
+        .collect();
     for &(copy, kept) in &copies {
         let (c, o) = (copy as usize, kept as usize);
         index.copy_within(o * k..(o + 1) * k, c * k);
@@ -1255,22 +1278,20 @@ fn jet(
     if ids.len() < U {
         return None;
     }
-    // Unknowns scaled by the neighbourhood size s (u/s, v/s) for conditioning.
-    let s = ids
-        .iter()
-        .map(|&j| (positions[j as usize] - p).length())
-        .fold(0.0f32, f32::max) as f64;
+    // Unknowns scaled by the neighbourhood size s (u/s, v/s) for conditioning. Neighbours
+    // far off the tangent plane (across a crease) weigh little, as in `robust_normals`:
+    // σ = ¼ of the mean neighbour distance.
+    let (mut s, mut sum) = (0.0f32, 0.0f64);
+    for &j in ids {
+        let len = (positions[j as usize] - p).length();
+        s = s.max(len);
+        sum += len as f64;
+    }
+    let s = s as f64;
     if !(s > 0.0 && s.is_finite()) {
         return None;
     }
-    // Neighbours far off the tangent plane (across a crease) weigh little, as in
-    // `robust_normals`: σ = ¼ of the mean neighbour distance.
-    let mean = ids
-        .iter()
-        .map(|&j| (positions[j as usize] - p).length() as f64)
-        .sum::<f64>()
-        / ids.len() as f64;
-    let sigma = 0.25 * mean / s;
+    let sigma = 0.25 * (sum / ids.len() as f64) / s;
     let mut m = [[0.0f64; U + 1]; U];
     // The point itself anchors the constant term.
     m[0][0] += 1.0;
@@ -1287,11 +1308,18 @@ fn jet(
         );
         let w = (-(h / sigma) * (h / sigma)).exp();
         let row = [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v];
+        // The normal equations are symmetric: the upper triangle now, the rest below.
         for r in 0..U {
-            for c in 0..U {
-                m[r][c] += w * row[r] * row[c];
+            let wr = w * row[r];
+            for c in r..U {
+                m[r][c] += wr * row[c];
             }
-            m[r][U] += w * row[r] * h;
+            m[r][U] += wr * h;
+        }
+    }
+    for r in 1..U {
+        for c in 0..r {
+            m[r][c] = m[c][r];
         }
     }
     let scale = (0..U).map(|r| m[r][r]).fold(0.0, f64::max);
@@ -1361,10 +1389,23 @@ pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
                 .sum()
         };
         let own = n.as_dvec3();
+        let smooth = SMOOTH_SCORE * ids.len() as f64;
+        // Nearly every neighbour on the plane already (smooth surface): nothing to re-fit.
+        // First without exponentials: exp(−x) ≥ 1 − x, so a sum of 1 − (h/σ)² this high
+        // means the score is higher still (the same decision, most points decided cheaply).
+        let lower: f64 = ids
+            .iter()
+            .map(|&j| {
+                let h = (positions[j as usize].as_dvec3() - p0).dot(own) / sigma;
+                (1.0 - h * h).max(0.0)
+            })
+            .sum();
+        if lower >= smooth {
+            return;
+        }
         let mut cur = own;
         let mut best = score(own);
-        // Nearly every neighbour on the plane already (smooth surface): nothing to re-fit.
-        if best >= SMOOTH_SCORE * ids.len() as f64 {
+        if best >= smooth {
             return;
         }
         for &j in ids {
