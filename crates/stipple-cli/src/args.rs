@@ -168,6 +168,13 @@ pub struct CameraArgs {
     /// Z; +Y for other files (scanned objects).
     #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<DVec3>,
+    /// The side the default framing looks from: three-quarter (front, a little from the
+    /// right and above; LiDAR from the south, raised), three-quarter-back, front, back,
+    /// left, right, top (a plan: for LiDAR a map, north up) or bottom. Front is +Z for
+    /// scanned objects (Y up), south for LiDAR (Z up). A model that faces −Z, like the
+    /// Stanford Lucy, shows its front with `--view three-quarter-back`.
+    #[arg(long, value_enum, conflicts_with = "eye")]
+    pub view: Option<stipple_core::camera::View>,
     /// Vertical field of view in degrees [default: 45, or a scene's].
     #[arg(long, value_parser = parse_fov)]
     pub fov: Option<f64>,
@@ -180,7 +187,7 @@ pub struct CameraArgs {
     #[arg(
         long,
         value_name = "FILE.json",
-        conflicts_with_all = ["eye", "target", "up", "fov", "ortho"]
+        conflicts_with_all = ["eye", "target", "up", "fov", "ortho", "view"]
     )]
     pub camera: Option<std::path::PathBuf>,
 }
@@ -216,9 +223,14 @@ impl CameraArgs {
             return Ok(cam);
         }
         let (lo, hi) = cloud.world_bounds();
-        if let (Some(s), None, None, None, None) =
-            (cloud.sensor, self.eye, self.target, self.up, self.ortho)
-        {
+        if let (Some(s), None, None, None, None, None) = (
+            cloud.sensor,
+            self.eye,
+            self.target,
+            self.up,
+            self.ortho,
+            self.view,
+        ) {
             // The cloud as its sensor saw it (a depth camera's frame): from its position,
             // along its view, with a field of view that holds every point in front of it.
             // Writers disagree on whether the pose turns the sensor or the cloud (PCL's
@@ -299,6 +311,7 @@ impl CameraArgs {
             up: self.up.map(|v| v.to_array()),
             fov: self.fov,
             size: self.size.map(|(w, h)| [w, h]),
+            view: self.view,
         };
         spec.camera(lo, hi, z_up, self.ortho)
             .map_err(|e| anyhow!("camera: {e}"))

@@ -19,6 +19,12 @@ pub fn scene_camera(args: &CameraArgs, s: &LoadedScene) -> CameraArgs {
     a.up = a.up.or(v(s.camera.up));
     a.fov = a.fov.or(s.camera.fov);
     a.size = a.size.or(s.camera.size.map(|[w, h]| (w, h)));
+    // A scene's eye and view exclude each other as the flags do: the command line's wins.
+    if args.eye.is_none() {
+        a.view = a.view.or(s.camera.view);
+    } else {
+        a.view = None;
+    }
     a
 }
 

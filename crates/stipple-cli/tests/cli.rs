@@ -1327,3 +1327,77 @@ fn a_clipping_box_keeps_what_is_inside() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--view` frames the cloud from a named side, as does a scene's `[camera] view`: a plan of
+/// a LiDAR tile from straight above with north up, a Y-up model from behind; it excludes
+/// `--eye`, and an unknown name is an error naming the choices.
+#[test]
+fn views_frame_from_their_side() {
+    use glam::DVec3;
+    let dir = tempdir("views");
+    let cam = |dir: &Path, args: &[&str]| -> (DVec3, DVec3, DVec3) {
+        let mut a = vec!["render", "--size", "48", "--backend", "cpu"];
+        a.extend_from_slice(args);
+        a.extend_from_slice(&["-o", "v.png", "--camera-out", "v.json"]);
+        let _ = std::fs::remove_file(dir.join("v.json"));
+        let _ = std::fs::remove_file(dir.join("v.png"));
+        let o = stipple(dir, &a);
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+        let v = |k: &str| DVec3::from_slice(&camera_vec3(&dir.join("v.json"), k));
+        (v("eye"), v("target"), v("up"))
+    };
+    let o = stipple(
+        &dir,
+        &["gen", "sphere", "--points", "3000", "-o", "tile.las"],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (eye, target, up) = cam(&dir, &["tile.las", "--view", "top"]);
+    let d = (eye - target).normalize();
+    assert!((d - DVec3::Z).length() < 1e-9, "{d}");
+    assert!((up - DVec3::Y).length() < 1e-9, "north up: {up}");
+    // A Y-up model: the default looks from +Z, `back` and a scene's view from −Z.
+    let o = stipple(
+        &dir,
+        &["gen", "sphere", "--points", "3000", "-o", "ball.ply"],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (eye, target, _) = cam(&dir, &["ball.ply"]);
+    assert!((eye - target).z > 0.0);
+    let (eye, target, _) = cam(&dir, &["ball.ply", "--view", "back"]);
+    let d = (eye - target).normalize();
+    assert!((d + DVec3::Z).length() < 1e-9, "{d}");
+    std::fs::write(
+        dir.join("s.toml"),
+        "[camera]\nview = \"three-quarter-back\"\n[[cloud]]\nfile = \"ball.ply\"\n",
+    )
+    .unwrap();
+    let (eye, target, _) = cam(&dir, &["s.toml"]);
+    assert!((eye - target).z < 0.0 && (eye - target).y > 0.0);
+    // The flag wins over the scene's view.
+    let (eye, target, _) = cam(&dir, &["s.toml", "--view", "front"]);
+    assert!(((eye - target).normalize() - DVec3::Z).length() < 1e-9);
+    let o = stipple(
+        &dir,
+        &["render", "ball.ply", "--view", "top", "--eye", "1,2,3"],
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o));
+    let o = stipple(&dir, &["render", "ball.ply", "--view", "sideways"]);
+    assert!(
+        !o.status.success() && text(&o).contains("three-quarter-back"),
+        "{}",
+        text(&o)
+    );
+    std::fs::write(
+        dir.join("bad.toml"),
+        "[camera]\nview = \"sideways\"\n[[cloud]]\nfile = \"ball.ply\"\n",
+    )
+    .unwrap();
+    let o = stipple(&dir, &["render", "bad.toml", "-o", "b.png"]);
+    assert!(!o.status.success(), "{}", text(&o));
+    assert!(
+        text(&o).contains("bad.toml") && text(&o).contains("sideways"),
+        "{}",
+        text(&o)
+    );
+    std::fs::remove_dir_all(dir).ok();
+}

@@ -31,6 +31,63 @@ pub struct Camera {
 }
 
 /// Orthonormal camera basis: `forward` points from the eye towards the target.
+/// Where the default framing looks from, relative to the cloud's up axis: +Y up (scanned
+/// objects, whose front conventionally faces +Z) or +Z up (LiDAR, with north along +Y).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum View {
+    /// A three-quarter view from the front, a little from the right and above (Y up); a
+    /// LiDAR tile from the south, raised about 40°.
+    #[default]
+    ThreeQuarter,
+    /// The same from behind (a model that faces −Z, such as the Stanford Lucy).
+    ThreeQuarterBack,
+    /// Straight from the front: from +Z (Y up), from the south (Z up).
+    Front,
+    /// Straight from behind.
+    Back,
+    /// From the left (−X).
+    Left,
+    /// From the right (+X).
+    Right,
+    /// From above: a plan (Z up: a map, north up; Y up: the front at the bottom).
+    Top,
+    /// From below.
+    Bottom,
+}
+
+impl View {
+    /// The up vector and the unit direction from the target towards the eye.
+    pub fn direction(self, z_up: bool) -> (DVec3, DVec3) {
+        // (right, up, front) axes of the cloud.
+        let (r, u, f) = if z_up {
+            (DVec3::X, DVec3::Z, DVec3::NEG_Y)
+        } else {
+            (DVec3::X, DVec3::Y, DVec3::Z)
+        };
+        let d = match self {
+            View::ThreeQuarter if z_up => f + 0.8 * u,
+            View::ThreeQuarter => 0.45 * r + 0.35 * u + f,
+            View::ThreeQuarterBack if z_up => -f + 0.8 * u,
+            View::ThreeQuarterBack => -0.45 * r + 0.35 * u - f,
+            View::Front => f,
+            View::Back => -f,
+            View::Left => -r,
+            View::Right => r,
+            View::Top => u,
+            View::Bottom => -u,
+        };
+        // Looking along the up axis, the image's up is the cloud's back (a map: north).
+        let up = match self {
+            View::Top => -f,
+            View::Bottom => f,
+            _ => u,
+        };
+        (up, d.normalize())
+    }
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct Basis {
     pub right: DVec3,
@@ -120,14 +177,23 @@ impl Camera {
         fov_deg: f64,
         z_up: bool,
     ) -> Camera {
+        Camera::framing_view(lo, hi, width, height, fov_deg, z_up, View::default())
+    }
+
+    /// [`Camera::framing_up`] from a named direction ([`View`]).
+    pub fn framing_view(
+        lo: DVec3,
+        hi: DVec3,
+        width: u32,
+        height: u32,
+        fov_deg: f64,
+        z_up: bool,
+        view: View,
+    ) -> Camera {
         let c = (lo + hi) * 0.5;
         let e = hi - lo;
         let z_up = z_up || e.z < 0.35 * e.x.min(e.y);
-        let (up, dir) = if z_up {
-            (DVec3::Z, DVec3::new(0.0, -1.0, 0.8).normalize())
-        } else {
-            (DVec3::Y, DVec3::new(0.45, 0.35, 1.0).normalize())
-        };
+        let (up, dir) = view.direction(z_up);
         let r = (e.length() * 0.5).max(1e-6);
         let aspect = width as f64 / height.max(1) as f64;
         let half_v = (fov_deg.to_radians() * 0.5).min(1.5);
@@ -473,6 +539,94 @@ mod tests {
             );
             assert!(z >= c.near && z <= c.far);
         }
+    }
+
+    /// Every named view frames every corner, looks from its side (a plan from above, north
+    /// up, for a LiDAR tile; the front from +Z for a Y-up model), and the default is the
+    /// three-quarter view.
+    #[test]
+    fn every_view_frames_from_its_side() {
+        let corners = |lo: DVec3, hi: DVec3| {
+            (0..8).map(move |k| {
+                DVec3::new(
+                    if k & 1 == 0 { lo.x } else { hi.x },
+                    if k & 2 == 0 { lo.y } else { hi.y },
+                    if k & 4 == 0 { lo.z } else { hi.z },
+                )
+            })
+        };
+        let views = [
+            View::ThreeQuarter,
+            View::ThreeQuarterBack,
+            View::Front,
+            View::Back,
+            View::Left,
+            View::Right,
+            View::Top,
+            View::Bottom,
+        ];
+        for (lo, hi, z_up) in [
+            (
+                DVec3::new(-1.0, -2.0, -0.5),
+                DVec3::new(1.0, 2.0, 0.5),
+                false,
+            ),
+            (
+                DVec3::new(500.0, 800.0, 10.0),
+                DVec3::new(900.0, 1300.0, 60.0),
+                true,
+            ),
+        ] {
+            for view in views {
+                let c = Camera::framing_view(lo, hi, 320, 240, 45.0, z_up, view);
+                c.validate().unwrap();
+                for p in corners(lo, hi) {
+                    let (x, y, _) = c.project(p).unwrap();
+                    assert!(
+                        (0.0..320.0).contains(&x) && (0.0..240.0).contains(&y),
+                        "{view:?}: {x} {y}"
+                    );
+                }
+                let d = (c.eye - c.target).normalize();
+                let (up, front) = if z_up {
+                    (DVec3::Z, DVec3::NEG_Y)
+                } else {
+                    (DVec3::Y, DVec3::Z)
+                };
+                let want = match view {
+                    View::Front => front,
+                    View::Back => -front,
+                    View::Left => DVec3::NEG_X,
+                    View::Right => DVec3::X,
+                    View::Top => up,
+                    View::Bottom => -up,
+                    View::ThreeQuarter => {
+                        assert!(d.dot(front) > 0.5 && d.dot(up) > 0.2, "{view:?} {d}");
+                        continue;
+                    }
+                    View::ThreeQuarterBack => {
+                        assert!(d.dot(front) < -0.5 && d.dot(up) > 0.2, "{view:?} {d}");
+                        continue;
+                    }
+                };
+                assert!((d - want).length() < 1e-12, "{view:?}: {d}");
+                if view == View::Top && z_up {
+                    // A map: north (+y) at the top of the image.
+                    assert_eq!(c.up, DVec3::Y);
+                }
+            }
+        }
+        let a = Camera::framing(DVec3::ZERO, DVec3::ONE, 64, 64, 45.0);
+        let b = Camera::framing_view(
+            DVec3::ZERO,
+            DVec3::ONE,
+            64,
+            64,
+            45.0,
+            false,
+            View::default(),
+        );
+        assert_eq!(a, b);
     }
 
     #[test]

@@ -41,6 +41,8 @@ pub struct CameraSpec {
     pub up: Option<[f64; 3]>,
     pub fov: Option<f64>,
     pub size: Option<[u32; 2]>,
+    /// The direction the default framing looks from (`three-quarter`, `front`, `top`, …).
+    pub view: Option<stipple_core::camera::View>,
 }
 
 /// How a scene's translucent clouds are drawn (`[render] transparency`).
@@ -631,7 +633,8 @@ impl CameraSpec {
     ) -> std::result::Result<stipple_core::Camera, stipple_core::camera::CameraError> {
         let (w, h) = self.size.map(|[w, h]| (w, h)).unwrap_or(DEFAULT_SIZE);
         let fov = self.fov.unwrap_or(DEFAULT_FOV);
-        let mut cam = stipple_core::Camera::framing_up(lo, hi, w, h, fov, z_up);
+        let view = self.view.unwrap_or_default();
+        let mut cam = stipple_core::Camera::framing_view(lo, hi, w, h, fov, z_up, view);
         let framed_dir = cam.eye - cam.target;
         if let Some(t) = self.target.map(DVec3::from) {
             cam.target = t;
