@@ -195,14 +195,16 @@ impl Camera {
     }
 
     /// The camera `stipple render` uses for this cloud when no camera is given: the whole
-    /// cloud framed (Z-up for LiDAR), or the sensor's view for a file that records it.
+    /// cloud framed (Z-up for LiDAR), or the sensor's view for a file that records it;
+    /// `view` names the side to frame from, as `--view` does ("three-quarter", "top", …).
     #[staticmethod]
-    #[pyo3(signature = (cloud, size=None, fov=None))]
+    #[pyo3(signature = (cloud, size=None, fov=None, view=None))]
     fn framing(
         py: Python<'_>,
         cloud: &Cloud,
         size: Option<&Bound<'_, PyAny>>,
         fov: Option<f64>,
+        view: Option<&str>,
     ) -> PyResult<Camera> {
         let size = size.map(size_of).transpose()?;
         let mut args = Vec::new();
@@ -211,6 +213,9 @@ impl Camera {
         }
         if let Some(f) = fov {
             args.push(format!("--fov={f:?}"));
+        }
+        if let Some(v) = view {
+            args.push(format!("--view={v}"));
         }
         let a = crate::options::parse(&args)?;
         let held = cloud.held.clone();

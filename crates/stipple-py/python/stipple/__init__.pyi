@@ -96,7 +96,9 @@ class Camera:
         ortho: float | None = None,
     ) -> None: ...
     @staticmethod
-    def framing(cloud: Cloud, size: _Size | None = None, fov: float | None = None) -> Camera:
+    def framing(
+        cloud: Cloud, size: _Size | None = None, fov: float | None = None, view: str | None = None
+    ) -> Camera:
         """The default view of ``stipple render``: the whole cloud framed (Z-up for LiDAR,
         Y-up for scanned objects), or the sensor's view where the file records it."""
     @staticmethod

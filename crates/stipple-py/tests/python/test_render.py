@@ -95,6 +95,14 @@ def test_default_camera_and_json_match_the_cli(cli, tmp_path, sheet_file):
     from_cli = stipple.Camera.from_json(cam_json.read_text())
     assert json.loads(from_cli.to_json()) == json.loads(cam_json.read_text())
     assert json.loads(r.camera.to_json()) == json.loads(cam_json.read_text())
+    # A named view, as --view frames it; a bad name is the flag's error.
+    top_json = tmp_path / "top.json"
+    run_cli(cli, "render", sheet_file, "-o", tmp_path / "top.png", "--camera-out", top_json,
+            "--size", "64", "--backend", "cpu", "--view", "top")
+    top = stipple.Camera.framing(cloud, size=64, view="top")
+    assert json.loads(top.to_json()) == json.loads(top_json.read_text())
+    with pytest.raises(ValueError, match="three-quarter-back"):
+        stipple.Camera.framing(cloud, size=64, view="sideways")
     # Round trip of a camera with an orthographic view.
     ortho = stipple.Camera((0, 0, 5), (0, 0, 0), ortho=2.5, size=64, near=1.0, far=9.0)
     back = stipple.Camera.from_json(ortho.to_json())
