@@ -992,6 +992,16 @@ pub struct LookArgs {
     /// Give every point of a single cloud this opacity (0..1): see-through with --layers.
     #[arg(long, value_parser = finite_f32, value_name = "ALPHA")]
     pub opacity: Option<f32>,
+    /// An environment behind transparent splats (Zhang & Pajarola §5.2.3): `sky` (a
+    /// procedural sky over a checkered ground) or an equirectangular PNG. Seen through
+    /// every layer; with --ior the surfaces reflect it.
+    #[arg(long, value_name = "sky|FILE.png")]
+    pub env: Option<std::path::PathBuf>,
+    /// Refractive index of transparent surfaces (e.g. 1.5 for glass): their nearest layer
+    /// reflects the environment by Fresnel's law, more at grazing angles [default with
+    /// --env: none, no reflection].
+    #[arg(long, value_parser = finite_f32, value_name = "ETA")]
+    pub ior: Option<f32>,
     /// Compute shadow textures for the lights that cast them (point and area lights, e.g.
     /// --light point:x,y,z or disc:x,y,z,r). Scene files have shadows on unless they say
     /// `shadows = false`.

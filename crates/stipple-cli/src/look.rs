@@ -110,6 +110,44 @@ impl ShadowRefinement {
     }
 }
 
+/// The environment of `--env` and `--ior`, else of the scene's `env` and `ior` (None when
+/// none is given), about the cloud's up axis.
+fn environment(
+    look: &LookArgs,
+    scene: Option<&LoadedScene>,
+    z_up: bool,
+) -> Result<Option<stipple_render::env::EnvSettings>> {
+    use stipple_render::env::{EnvSettings, Environment};
+    let ior = look.ior.or(scene.and_then(|s| s.render.ior));
+    if let Some(eta) = ior {
+        if !(eta > 0.0 && eta <= 10.0) {
+            return Err(anyhow!("--ior {eta}: a refractive index lies in (0, 10]"));
+        }
+    }
+    let from_scene = scene.and_then(|s| {
+        s.render.env.as_ref().map(|e| match e.as_str() {
+            "sky" => std::path::PathBuf::from("sky"),
+            f => s.dir.join(f),
+        })
+    });
+    let env = match look.env.clone().or(from_scene) {
+        None if ior.is_none() => return Ok(None),
+        None => Environment::Sky,
+        Some(p) if p.as_os_str() == "sky" => Environment::Sky,
+        Some(p) => {
+            let (w, h, rgba) = stipple_io::image::read_png(&p)
+                .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
+            Environment::from_rgba8(w, h, &rgba)
+                .map_err(|e| anyhow!("--env {}: {e}", p.display()))?
+        }
+    };
+    Ok(Some(EnvSettings {
+        env: std::sync::Arc::new(env),
+        up: if z_up { glam::Vec3::Z } else { glam::Vec3::Y },
+        ior,
+    }))
+}
+
 /// [`apply`], taking at most `first_samples` samples per light now (None: all) and saying
 /// what is left to refine.
 pub fn apply_progressively(
@@ -162,6 +200,17 @@ pub fn apply_progressively(
                  Pajarola, every layer in one pass; --layers N peels instead)"
             );
         }
+    }
+    pipe.environment = environment(look, scene, cloud.cloud.z_up)?;
+    if pipe.environment.is_some()
+        && !pipe
+            .splat
+            .is_some_and(|s| s.mode == stipple_render::SplatMode::Transparent)
+    {
+        return Err(anyhow!(
+            "--env and --ior apply to transparent splats: add --pipeline splat --splat \
+             transparent (or --opacity below 1 with splats)"
+        ));
     }
     if look.opacity.is_some_and(|o| o < 1.0)
         && pipe.layers == 1

@@ -1401,3 +1401,79 @@ fn views_frame_from_their_side() {
     );
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// `--env` and `--ior`: a procedural sky or an equirectangular PNG behind transparent
+/// splats (the top of the image shows the environment's zenith, not the background); a
+/// bad file, a bad index or a pipeline without transparent splats are clear errors.
+#[test]
+fn an_environment_shows_behind_transparent_splats() {
+    let dir = tempdir("env");
+    // A 4×2 environment: red sky (top row), green ground.
+    let mut rgba = Vec::new();
+    for y in 0..2 {
+        for _ in 0..4 {
+            rgba.extend_from_slice(if y == 0 {
+                &[255, 0, 0, 255]
+            } else {
+                &[0, 255, 0, 255]
+            });
+        }
+    }
+    stipple_io::image::write_png(&dir.join("env.png"), 4, 2, &rgba).unwrap();
+    let base = [
+        "render",
+        "--demo",
+        "sphere",
+        "--points",
+        "3000",
+        "--opacity",
+        "0.5",
+        "--size",
+        "64",
+        "--backend",
+        "cpu",
+        "--pipeline",
+        "splat",
+        "--eye",
+        "0,0,5",
+        "--target",
+        "0,0,0",
+        "--fov",
+        "100",
+    ];
+    let o = stipple(
+        &dir,
+        &[
+            &base[..],
+            &["--env", "env.png", "--ior", "1.5", "-o", "e.png"],
+        ]
+        .concat(),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (w, _, px) = stipple_io::image::read_png(&dir.join("e.png")).unwrap();
+    let at = |x: u32, y: u32| &px[((y * w + x) * 4) as usize..((y * w + x) * 4 + 3) as usize];
+    assert!(
+        at(32, 0)[0] > 200 && at(32, 0)[1] < 60,
+        "sky: {:?}",
+        at(32, 0)
+    );
+    assert!(
+        at(32, 63)[1] > 200 && at(32, 63)[0] < 60,
+        "ground: {:?}",
+        at(32, 63)
+    );
+    for (args, want) in [
+        (vec!["--env", "missing.png"], "missing.png"),
+        (vec!["--env", "sky", "--ior=-1"], "--ior -1"),
+        (
+            vec!["--env", "sky", "--splat", "voronoi"],
+            "transparent splats",
+        ),
+    ] {
+        let o = stipple(&dir, &[&base[..], &args[..], &["-o", "x.png"]].concat());
+        assert!(!o.status.success(), "{args:?}");
+        assert!(text(&o).contains(want), "{args:?}: {}", text(&o));
+        assert!(!dir.join("x.png").exists());
+    }
+    std::fs::remove_dir_all(dir).ok();
+}

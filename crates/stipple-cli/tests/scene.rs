@@ -258,6 +258,7 @@ fn the_example_scenes_load() {
         "shadows.toml",
         "translucent-shadows.toml",
         "mixed.toml",
+        "glass-bunny.toml",
     ] {
         let p = root.join(name);
         let text = std::fs::read_to_string(&p).unwrap();

@@ -9,6 +9,7 @@
 
 pub mod cpu;
 pub mod device;
+pub mod env;
 pub mod eval;
 mod frame;
 pub mod gbuffer;

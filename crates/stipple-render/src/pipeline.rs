@@ -154,6 +154,9 @@ pub struct Pipeline {
     /// Draw the points as surface splats (Zhang & Pajarola, see [`crate::passes::splat`])
     /// instead of projecting them to one pixel each.
     pub splat: Option<crate::SplatSettings>,
+    /// An environment behind transparent splats, reflected by them with an index of
+    /// refraction ([`crate::env`]); other pipelines draw the plain background.
+    pub environment: Option<crate::env::EnvSettings>,
 }
 
 impl Default for Pipeline {
@@ -190,6 +193,7 @@ impl Default for Pipeline {
             layers: 1,
             keep_layers: false,
             splat: None,
+            environment: None,
         }
     }
 }

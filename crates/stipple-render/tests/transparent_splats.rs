@@ -200,3 +200,82 @@ fn a_translucent_sphere_is_flat_inside_and_flatter_than_peeling() {
         }
     }
 }
+
+/// An environment (Zhang & Pajarola §5.2.3) on both backends. A white environment and an
+/// opaque black plane facing the eye, index η: the plane shows the Fresnel reflectance at
+/// normal incidence, ((η − 1)/(η + 1))², within one level of its 8-bit value; where no point
+/// is, the environment in the pixel's direction (a procedural sky: zenith blue above,
+/// ground below). The two backends draw the same image.
+#[test]
+fn the_environment_shows_behind_and_reflects_by_fresnel() {
+    use stipple_render::env::{EnvSettings, Environment};
+    let lut = stipple_render::passes::shade::cpu::srgb_to_linear_table();
+    let white = Environment::Image {
+        width: 8,
+        height: 4,
+        texels: vec![[1.0; 3]; 32],
+    };
+    let mut cam = camera(64);
+    cam.eye = DVec3::new(0.0, 0.0, 4.0);
+    for eta in [1.33f32, 1.5, 2.4] {
+        let c = planes(&[(0.0, [0, 0, 0], 1.0, 7)], 80);
+        let mut pipe = transparent([0, 0, 0]);
+        pipe.environment = Some(EnvSettings {
+            env: std::sync::Arc::new(white.clone()),
+            up: Vec3::Y,
+            ior: Some(eta),
+        });
+        let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+        let want8 = stipple_render::passes::shade::cpu::linear_to_srgb8(f0);
+        let mut frames = Vec::new();
+        for mut r in renderers() {
+            let f = r.render(&c, &cam, &pipe).unwrap();
+            let got = f.rgba[(32 * 64 + 32) * 4];
+            assert!(
+                got.abs_diff(want8) <= 1,
+                "{} η {eta}: {got} ({}), want {want8} ({f0})",
+                r.describe(),
+                lut[got as usize]
+            );
+            frames.push(f);
+        }
+        if let [a, b] = &frames[..] {
+            assert!(common::agreeing(&a.rgba, &b.rgba, 1) >= 0.999);
+        }
+    }
+    // The sky behind a small plane: above the horizon blue, below it the ground.
+    let c = planes(&[(0.0, [200, 200, 200], 0.5, 8)], 20);
+    let mut pipe = transparent([0, 0, 0]);
+    pipe.environment = Some(EnvSettings {
+        env: std::sync::Arc::new(Environment::Sky),
+        up: Vec3::Y,
+        ior: None,
+    });
+    let mut cam = camera(64);
+    cam.eye = DVec3::new(0.0, 0.0, 6.0);
+    cam.projection = Projection::Perspective { fov_deg: 120.0 };
+    let mut frames = Vec::new();
+    for mut r in renderers() {
+        let f = r.render(&c, &cam, &pipe).unwrap();
+        let v = stipple_render::params::ViewParams::new(&cam, DVec3::ZERO);
+        for (x, y) in [(32u32, 1u32), (32, 62), (2, 30)] {
+            let d = stipple_render::passes::splat::transparent::pixel_ray(&v, x, y).1;
+            let want = Environment::Sky.sample(d, Vec3::Y);
+            for ch in 0..3 {
+                let got = f.rgba[((y * 64 + x) * 4) as usize + ch];
+                let w8 = stipple_render::passes::shade::cpu::linear_to_srgb8(want[ch]);
+                assert!(
+                    got.abs_diff(w8) <= 1,
+                    "{} ({x}, {y}): {got} vs {w8}",
+                    r.describe()
+                );
+            }
+        }
+        frames.push(f);
+    }
+    if let [a, b] = &frames[..] {
+        // Near the horizon the checkered ground's squares are smaller than a pixel and the
+        // last bit of a float picks the square (22 of 4 096 pixels here).
+        assert!(common::agreeing(&a.rgba, &b.rgba, 2) >= 0.99);
+    }
+}

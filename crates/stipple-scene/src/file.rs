@@ -78,6 +78,11 @@ pub struct RenderSpec {
     /// default) or "splat-1pass" (Zhang & Pajarola's transparent splats, every layer in one
     /// pass; `layers` is then not used).
     pub transparency: Option<Transparency>,
+    /// An environment behind transparent splats: "sky" or an equirectangular PNG (relative
+    /// to the scene file), as `--env`.
+    pub env: Option<String>,
+    /// Refractive index of transparent surfaces (they reflect the environment), as `--ior`.
+    pub ior: Option<f32>,
 }
 
 #[derive(Deserialize, Debug, Clone)]

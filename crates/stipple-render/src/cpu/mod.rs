@@ -281,6 +281,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                         &ti,
                         &sorted.order,
                         params.background,
+                        pipe.environment.as_ref(),
                         col,
                         &mut ga.depth,
                         &mut ga.id,

@@ -22,6 +22,8 @@ pub(crate) struct Shading {
     pub materials: Option<Box<MaterialTable>>,
     /// Linear RGB.
     pub background: [f32; 3],
+    /// Transparent splats' environment.
+    pub env: Option<crate::env::EnvSettings>,
 }
 
 /// One frame or light view being recorded.
@@ -94,7 +96,15 @@ impl PassExec for GpuExec<'_> {
                 let materials = s.materials.take().ok_or_else(|| {
                     GpuError::Wgpu("sorted splats: the frame's materials were taken".into())
                 })?;
-                splat::sorted_gpu::record(rec, b, sg, cloud, *sp, &s.block, &materials)?
+                splat::sorted_gpu::record(
+                    rec,
+                    b,
+                    sg,
+                    cloud,
+                    *sp,
+                    (&s.block, s.env.as_ref()),
+                    &materials,
+                )?
             }
             (Some(sp), _, _) => {
                 let sg = self.splat.as_deref_mut().ok_or_else(|| {

@@ -217,6 +217,7 @@ impl GpuRenderer {
                 block: shade_block,
                 materials: Some(materials),
                 background: pipe.background.map(|c| lut[c as usize]),
+                env: pipe.environment.clone(),
             };
             let mut x = GpuExec::new(
                 rec,

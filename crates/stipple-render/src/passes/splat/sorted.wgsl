@@ -37,6 +37,14 @@ struct SortedComposite {
     groups: u32,
     epsilon: f32,
     pad2: u32,
+    // Transparent splats' environment (env.rs): 0 none, 1 the sky, 2 the image t_env of
+    // env_w × env_h texels; ior > 0: the nearest layer reflects it; the scene's up axis.
+    env_kind: u32,
+    env_w: u32,
+    env_h: u32,
+    ior: f32,
+    env_up: vec3<f32>,
+    pad3: f32,
 }
 
 @group(0) @binding(11) var<uniform> sc: SortedChunk;
@@ -281,6 +289,105 @@ fn sorted_composite(
 // The groups each point of the cloud is drawn in (bit k: group k).
 @group(0) @binding(27) var<storage, read> t_masks: array<u32>;
 
+// The environment image (env::Environment::Image), linear RGB, row 0 at the zenith.
+@group(0) @binding(28) var<storage, read> t_env: array<vec4<f32>>;
+
+// env::frame: (east, north, up).
+fn env_frame(up: vec3<f32>) -> mat3x3<f32> {
+    var u = vec3<f32>(0.0, 1.0, 0.0);
+    let ul = length(up);
+    if (ul > 0.0) {
+        u = up / ul;
+    }
+    var east = vec3<f32>(1.0, 0.0, 0.0) - u * dot(u, vec3<f32>(1.0, 0.0, 0.0));
+    let el = length(east);
+    if (el > 0.0) {
+        east = east / el;
+    } else {
+        east = vec3<f32>(0.0, 0.0, 1.0);
+    }
+    return mat3x3<f32>(east, cross(u, east), u);
+}
+
+fn env_texel(i: f32, j: f32) -> vec3<f32> {
+    let w = i32(scomp.env_w);
+    let h = i32(scomp.env_h);
+    let ii = ((i32(i) % w) + w) % w;
+    let jj = clamp(i32(j), 0, h - 1);
+    return t_env[u32(jj * w + ii)].xyz;
+}
+
+// env::Environment::sample.
+fn env_sample(dir: vec3<f32>) -> vec3<f32> {
+    let f = env_frame(scomp.env_up);
+    var d = f[2];
+    let dl = length(dir);
+    if (dl > 0.0) {
+        d = dir / dl;
+    }
+    let x = dot(d, f[0]);
+    let y = dot(d, f[1]);
+    let z = dot(d, f[2]);
+    let horizon = vec3<f32>(0.80, 0.85, 0.92);
+    if (scomp.env_kind == 1u) {
+        if (z >= 0.0) {
+            return mix(horizon, vec3<f32>(0.18, 0.36, 0.75), sqrt(z));
+        }
+        let gx = x / -z;
+        let gy = y / -z;
+        let s = floor(2.0 * gx) + floor(2.0 * gy);
+        let k = s - 2.0 * floor(s / 2.0);
+        var g = vec3<f32>(0.30, 0.30, 0.30);
+        if (k >= 0.5) {
+            g = vec3<f32>(0.12, 0.12, 0.12);
+        }
+        return mix(horizon, g, min(-8.0 * z, 1.0));
+    }
+    let w = f32(scomp.env_w);
+    let h = f32(scomp.env_h);
+    let lon = atan2(y, x);
+    let lat = acos(clamp(z, -1.0, 1.0));
+    let s = (0.5 - lon / 6.2831855) * w - 0.5;
+    let t = lat / 3.1415927 * h - 0.5;
+    let s0 = floor(s);
+    let t0 = floor(t);
+    let top = mix(env_texel(s0, t0), env_texel(s0 + 1.0, t0), s - s0);
+    let bottom = mix(env_texel(s0, t0 + 1.0), env_texel(s0 + 1.0, t0 + 1.0), s - s0);
+    return mix(top, bottom, t - t0);
+}
+
+// env::fresnel.
+fn fresnel(cos_i: f32, eta: f32) -> f32 {
+    let ci = clamp(cos_i, 0.0, 1.0);
+    let si2 = max(1.0 - ci * ci, 0.0);
+    let st2 = si2 / (eta * eta);
+    if (st2 >= 1.0) {
+        return 1.0;
+    }
+    let ct = sqrt(1.0 - st2);
+    let rs = (ci - eta * ct) / (ci + eta * ct);
+    let rp = (eta * ci - ct) / (eta * ci + ct);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+// env::reflect_into.
+fn reflect_into(c: vec3<f32>, dir: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
+    let dl = length(dir);
+    let nl = length(normal);
+    if (dl == 0.0 || nl == 0.0) {
+        return c;
+    }
+    let d = dir / dl;
+    var n = normal / nl;
+    if (dot(n, d) > 0.0) {
+        n = -n;
+    }
+    let cos_i = -dot(n, d);
+    let f = fresnel(cos_i, scomp.ior);
+    let r = d + 2.0 * cos_i * n;
+    return f * env_sample(r) + (1.0 - f) * c;
+}
+
 // stipple_core::grouping::TRANSPARENT_GROUPS
 const T_MAX_GROUPS: u32 = 4u;
 // transparent::DRAW_SCALE
@@ -402,8 +509,22 @@ fn transparent_composite(
     var st0: array<vec4<f32>, 4>;
     var st1: array<vec4<f32>, 4>;
     var st2: array<vec4<f32>, 4>;
+    // transparent::pixel_ray
+    let sxn = (2.0 * f32(px) + 1.0) / f32(view.width) - 1.0;
+    let syn = 1.0 - (2.0 * f32(py) + 1.0) / f32(view.height);
+    let offset = view.right * (sxn / view.sx) + view.up * (syn / view.sy);
+    var ro = view.eye;
+    var rd = view.forward + offset;
+    if (view.perspective != 1u) {
+        ro = view.eye + offset;
+        rd = view.forward;
+    }
+    var behind = sp.background;
+    if (scomp.env_kind != 0u && scomp.first == 1u && inside) {
+        behind = env_sample(rd);
+    }
     for (var g = 0u; g < k_groups; g++) {
-        st0[g] = vec4<f32>(sp.background, 0.0);
+        st0[g] = vec4<f32>(behind, 0.0);
         st1[g] = vec4<f32>(0.0, 0.0, 0.0, infinity());
         st2[g] = vec4<f32>(0.0, bitcast<f32>(BACKGROUND), 0.0, 0.0);
     }
@@ -414,16 +535,6 @@ fn transparent_composite(
             st1[g] = t_acc[b + 1u];
             st2[g] = t_acc[b + 2u];
         }
-    }
-    // transparent::pixel_ray
-    let sxn = (2.0 * f32(px) + 1.0) / f32(view.width) - 1.0;
-    let syn = 1.0 - (2.0 * f32(py) + 1.0) / f32(view.height);
-    let offset = view.right * (sxn / view.sx) + view.up * (syn / view.sy);
-    var ro = view.eye;
-    var rd = view.forward + offset;
-    if (view.perspective != 1u) {
-        ro = view.eye + offset;
-        rd = view.forward;
     }
     let fx = f32(px);
     let fy = f32(py);
@@ -526,7 +637,11 @@ fn transparent_composite(
                     pid = bitcast<u32>(st2[g].y);
                 }
             }
-            colour[pix] = vec4<f32>(sum * (1.0 / f32(k_groups)), 1.0);
+            var out = sum * (1.0 / f32(k_groups));
+            if (scomp.env_kind != 0u && scomp.ior > 0.0 && pid != BACKGROUND) {
+                out = reflect_into(out, rd, s_splats[4u * pid + 1u].xyz);
+            }
+            colour[pix] = vec4<f32>(out, 1.0);
             surface_depth[pix] = dep;
             s_depth[pix] = dep;
             s_id[pix] = pid;

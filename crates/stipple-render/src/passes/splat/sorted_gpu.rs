@@ -54,6 +54,14 @@ pub(crate) struct SortedComposite {
     pub groups: u32,
     pub epsilon: f32,
     pub pad: u32,
+    /// The environment (sorted.wgsl `env_sample`): 0 none, 1 sky, 2 image; its size; the
+    /// index of refraction (0: no reflection); the up axis.
+    pub env_kind: u32,
+    pub env_w: u32,
+    pub env_h: u32,
+    pub ior: f32,
+    pub env_up: [f32; 3],
+    pub pad3: f32,
 }
 
 /// Splats a composite dispatch draws at most (see sorted.wgsl: on lavapipe one dispatch drew
@@ -89,7 +97,7 @@ impl GpuPass for SortedGpu {
         let mut t_points = points.to_vec();
         t_points.extend([SKIP, READ]);
         let mut t_composite = composite.to_vec();
-        t_composite.extend([SKIP, WRITE]);
+        t_composite.extend([SKIP, WRITE, SKIP, READ]);
         SortedGpu {
             points: Pass::new(d, m, "sorted_points", &points),
             composite: Pass::new(d, m, "sorted_composite", &composite),
@@ -108,7 +116,7 @@ pub(crate) fn record(
     splat: &mut SplatGpu,
     cloud: &GpuCloud,
     s: crate::SplatSettings,
-    block: &ShadeBlock,
+    (block, env): (&ShadeBlock, Option<&crate::env::EnvSettings>),
     materials: &MaterialTable,
 ) -> Result<(), GpuError> {
     let (ctx, f) = (b.ctx, b.f);
@@ -227,6 +235,27 @@ pub(crate) fn record(
             keep.push(sc);
         }
     }
+    // The environment: the image's texels (a dummy texel for the sky).
+    let env = env.filter(|_| transparent);
+    let (env_kind, env_w, env_h, env_texels) = match env.map(|e| &*e.env) {
+        None => (0, 0, 0, vec![[0.0f32; 4]]),
+        Some(crate::env::Environment::Sky) => (1, 0, 0, vec![[0.0f32; 4]]),
+        Some(crate::env::Environment::Image {
+            width,
+            height,
+            texels,
+        }) => (
+            2,
+            *width,
+            *height,
+            texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect(),
+        ),
+    };
+    let env_buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("environment"),
+        contents: bytemuck::cast_slice(&env_texels),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
     // The kept points are counted on the device: as many dispatches as the cloud's points
     // could need, each drawing no further than those kept.
     let dispatches = (cloud.len as u32).div_ceil(BATCH).max(1);
@@ -243,6 +272,12 @@ pub(crate) fn record(
                 groups: masks.as_ref().map_or(0, |m| m.1 as u32),
                 epsilon: s.epsilon.unwrap_or(0.0),
                 pad: 0,
+                env_kind,
+                env_w,
+                env_h,
+                ior: env.and_then(|e| e.ior).unwrap_or(0.0),
+                env_up: env.map_or([0.0; 3], |e| e.up.to_array()),
+                pad3: 0.0,
             }),
         );
         let mut res = vec![
@@ -273,7 +308,7 @@ pub(crate) fn record(
             Res::Buf(&f.acc),
         ];
         if let Some(acc) = &group_acc {
-            res.extend([Res::Skip, Res::Buf(acc)]);
+            res.extend([Res::Skip, Res::Buf(acc), Res::Skip, Res::Buf(&env_buf)]);
         }
         groups.push(composite_pass.bind(d, &res));
     }

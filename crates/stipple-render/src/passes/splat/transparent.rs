@@ -32,8 +32,9 @@
 //!   layers), so the two backends agree although their sorts order a slice differently.
 //! - The slices of the back-to-front order are ε thick (the paper uses a BSP tree): layers
 //!   more than ε apart never share a slice, and closer ones are one layer to the culling.
-//! - Shading is per point (forward), not deferred per fragment (§5.2.4), and there are no
-//!   environment reflections or refractions yet.
+//! - Shading is per point (forward), not deferred per fragment (§5.2.4). An environment
+//!   ([`crate::env`]) shows behind the layers, and with an index of refraction the nearest
+//!   layer reflects it (Fresnel, with that layer's point normal); refraction is not built.
 //!
 //! The CPU draws bands of rows in parallel (each band takes, in order, the splats that reach
 //! it); the GPU (`transparent.wgsl` in sorted.wgsl's module) draws one 16×16 tile per
@@ -208,15 +209,18 @@ impl Layered {
     }
 }
 
-/// Draws the points of `order` (back to front) over `background` into K group images and
-/// writes their mean (linear colour), and per pixel the nearest blended fragment's depth and
-/// point. Returns the fragments blended.
+/// Draws the points of `order` (back to front) over `background` (or the environment in
+/// each pixel's direction) into K group images and writes their mean (linear colour), with
+/// the environment reflected by the nearest layer where `env` has an index of refraction
+/// ([`crate::env`]); and per pixel the nearest blended fragment's depth and point. Returns
+/// the fragments blended.
 #[allow(clippy::too_many_arguments)]
 pub fn composite(
     v: &ViewParams,
     input: &TransparentInput,
     order: &[u32],
     background: [f32; 3],
+    env: Option<&crate::env::EnvSettings>,
     colour: &mut [[f32; 3]],
     depth: &mut [f32],
     id: &mut [u32],
@@ -261,13 +265,19 @@ pub fn composite(
         .map(|(b, (((crow, drow), irow), list))| {
             let rows = crow.len() / w;
             let y_base = b * BAND;
-            // Per group and pixel: the layers behind and the current layer's fragment.
-            let mut acc = vec![Layered::new(background); k_groups * crow.len()];
             drow.fill(f32::INFINITY);
             irow.fill(BACKGROUND);
             let rays: Vec<(Vec3, Vec3)> = (0..crow.len())
                 .map(|p| pixel_ray(v, (p % w) as u32, (y_base + p / w) as u32))
                 .collect();
+            // Per group and pixel: the layers behind and the current layer's fragment, over
+            // the background or the environment seen along the pixel's ray.
+            let mut acc = Vec::with_capacity(k_groups * crow.len());
+            for _ in 0..k_groups {
+                acc.extend(rays.iter().map(|&(_, d)| {
+                    Layered::new(env.map_or(background, |e| e.env.sample(d, e.up)))
+                }));
+            }
             let mut frags = 0u64;
             for &k in list {
                 let Some((p, n, r2, [x0, y0, x1, y1])) = discs[k as usize] else {
@@ -315,6 +325,18 @@ pub fn composite(
                     }
                 }
                 *o = sum.map(|s| s * inv);
+                if let (Some(e), Some(eta), true) =
+                    (env, env.and_then(|e| e.ior), irow[pix] != BACKGROUND)
+                {
+                    let i = irow[pix] as usize;
+                    let p = input.positions[i];
+                    let n = match input.normals {
+                        Some(n) => n[i],
+                        None if v.perspective == 1 => eye - p,
+                        None => -Vec3::from(v.forward),
+                    };
+                    *o = crate::env::reflect_into(*o, &e.env, e.up, eta, rays[pix].1, n);
+                }
             }
             frags
         })
@@ -368,7 +390,7 @@ mod tests {
         let bg = [0.2, 0.6, 0.2];
         let n = v.pixels();
         let (mut c, mut d, mut id) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0; n]);
-        composite(&v, &input, &order, bg, &mut c, &mut d, &mut id);
+        composite(&v, &input, &order, bg, None, &mut c, &mut d, &mut id);
         let (aa, ab) = (153.0 / 255.0f32, 128.0 / 255.0f32);
         let over_a: [f32; 3] =
             std::array::from_fn(|k| aa * [1.0, 0.0, 0.0][k] + (1.0 - aa) * bg[k]);
@@ -400,7 +422,7 @@ mod tests {
         // Drawn in the wrong order (front first), the far plane is culled behind the near one.
         let rev: Vec<u32> = order.iter().rev().copied().collect();
         let (mut c2, mut d2, mut id2) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0; n]);
-        composite(&v, &input, &rev, bg, &mut c2, &mut d2, &mut id2);
+        composite(&v, &input, &rev, bg, None, &mut c2, &mut d2, &mut id2);
         assert!((c2[at(0.25, 0.5)][0] - both[0]).abs() > 0.05);
     }
 }

@@ -1,0 +1,228 @@
+//! # Environments and Fresnel reflection (Zhang & Pajarola §5.2.3)
+//!
+//! An environment is the light arriving from every direction at infinity: a procedural sky
+//! (a gradient over a checkered ground, so reflections are visible without any file) or an
+//! equirectangular image. Transparent splats show it behind the cloud (the background
+//! becomes the environment in the pixel's direction, seen through every layer), and with a
+//! refractive index η the nearest layer reflects it: the pixel becomes
+//! F·E(r) + (1 − F)·C, with C the composite of the layers, r the view ray reflected about
+//! the nearest fragment's normal (turned towards the eye) and F the Fresnel reflectance of
+//! an uncoated dielectric for unpolarised light, the exact formula (not Schlick's):
+//! F = (r_s² + r_p²) / 2 with r_s = (cos i − η cos t)/(cos i + η cos t) and
+//! r_p = (η cos i − cos t)/(η cos i + cos t), sin t = sin i / η, 1 beyond the critical
+//! angle. At normal incidence F = ((η − 1)/(η + 1))². Refraction, dispersion and the
+//! multi-layer absorption of §5.2.3 are not built yet.
+//!
+//! Directions are world directions; the environment's frame has the scene's up axis (+Y for
+//! scanned objects, +Z for LiDAR) and +X as its reference east. The WGSL twin
+//! (`env_sample`, `fresnel` in sorted.wgsl) computes the same operations.
+
+use glam::Vec3;
+use std::sync::Arc;
+
+/// What a frame takes from its surroundings (`Pipeline::environment`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct EnvSettings {
+    pub env: Arc<Environment>,
+    /// The scene's up axis (+Y for scanned objects, +Z for LiDAR).
+    pub up: Vec3,
+    /// Refractive index of the transparent surfaces: their nearest layer reflects the
+    /// environment by Fresnel's law (None: no reflection).
+    pub ior: Option<f32>,
+}
+
+/// The light from every direction.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Environment {
+    /// A procedural sky: zenith blue to a pale horizon, a grey checkered ground below.
+    Sky,
+    /// An equirectangular image (linear RGB, row 0 at the zenith, the left edge at −east).
+    Image {
+        width: u32,
+        height: u32,
+        texels: Vec<[f32; 3]>,
+    },
+}
+
+/// Sky colours (linear RGB).
+pub const ZENITH: [f32; 3] = [0.18, 0.36, 0.75];
+pub const HORIZON: [f32; 3] = [0.80, 0.85, 0.92];
+pub const GROUND: [[f32; 3]; 2] = [[0.30, 0.30, 0.30], [0.12, 0.12, 0.12]];
+
+/// The environment's frame for up axis `up`: (east, north, up), orthonormal.
+pub fn frame(up: Vec3) -> (Vec3, Vec3, Vec3) {
+    let u = up.normalize_or(Vec3::Y);
+    let east = (Vec3::X - u * u.dot(Vec3::X)).normalize_or(Vec3::Z);
+    (east, u.cross(east), u)
+}
+
+fn mix(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    std::array::from_fn(|c| a[c] + (b[c] - a[c]) * t)
+}
+
+impl Environment {
+    /// An equirectangular image from 8-bit sRGB RGBA rows (turned linear).
+    pub fn from_rgba8(width: u32, height: u32, rgba: &[u8]) -> Result<Environment, String> {
+        if width < 2 || height < 2 || rgba.len() != 4 * width as usize * height as usize {
+            return Err(format!(
+                "an environment image needs at least 2×2 pixels of RGBA ({width}×{height}, {} bytes)",
+                rgba.len()
+            ));
+        }
+        let lut = crate::srgb::srgb_to_linear_table();
+        let texels = rgba
+            .chunks_exact(4)
+            .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
+            .collect();
+        Ok(Environment::Image {
+            width,
+            height,
+            texels,
+        })
+    }
+
+    /// The light arriving from direction `d` (any length), with the scene's up axis `up`.
+    pub fn sample(&self, d: Vec3, up: Vec3) -> [f32; 3] {
+        let (east, north, u) = frame(up);
+        let d = d.normalize_or(u);
+        let (x, y, z) = (d.dot(east), d.dot(north), d.dot(u));
+        match self {
+            Environment::Sky => {
+                if z >= 0.0 {
+                    mix(HORIZON, ZENITH, z.sqrt())
+                } else {
+                    // The ground plane one unit below, in squares of ½.
+                    let (gx, gy) = (x / -z, y / -z);
+                    let k = ((2.0 * gx).floor() + (2.0 * gy).floor()).rem_euclid(2.0);
+                    let g = if k < 0.5 { GROUND[0] } else { GROUND[1] };
+                    mix(HORIZON, g, (-8.0 * z).min(1.0))
+                }
+            }
+            Environment::Image {
+                width,
+                height,
+                texels,
+            } => {
+                let (w, h) = (*width as f32, *height as f32);
+                let lon = y.atan2(x);
+                let lat = z.clamp(-1.0, 1.0).acos();
+                let s = (0.5 - lon / std::f32::consts::TAU) * w - 0.5;
+                let t = lat / std::f32::consts::PI * h - 0.5;
+                let (s0, t0) = (s.floor(), t.floor());
+                let (fs, ft) = (s - s0, t - t0);
+                let at = |i: f32, j: f32| {
+                    let i = (i as i64).rem_euclid(*width as i64) as usize;
+                    let j = (j as i64).clamp(0, *height as i64 - 1) as usize;
+                    texels[j * *width as usize + i]
+                };
+                let top = mix(at(s0, t0), at(s0 + 1.0, t0), fs);
+                let bottom = mix(at(s0, t0 + 1.0), at(s0 + 1.0, t0 + 1.0), fs);
+                mix(top, bottom, ft)
+            }
+        }
+    }
+}
+
+/// The Fresnel reflectance of a dielectric of relative index `eta` for unpolarised light
+/// arriving at `cos_i` from the normal (see the module documentation).
+pub fn fresnel(cos_i: f32, eta: f32) -> f32 {
+    let ci = cos_i.clamp(0.0, 1.0);
+    let si2 = (1.0 - ci * ci).max(0.0);
+    let st2 = si2 / (eta * eta);
+    if st2 >= 1.0 {
+        return 1.0;
+    }
+    let ct = (1.0 - st2).sqrt();
+    let rs = (ci - eta * ct) / (ci + eta * ct);
+    let rp = (eta * ci - ct) / (eta * ci + ct);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// A pixel's colour `c` (the composite of its layers) with the environment reflected by its
+/// nearest layer: ray direction `dir`, that layer's normal `n` (either side).
+pub fn reflect_into(
+    c: [f32; 3],
+    env: &Environment,
+    up: Vec3,
+    eta: f32,
+    dir: Vec3,
+    n: Vec3,
+) -> [f32; 3] {
+    let d = dir.normalize_or_zero();
+    let mut n = n.normalize_or_zero();
+    if d == Vec3::ZERO || n == Vec3::ZERO {
+        return c;
+    }
+    if n.dot(d) > 0.0 {
+        n = -n;
+    }
+    let cos_i = -n.dot(d);
+    let f = fresnel(cos_i, eta);
+    let r = d + 2.0 * cos_i * n;
+    let e = env.sample(r, up);
+    std::array::from_fn(|k| f * e[k] + (1.0 - f) * c[k])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fresnel_meets_the_known_values() {
+        for eta in [1.33f32, 1.5, 2.4] {
+            let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
+            assert!((fresnel(1.0, eta) - f0).abs() < 1e-6 * f0.max(1.0), "{eta}");
+            // Grazing: everything is reflected.
+            assert!((fresnel(0.0, eta) - 1.0).abs() < 1e-6);
+            // Brewster's angle: r_p = 0, F = r_s² / 2.
+            let b = eta.atan();
+            let (ci, ct) = (b.cos(), (b.sin() / eta).asin().cos());
+            let rs = (ci - eta * ct) / (ci + eta * ct);
+            assert!((fresnel(ci, eta) - 0.5 * rs * rs).abs() < 1e-5, "{eta}");
+        }
+        // From inside a denser medium (η < 1) beyond the critical angle: total reflection.
+        assert_eq!(fresnel(0.2, 1.0 / 1.5), 1.0);
+    }
+
+    #[test]
+    fn the_sky_is_blue_above_and_checkered_below() {
+        let up = Vec3::Y;
+        let z = Environment::Sky.sample(Vec3::Y, up);
+        assert_eq!(z, ZENITH);
+        let h = Environment::Sky.sample(Vec3::X, up);
+        assert_eq!(h, HORIZON);
+        let a = Environment::Sky.sample(Vec3::new(0.1, -1.0, 0.1), up);
+        let b = Environment::Sky.sample(Vec3::new(0.6, -1.0, 0.1), up);
+        assert_ne!(a, b, "neighbouring squares differ");
+        // Z up: the same sky about +Z.
+        assert_eq!(Environment::Sky.sample(Vec3::Z, Vec3::Z), ZENITH);
+    }
+
+    #[test]
+    fn an_image_is_sampled_by_longitude_and_latitude() {
+        // 4×2: the top row red, the bottom row blue.
+        let mut texels = vec![[1.0, 0.0, 0.0]; 4];
+        texels.extend(vec![[0.0, 0.0, 1.0]; 4]);
+        let e = Environment::Image {
+            width: 4,
+            height: 2,
+            texels,
+        };
+        let up = Vec3::Z;
+        assert_eq!(e.sample(Vec3::Z, up), [1.0, 0.0, 0.0]);
+        assert_eq!(e.sample(-Vec3::Z, up), [0.0, 0.0, 1.0]);
+        let side = e.sample(Vec3::X, up);
+        assert!((side[0] - 0.5).abs() < 1e-5 && (side[2] - 0.5).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_mirror_view_at_normal_incidence_reflects_f0() {
+        let white = Environment::Image {
+            width: 2,
+            height: 2,
+            texels: vec![[1.0; 3]; 4],
+        };
+        let c = reflect_into([0.0; 3], &white, Vec3::Y, 1.5, Vec3::Z, Vec3::Z);
+        assert!((c[0] - 0.04).abs() < 1e-6, "{c:?}");
+    }
+}
