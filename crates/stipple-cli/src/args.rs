@@ -998,10 +998,15 @@ pub struct LookArgs {
     #[arg(long, value_name = "sky|FILE.png")]
     pub env: Option<std::path::PathBuf>,
     /// Refractive index of transparent surfaces (e.g. 1.5 for glass): their nearest layer
-    /// reflects the environment by Fresnel's law, more at grazing angles [default with
-    /// --env: none, no reflection].
+    /// reflects the environment by Fresnel's law, more at grazing angles, and the layers
+    /// refract it (Zhang & Pajarola's Eq. 12: more layers, more bending) [default: none,
+    /// no reflection or refraction].
     #[arg(long, value_parser = finite_f32, value_name = "ETA")]
     pub ior: Option<f32>,
+    /// Chromatic dispersion of --ior: red refracts with index η(1 − δ), blue with η(1 + δ)
+    /// (0 to 0.2; glass about 0.01) [default: 0].
+    #[arg(long, value_parser = finite_f32, value_name = "DELTA")]
+    pub dispersion: Option<f32>,
     /// Compute shadow textures for the lights that cast them (point and area lights, e.g.
     /// --light point:x,y,z or disc:x,y,z,r). Scene files have shadows on unless they say
     /// `shadows = false`.

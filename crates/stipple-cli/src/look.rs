@@ -124,6 +124,20 @@ fn environment(
             return Err(anyhow!("--ior {eta}: a refractive index lies in (0, 10]"));
         }
     }
+    let dispersion = look
+        .dispersion
+        .or(scene.and_then(|s| s.render.dispersion))
+        .unwrap_or(0.0);
+    if !(0.0..=0.2).contains(&dispersion) {
+        return Err(anyhow!(
+            "--dispersion {dispersion}: 0 to 0.2 (glass: about 0.01)"
+        ));
+    }
+    if dispersion > 0.0 && ior.is_none() {
+        return Err(anyhow!(
+            "--dispersion spreads the refraction of --ior: give --ior too"
+        ));
+    }
     let from_scene = scene.and_then(|s| {
         s.render.env.as_ref().map(|e| match e.as_str() {
             "sky" => std::path::PathBuf::from("sky"),
@@ -145,6 +159,7 @@ fn environment(
         env: std::sync::Arc::new(env),
         up: if z_up { glam::Vec3::Z } else { glam::Vec3::Y },
         ior,
+        dispersion,
     }))
 }
 

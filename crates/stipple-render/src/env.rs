@@ -10,8 +10,16 @@
 //! an uncoated dielectric for unpolarised light, the exact formula (not Schlick's):
 //! F = (r_s² + r_p²) / 2 with r_s = (cos i − η cos t)/(cos i + η cos t) and
 //! r_p = (η cos i − cos t)/(η cos i + cos t), sin t = sin i / η, 1 beyond the critical
-//! angle. At normal incidence F = ((η − 1)/(η + 1))². Refraction, dispersion and the
-//! multi-layer absorption of §5.2.3 are not built yet.
+//! angle. At normal incidence F = ((η − 1)/(η + 1))².
+//!
+//! Refraction (§5.2.3, Eq. 12): the layers composite over black while counting how many
+//! there are (l, averaged over the groups) and how much they let through (T = Π(1 − α):
+//! the absorption of Eq. 11, exact per pixel rather than from a constant α); the
+//! environment is then added as T·E(t), with t the view ray bent at the nearest layer by
+//! sin θ_T = (1/η)^l sin θ_I, the paper's heuristic of equal refraction at every interface.
+//! Chromatic dispersion refracts red with η(1 − δ) and blue with η(1 + δ). Refraction of
+//! opaque geometry behind the layers (a background edge shifted by a slab) is not built:
+//! only the environment, at infinity, is refracted.
 //!
 //! Directions are world directions; the environment's frame has the scene's up axis (+Y for
 //! scanned objects, +Z for LiDAR) and +X as its reference east. The WGSL twin
@@ -27,8 +35,10 @@ pub struct EnvSettings {
     /// The scene's up axis (+Y for scanned objects, +Z for LiDAR).
     pub up: Vec3,
     /// Refractive index of the transparent surfaces: their nearest layer reflects the
-    /// environment by Fresnel's law (None: no reflection).
+    /// environment by Fresnel's law, and the layers refract it (None: neither).
     pub ior: Option<f32>,
+    /// Chromatic dispersion: red is refracted with index η(1 − δ), green η, blue η(1 + δ).
+    pub dispersion: f32,
 }
 
 /// The light from every direction.
@@ -138,6 +148,66 @@ pub fn fresnel(cos_i: f32, eta: f32) -> f32 {
     0.5 * (rs * rs + rp * rp)
 }
 
+/// The direction the environment is seen in through `layers` layers (a mean over the
+/// groups, so fractional) of index `eta` along the ray `d` (unit) meeting the nearest layer
+/// with unit normal `n` facing the eye: Eq. 12's heuristic, sin θ_T = (1/η)^l sin θ_I (equal
+/// refraction at every interface, bending towards the normal layer after layer); the ray
+/// itself without layers or with η = 1.
+pub fn refracted(d: Vec3, n: Vec3, eta: f32, layers: f32) -> Vec3 {
+    let cos_i = (-n.dot(d)).clamp(-1.0, 1.0);
+    let sin_i = (1.0 - cos_i * cos_i).max(0.0).sqrt();
+    if layers <= 0.0 || sin_i < 1e-6 || eta <= 0.0 {
+        return d;
+    }
+    let sin_t = (1.0 / eta).powf(layers) * sin_i;
+    if sin_t >= 1.0 {
+        return d;
+    }
+    let tangent = (d + n * cos_i) / sin_i;
+    tangent * sin_t - n * (1.0 - sin_t * sin_t).sqrt()
+}
+
+/// A pixel's finished colour: `c`, the composite of its layers over black, plus what they
+/// let through (`through`, the mean over the groups) of the environment seen along the ray
+/// `dir` refracted by `layers` layers (per colour channel with the settings' dispersion),
+/// and, with an index of refraction, the environment reflected by the nearest layer
+/// (normal `n`, either side; None where no layer is).
+pub fn finish(
+    c: [f32; 3],
+    e: &EnvSettings,
+    dir: Vec3,
+    n: Option<Vec3>,
+    through: f32,
+    layers: f32,
+) -> [f32; 3] {
+    let d = dir.normalize_or_zero();
+    let n = n
+        .map(|n| n.normalize_or_zero())
+        .filter(|n| *n != Vec3::ZERO && d != Vec3::ZERO);
+    let n = n.map(|n| if n.dot(d) > 0.0 { -n } else { n });
+    let mut out = c;
+    match (n, e.ior) {
+        (Some(n), Some(eta)) if through > 0.0 => {
+            for (ch, o) in out.iter_mut().enumerate() {
+                let eta_c = eta * (1.0 + e.dispersion * (ch as f32 - 1.0));
+                let t = refracted(d, n, eta_c, layers);
+                *o += through * e.env.sample(t, e.up)[ch];
+            }
+        }
+        _ if through > 0.0 => {
+            let s = e.env.sample(d, e.up);
+            for ch in 0..3 {
+                out[ch] += through * s[ch];
+            }
+        }
+        _ => {}
+    }
+    match (n, e.ior) {
+        (Some(n), Some(eta)) => reflect_into(out, &e.env, e.up, eta, d, n),
+        _ => out,
+    }
+}
+
 /// A pixel's colour `c` (the composite of its layers) with the environment reflected by its
 /// nearest layer: ray direction `dir`, that layer's normal `n` (either side).
 pub fn reflect_into(
@@ -213,6 +283,23 @@ mod tests {
         assert_eq!(e.sample(-Vec3::Z, up), [0.0, 0.0, 1.0]);
         let side = e.sample(Vec3::X, up);
         assert!((side[0] - 0.5).abs() < 1e-5 && (side[2] - 0.5).abs() < 1e-5);
+    }
+
+    /// Eq. 12: through l layers sin θ_T = (1/η)^l sin θ_I, in the plane of the ray and the
+    /// normal, on the far side; no layers or normal incidence: the ray itself.
+    #[test]
+    fn refraction_bends_more_with_every_layer() {
+        let n = Vec3::Z;
+        let d = Vec3::new(45f32.to_radians().sin(), 0.0, -45f32.to_radians().cos());
+        for l in [1.0f32, 2.0, 3.5] {
+            let t = refracted(d, n, 1.5, l);
+            assert!((t.length() - 1.0).abs() < 1e-5);
+            let want = (1.0 / 1.5f32).powf(l) * 45f32.to_radians().sin();
+            assert!((t.x - want).abs() < 1e-5, "{l}: {t}");
+            assert!(t.y.abs() < 1e-6 && t.z < 0.0);
+        }
+        assert_eq!(refracted(d, n, 1.5, 0.0), d);
+        assert_eq!(refracted(-Vec3::Z, n, 1.5, 2.0), -Vec3::Z);
     }
 
     #[test]

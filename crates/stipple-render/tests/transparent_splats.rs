@@ -224,6 +224,7 @@ fn the_environment_shows_behind_and_reflects_by_fresnel() {
             env: std::sync::Arc::new(white.clone()),
             up: Vec3::Y,
             ior: Some(eta),
+            dispersion: 0.0,
         });
         let f0 = ((eta - 1.0) / (eta + 1.0)).powi(2);
         let want8 = stipple_render::passes::shade::cpu::linear_to_srgb8(f0);
@@ -250,6 +251,7 @@ fn the_environment_shows_behind_and_reflects_by_fresnel() {
         env: std::sync::Arc::new(Environment::Sky),
         up: Vec3::Y,
         ior: None,
+        dispersion: 0.0,
     });
     let mut cam = camera(64);
     cam.eye = DVec3::new(0.0, 0.0, 6.0);
@@ -277,5 +279,81 @@ fn the_environment_shows_behind_and_reflects_by_fresnel() {
         // Near the horizon the checkered ground's squares are smaller than a pixel and the
         // last bit of a float picks the square (22 of 4 096 pixels here).
         assert!(common::agreeing(&a.rgba, &b.rgba, 2) >= 0.99);
+    }
+}
+
+/// Refraction (Zhang & Pajarola Eq. 12) and dispersion on both backends, against the
+/// analytic answer. The environment's value is its polar angle over π (an image whose rows
+/// grow linearly, so bilinear sampling is exact), a black plane of opacity α is seen 40°
+/// off its normal: the pixel is F·E(r) + (1 − F)(1 − α)·E(t), with r the mirror ray, t the
+/// ray bent by Snell's law into index η (sin θ_t = sin θ_i / η) and F Fresnel's
+/// reflectance; with dispersion δ the red channel bends with η(1 − δ), blue with η(1 + δ).
+#[test]
+fn the_environment_is_refracted_by_snell_and_dispersed() {
+    use stipple_render::env::{fresnel, EnvSettings, Environment};
+    let lut = stipple_render::passes::shade::cpu::srgb_to_linear_table();
+    let h = 64u32;
+    let texels: Vec<[f32; 3]> = (0..h * 8)
+        .map(|k| [((k / 8) as f32 + 0.5) / h as f32; 3])
+        .collect();
+    let env = std::sync::Arc::new(Environment::Image {
+        width: 8,
+        height: h,
+        texels,
+    });
+    let value = |d: Vec3| d.normalize().dot(Vec3::Y).clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+    let mut cam = camera(64);
+    cam.eye = DVec3::new(
+        0.0,
+        4.0 * 40f64.to_radians().sin(),
+        4.0 * 40f64.to_radians().cos(),
+    );
+    let alpha = 0.4f32;
+    let stored = (alpha * 255.0).round() / 255.0;
+    for (eta, delta) in [(1.5f32, 0.0f32), (1.33, 0.05)] {
+        let c = planes(&[(0.0, [0, 0, 0], alpha, 9)], 140);
+        let mut pipe = transparent([0, 0, 0]);
+        pipe.environment = Some(EnvSettings {
+            env: env.clone(),
+            up: Vec3::Y,
+            ior: Some(eta),
+            dispersion: delta,
+        });
+        let v = stipple_render::params::ViewParams::new(&cam, DVec3::ZERO);
+        let d = stipple_render::passes::splat::transparent::pixel_ray(&v, 32, 32)
+            .1
+            .normalize();
+        let n = Vec3::Z;
+        let cos_i = -n.dot(d);
+        let f = fresnel(cos_i, eta);
+        let r = d + 2.0 * cos_i * n;
+        let want: Vec<f32> = (0..3)
+            .map(|ch| {
+                let e = eta * (1.0 + delta * (ch as f32 - 1.0));
+                let sin_t = (1.0 - cos_i * cos_i).sqrt() / e;
+                // In the plane of d and n: the tangential part scaled, the normal part −n.
+                let tangent = (d + n * cos_i).normalize();
+                let t = tangent * sin_t - n * (1.0 - sin_t * sin_t).sqrt();
+                f * value(r) + (1.0 - f) * (1.0 - stored) * value(t)
+            })
+            .collect();
+        if delta > 0.0 {
+            // Blue bends more than red: the channels differ.
+            assert!((want[0] - want[2]).abs() > 0.01, "{want:?}");
+        }
+        for mut rd in renderers() {
+            let fr = rd.render(&c, &cam, &pipe).unwrap();
+            for ch in 0..3 {
+                let got = fr.rgba[(32 * 64 + 32) * 4 + ch];
+                let w8 = stipple_render::passes::shade::cpu::linear_to_srgb8(want[ch]);
+                assert!(
+                    got.abs_diff(w8) <= 1,
+                    "{} η {eta} δ {delta} channel {ch}: {got} ({}), want {w8} ({})",
+                    rd.describe(),
+                    lut[got as usize],
+                    want[ch]
+                );
+            }
+        }
     }
 }

@@ -81,8 +81,11 @@ pub struct RenderSpec {
     /// An environment behind transparent splats: "sky" or an equirectangular PNG (relative
     /// to the scene file), as `--env`.
     pub env: Option<String>,
-    /// Refractive index of transparent surfaces (they reflect the environment), as `--ior`.
+    /// Refractive index of transparent surfaces (they reflect and refract the environment),
+    /// as `--ior`.
     pub ior: Option<f32>,
+    /// Chromatic dispersion of the refraction, as `--dispersion`.
+    pub dispersion: Option<f32>,
 }
 
 #[derive(Deserialize, Debug, Clone)]

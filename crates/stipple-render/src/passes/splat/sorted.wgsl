@@ -44,7 +44,8 @@ struct SortedComposite {
     env_h: u32,
     ior: f32,
     env_up: vec3<f32>,
-    pad3: f32,
+    // Chromatic dispersion δ (env::EnvSettings::dispersion).
+    dispersion: f32,
 }
 
 @group(0) @binding(11) var<uniform> sc: SortedChunk;
@@ -283,8 +284,9 @@ fn sorted_composite(
 //                          last one blended there; the K images kept per pixel between
 //                          dispatches and averaged by the last
 
-// Per pixel and group between dispatches, three vec4 (transparent::Layered): (colour behind
-// the current layer, its fragment's α), (the fragment's colour, depth), ((d/r)², point).
+// Per pixel and group between dispatches, four vec4 (transparent::Layered): (colour behind
+// the current layer, its fragment's α), (the fragment's colour, depth), ((d/r)², point,
+// what the layers behind let through, how many they are), (the layer's weighted normals).
 @group(0) @binding(26) var<storage, read_write> t_acc: array<vec4<f32>>;
 // The groups each point of the cloud is drawn in (bit k: group k).
 @group(0) @binding(27) var<storage, read> t_masks: array<u32>;
@@ -386,6 +388,56 @@ fn reflect_into(c: vec3<f32>, dir: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
     let f = fresnel(cos_i, scomp.ior);
     let r = d + 2.0 * cos_i * n;
     return f * env_sample(r) + (1.0 - f) * c;
+}
+
+// env::refracted.
+fn refracted(d: vec3<f32>, n: vec3<f32>, eta: f32, layers: f32) -> vec3<f32> {
+    let cos_i = clamp(-dot(n, d), -1.0, 1.0);
+    let sin_i = sqrt(max(1.0 - cos_i * cos_i, 0.0));
+    if (layers <= 0.0 || sin_i < 1e-6 || eta <= 0.0) {
+        return d;
+    }
+    let sin_t = pow(1.0 / eta, layers) * sin_i;
+    if (sin_t >= 1.0) {
+        return d;
+    }
+    let tangent = (d + n * cos_i) / sin_i;
+    return tangent * sin_t - n * sqrt(1.0 - sin_t * sin_t);
+}
+
+// env::finish: the environment let through (refracted) and reflected.
+fn env_finish(c: vec3<f32>, dir: vec3<f32>, normal: vec3<f32>, has_n: bool, through: f32, layers: f32) -> vec3<f32> {
+    let dl = length(dir);
+    var d = vec3<f32>(0.0);
+    if (dl > 0.0) {
+        d = dir / dl;
+    }
+    var n = vec3<f32>(0.0);
+    var ok = false;
+    let nl = length(normal);
+    if (has_n && nl > 0.0 && dl > 0.0) {
+        n = normal / nl;
+        if (dot(n, d) > 0.0) {
+            n = -n;
+        }
+        ok = true;
+    }
+    var out = c;
+    if (through > 0.0) {
+        if (ok && scomp.ior > 0.0) {
+            for (var ch = 0u; ch < 3u; ch++) {
+                let eta_c = scomp.ior * (1.0 + scomp.dispersion * (f32(ch) - 1.0));
+                let t = refracted(d, n, eta_c, layers);
+                out[ch] = out[ch] + through * env_sample(t)[ch];
+            }
+        } else {
+            out = out + through * env_sample(d);
+        }
+    }
+    if (ok && scomp.ior > 0.0) {
+        return reflect_into(out, d, n);
+    }
+    return out;
 }
 
 // stipple_core::grouping::TRANSPARENT_GROUPS
@@ -509,6 +561,8 @@ fn transparent_composite(
     var st0: array<vec4<f32>, 4>;
     var st1: array<vec4<f32>, 4>;
     var st2: array<vec4<f32>, 4>;
+    // The current layer's kernel-weighted normal sum (with an environment).
+    var st3: array<vec4<f32>, 4>;
     // transparent::pixel_ray
     let sxn = (2.0 * f32(px) + 1.0) / f32(view.width) - 1.0;
     let syn = 1.0 - (2.0 * f32(py) + 1.0) / f32(view.height);
@@ -519,21 +573,26 @@ fn transparent_composite(
         ro = view.eye + offset;
         rd = view.forward;
     }
+    // With an environment the layers composite over black; what they let through of it is
+    // added at the end (env_finish), along the refracted ray.
     var behind = sp.background;
-    if (scomp.env_kind != 0u && scomp.first == 1u && inside) {
-        behind = env_sample(rd);
+    if (scomp.env_kind != 0u) {
+        behind = vec3<f32>(0.0);
     }
     for (var g = 0u; g < k_groups; g++) {
         st0[g] = vec4<f32>(behind, 0.0);
         st1[g] = vec4<f32>(0.0, 0.0, 0.0, infinity());
-        st2[g] = vec4<f32>(0.0, bitcast<f32>(BACKGROUND), 0.0, 0.0);
+        // (d/r)², point, what the layers behind let through, how many they are.
+        st2[g] = vec4<f32>(0.0, bitcast<f32>(BACKGROUND), 1.0, 0.0);
+        st3[g] = vec4<f32>(0.0);
     }
     if (inside && scomp.first == 0u) {
         for (var g = 0u; g < k_groups; g++) {
-            let b = 3u * (g * npix + pix);
+            let b = 4u * (g * npix + pix);
             st0[g] = t_acc[b];
             st1[g] = t_acc[b + 1u];
             st2[g] = t_acc[b + 2u];
+            st3[g] = t_acc[b + 3u];
         }
     }
     let fx = f32(px);
@@ -587,6 +646,11 @@ fn transparent_composite(
                 let id = t_tile_id[j];
                 let cm = t_tile_c[j];
                 let al = nn.w;
+                var wn = vec3<f32>(0.0);
+                if (scomp.env_kind != 0u) {
+                    // splat::weight, of the normal turned to the eye.
+                    wn = exp(-3.0 * q) * select(nn.xyz, -nn.xyz, dn > 0.0);
+                }
                 var bits = bitcast<u32>(cm.w);
                 loop {
                     if (bits == 0u) {
@@ -603,8 +667,12 @@ fn transparent_composite(
                         if (depth < infinity()) {
                             let s0 = st0[g];
                             st0[g] = vec4<f32>(s0.w * st1[g].xyz + (1.0 - s0.w) * s0.xyz, s0.w);
+                            st2[g].z = st2[g].z * (1.0 - s0.w);
+                            st2[g].w = st2[g].w + 1.0;
                         }
+                        st3[g] = vec4<f32>(wn, 0.0);
                     } else {
+                        st3[g] = st3[g] + vec4<f32>(wn, 0.0);
                         let cq = st2[g].x;
                         let cid = bitcast<u32>(st2[g].y);
                         if (q > cq || (q == cq && id >= cid)) {
@@ -613,7 +681,7 @@ fn transparent_composite(
                     }
                     st0[g].w = al;
                     st1[g] = vec4<f32>(cm.xyz, t);
-                    st2[g] = vec4<f32>(q, bitcast<f32>(id), 0.0, 0.0);
+                    st2[g] = vec4<f32>(q, bitcast<f32>(id), st2[g].z, st2[g].w);
                 }
             }
         }
@@ -625,21 +693,39 @@ fn transparent_composite(
             var sum = vec3<f32>(0.0);
             var dep = infinity();
             var pid = BACKGROUND;
+            var through = 0.0;
+            var layers = 0.0;
             for (var g = 0u; g < k_groups; g++) {
-                // transparent::Layered::composite
+                // transparent::Layered::composite, ::transmission
                 var c = st0[g].xyz;
+                var tg = st2[g].z;
+                var lg = st2[g].w;
                 if (st1[g].w < infinity()) {
                     c = st0[g].w * st1[g].xyz + (1.0 - st0[g].w) * st0[g].xyz;
+                    tg = tg * (1.0 - st0[g].w);
+                    lg = lg + 1.0;
                 }
                 sum = sum + c;
+                through = through + tg;
+                layers = layers + lg;
                 if (st1[g].w < dep) {
                     dep = st1[g].w;
                     pid = bitcast<u32>(st2[g].y);
                 }
             }
-            var out = sum * (1.0 / f32(k_groups));
-            if (scomp.env_kind != 0u && scomp.ior > 0.0 && pid != BACKGROUND) {
-                out = reflect_into(out, rd, s_splats[4u * pid + 1u].xyz);
+            let inv = 1.0 / f32(k_groups);
+            var out = sum * inv;
+            if (scomp.env_kind != 0u) {
+                // The mean normal of the groups' fragments at the nearest layer, each turned
+                // to the eye (transparent::composite).
+                var n = vec3<f32>(0.0);
+                for (var g = 0u; g < k_groups; g++) {
+                    let gid = bitcast<u32>(st2[g].y);
+                    if (gid != BACKGROUND && st1[g].w <= dep + scomp.epsilon) {
+                        n = n + st3[g].xyz;
+                    }
+                }
+                out = env_finish(out, rd, n, pid != BACKGROUND, through * inv, layers * inv);
             }
             colour[pix] = vec4<f32>(out, 1.0);
             surface_depth[pix] = dep;
@@ -647,10 +733,11 @@ fn transparent_composite(
             s_id[pix] = pid;
         } else {
             for (var g = 0u; g < k_groups; g++) {
-                let b = 3u * (g * npix + pix);
+                let b = 4u * (g * npix + pix);
                 t_acc[b] = st0[g];
                 t_acc[b + 1u] = st1[g];
                 t_acc[b + 2u] = st2[g];
+                t_acc[b + 3u] = st3[g];
             }
         }
     }

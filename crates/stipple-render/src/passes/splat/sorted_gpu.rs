@@ -55,13 +55,13 @@ pub(crate) struct SortedComposite {
     pub epsilon: f32,
     pub pad: u32,
     /// The environment (sorted.wgsl `env_sample`): 0 none, 1 sky, 2 image; its size; the
-    /// index of refraction (0: no reflection); the up axis.
+    /// index of refraction (0: no reflection or refraction); the up axis; the dispersion.
     pub env_kind: u32,
     pub env_w: u32,
     pub env_h: u32,
     pub ior: f32,
     pub env_up: [f32; 3],
-    pub pad3: f32,
+    pub dispersion: f32,
 }
 
 /// Splats a composite dispatch draws at most (see sorted.wgsl: on lavapipe one dispatch drew
@@ -137,7 +137,7 @@ pub(crate) fn record(
     let group_acc = match &masks {
         Some((_, k)) => Some(
             splat
-                .group_acc(ctx, 48 * *k as u64 * f.width as u64 * f.height as u64)?
+                .group_acc(ctx, 64 * *k as u64 * f.width as u64 * f.height as u64)?
                 .clone(),
         ),
         None => None,
@@ -277,7 +277,7 @@ pub(crate) fn record(
                 env_h,
                 ior: env.and_then(|e| e.ior).unwrap_or(0.0),
                 env_up: env.map_or([0.0; 3], |e| e.up.to_array()),
-                pad3: 0.0,
+                dispersion: env.map_or(0.0, |e| e.dispersion),
             }),
         );
         let mut res = vec![

@@ -33,8 +33,9 @@
 //! - The slices of the back-to-front order are ε thick (the paper uses a BSP tree): layers
 //!   more than ε apart never share a slice, and closer ones are one layer to the culling.
 //! - Shading is per point (forward), not deferred per fragment (§5.2.4). An environment
-//!   ([`crate::env`]) shows behind the layers, and with an index of refraction the nearest
-//!   layer reflects it (Fresnel, with that layer's point normal); refraction is not built.
+//!   ([`crate::env`]) shows behind the layers, and with an index of refraction the layers
+//!   refract it (Eq. 12, with the layer count of each pixel) and the nearest one reflects it
+//!   (Fresnel), both with that layer's point normal.
 //!
 //! The CPU draws bands of rows in parallel (each band takes, in order, the splats that reach
 //! it); the GPU (`transparent.wgsl` in sorted.wgsl's module) draws one 16×16 tile per
@@ -170,6 +171,12 @@ struct Layered {
     depth: f32,
     q: f32,
     id: u32,
+    /// What the layers behind the current one let through of the background, and how many
+    /// they are.
+    through: f32,
+    behind_layers: f32,
+    /// The current layer's kernel-weighted sum of normals (turned to the eye).
+    normal: Vec3,
 }
 
 impl Layered {
@@ -181,6 +188,18 @@ impl Layered {
             depth: f32::INFINITY,
             q: 0.0,
             id: BACKGROUND,
+            through: 1.0,
+            behind_layers: 0.0,
+            normal: Vec3::ZERO,
+        }
+    }
+
+    /// What all the layers let through of the background, and how many they are.
+    fn transmission(&self) -> (f32, f32) {
+        if self.depth.is_finite() {
+            (self.through * (1.0 - self.alpha), self.behind_layers + 1.0)
+        } else {
+            (self.through, self.behind_layers)
         }
     }
 
@@ -188,14 +207,35 @@ impl Layered {
     /// starts a new layer (the current one composited behind it); otherwise it is of the
     /// current layer, and of the two the fragment nearer its splat's centre (relative to its
     /// radius; ties: the smaller point) stays, Voronoi rasterization (§5.1) within the layer.
+    ///
+    /// With `normal` (an environment is refracted and reflected), the current layer's
+    /// fragments also sum their normals weighted by the splat kernel, whichever of them
+    /// wins: the layer's smooth normal (the per-fragment attribute interpolation of §5.2.4).
+    #[allow(clippy::too_many_arguments)]
     #[inline]
-    fn add(&mut self, z: f32, q: f32, id: u32, colour: [f32; 3], alpha: f32, epsilon: f32) {
+    fn add(
+        &mut self,
+        z: f32,
+        q: f32,
+        id: u32,
+        colour: [f32; 3],
+        alpha: f32,
+        epsilon: f32,
+        normal: Option<Vec3>,
+    ) {
+        let wn = normal.map_or(Vec3::ZERO, |n| n * super::weight(q));
         if z < self.depth - epsilon {
             if self.depth.is_finite() {
                 self.behind = self.composite();
+                self.through *= 1.0 - self.alpha;
+                self.behind_layers += 1.0;
             }
-        } else if (q, id) >= (self.q, self.id) {
-            return;
+            self.normal = wn;
+        } else {
+            self.normal += wn;
+            if (q, id) >= (self.q, self.id) {
+                return;
+            }
         }
         (self.colour, self.alpha, self.depth, self.q, self.id) = (colour, alpha, z, q, id);
     }
@@ -274,9 +314,12 @@ pub fn composite(
             // the background or the environment seen along the pixel's ray.
             let mut acc = Vec::with_capacity(k_groups * crow.len());
             for _ in 0..k_groups {
-                acc.extend(rays.iter().map(|&(_, d)| {
-                    Layered::new(env.map_or(background, |e| e.env.sample(d, e.up)))
-                }));
+                // With an environment the layers composite over black, and what they let
+                // through of it is added at the end, looked up along the refracted ray.
+                acc.extend(
+                    rays.iter()
+                        .map(|_| Layered::new(env.map_or(background, |_| [0.0; 3]))),
+                );
             }
             let mut frags = 0u64;
             for &k in list {
@@ -296,6 +339,7 @@ pub fn composite(
                         let Some((z, q)) = flat_hit(o, d, p, n, r2, v.near) else {
                             continue;
                         };
+                        let facing = env.map(|_| if n.dot(d) > 0.0 { -n } else { n });
                         let mut bits = mask;
                         while bits != 0 {
                             let g = bits.trailing_zeros() as usize;
@@ -303,7 +347,15 @@ pub fn composite(
                             if g >= k_groups {
                                 break;
                             }
-                            acc[g * crow.len() + pix].add(z, q, i as u32, c, alpha, input.epsilon);
+                            acc[g * crow.len() + pix].add(
+                                z,
+                                q,
+                                i as u32,
+                                c,
+                                alpha,
+                                input.epsilon,
+                                facing,
+                            );
                             frags += 1;
                         }
                     }
@@ -312,12 +364,16 @@ pub fn composite(
             let inv = 1.0 / k_groups as f32;
             for (pix, o) in crow.iter_mut().enumerate() {
                 let mut sum = [0.0f32; 3];
+                let (mut through, mut layers) = (0.0f32, 0.0f32);
                 for g in 0..k_groups {
                     let s = &acc[g * rows * w + pix];
                     let c = s.composite();
                     for ch in 0..3 {
                         sum[ch] += c[ch];
                     }
+                    let (t, l) = s.transmission();
+                    through += t;
+                    layers += l;
                     // The nearest layer's fragment over the groups (ties: the first group).
                     if s.depth < drow[pix] {
                         drow[pix] = s.depth;
@@ -325,17 +381,20 @@ pub fn composite(
                     }
                 }
                 *o = sum.map(|s| s * inv);
-                if let (Some(e), Some(eta), true) =
-                    (env, env.and_then(|e| e.ior), irow[pix] != BACKGROUND)
-                {
-                    let i = irow[pix] as usize;
-                    let p = input.positions[i];
-                    let n = match input.normals {
-                        Some(n) => n[i],
-                        None if v.perspective == 1 => eye - p,
-                        None => -Vec3::from(v.forward),
-                    };
-                    *o = crate::env::reflect_into(*o, &e.env, e.up, eta, rays[pix].1, n);
+                if let Some(e) = env {
+                    // The nearest layer's normal: its fragments' kernel-weighted normals
+                    // summed over the groups (one splat's normal alone would show every
+                    // splat as a facet in the refracted image).
+                    let d = rays[pix].1;
+                    let mut n = Vec3::ZERO;
+                    for g in 0..k_groups {
+                        let s = &acc[g * rows * w + pix];
+                        if s.id != BACKGROUND && s.depth <= drow[pix] + input.epsilon {
+                            n += s.normal;
+                        }
+                    }
+                    let n = (irow[pix] != BACKGROUND).then_some(n);
+                    *o = crate::env::finish(*o, e, d, n, through * inv, layers * inv);
                 }
             }
             frags
