@@ -476,6 +476,11 @@ pub struct SplatArgs {
         value_enum
     )]
     pub splat_mode: SplatMode,
+    /// Transparent splats: draw the nearest layer smoothly interpolated over its splats
+    /// (Zhang & Pajarola's Algorithm 3, a scene's transparency = "splat-2pass") instead of
+    /// each group's nearest splat (Algorithm 2): smoother colour on the surface in front.
+    #[arg(long)]
+    pub smooth_nearest: bool,
     /// Multiplies every splat radius (radii: 0.6 × the 16th-neighbour distance, or the
     /// file's `radius`).
     #[arg(long, value_parser = finite_f32, default_value_t = 1.0, value_name = "F")]
@@ -530,6 +535,7 @@ impl SplatArgs {
             epsilon: self.splat_epsilon,
             c: self.splat_c,
             depth_range: None,
+            smooth_nearest: self.smooth_nearest,
         })
     }
 }

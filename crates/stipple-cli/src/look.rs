@@ -209,10 +209,13 @@ pub fn apply_progressively(
     // it through (one pass, every layer); asked-for peeling (--layers) keeps peeling.
     if let (true, 1, Some(s)) = (cloud.mean_alpha < 1.0, pipe.layers, &mut pipe.splat) {
         if s.mode == stipple_render::SplatMode::Blend {
+            // Algorithm 3: the surface in front smoothly interpolated (Algorithm 2 shows
+            // each point's shading noise there as specks).
             s.mode = stipple_render::SplatMode::Transparent;
+            s.smooth_nearest = true;
             eprintln!(
                 "stipple: note: translucent points: drawn as transparent splats (Zhang & \
-                 Pajarola, every layer in one pass; --layers N peels instead)"
+                 Pajarola's Algorithm 3, every layer in one pass; --layers N peels instead)"
             );
         }
     }

@@ -661,12 +661,28 @@ fn transparent_splats_from_the_command_line_and_a_scene() {
         let said = ok(&dir, &a);
         (stipple_io::image::read_png(&dir.join(out)).unwrap().2, said)
     };
+    // (Algorithm 3, the nearest layer smoothly interpolated.)
     let (auto, said) = sparse(&[], "a.png");
-    let (explicit, _) = sparse(&["--pipeline", "splat", "--splat", "transparent"], "e.png");
+    let (explicit, _) = sparse(
+        &[
+            "--pipeline",
+            "splat",
+            "--splat",
+            "transparent",
+            "--smooth-nearest",
+        ],
+        "e.png",
+    );
     assert!(
         auto == explicit && said.contains("drawn as transparent splats"),
         "--opacity alone draws transparent splats: {said}"
     );
+    // Algorithm 3 against Algorithm 2: the same surfaces, a smoother front.
+    let (two, _) = sparse(
+        &["--pipeline", "splat", "--splat", "transparent"],
+        "two.png",
+    );
+    assert!(auto != two);
     let peeled = shot(&["--opacity", "0.5", "--layers", "2"], "p.png");
     let opaque = shot(&["--pipeline", "splat", "--splat", "transparent"], "o.png");
     let mean_diff = |a: &[u8], b: &[u8]| {

@@ -26,12 +26,18 @@ fn camera(size: u32) -> Camera {
 }
 
 fn transparent(background: [u8; 3]) -> Pipeline {
+    algorithm(background, false)
+}
+
+/// Algorithm 2, or with `smooth` Algorithm 3 (the nearest layer smoothly interpolated).
+fn algorithm(background: [u8; 3], smooth: bool) -> Pipeline {
     Pipeline {
         lighting: false,
         background,
         colour: vec![],
         ..Pipeline::splats(SplatSettings {
             mode: SplatMode::Transparent,
+            smooth_nearest: smooth,
             ..SplatSettings::default()
         })
     }
@@ -65,7 +71,8 @@ fn renderers() -> Vec<Renderer> {
 }
 
 /// Two translucent planes over a background: the middle of their overlap is the analytic
-/// front-to-back composite (8-bit colours and opacities as stored) within one level.
+/// front-to-back composite (8-bit colours and opacities as stored) within one level, with
+/// Algorithm 2 and Algorithm 3.
 #[test]
 fn two_translucent_planes_composite_front_to_back() {
     let lut = stipple_render::passes::shade::cpu::srgb_to_linear_table();
@@ -74,8 +81,12 @@ fn two_translucent_planes_composite_front_to_back() {
     // Listed near first: only the back-to-front order gets it right.
     let c = planes(&[(0.3, near, 0.5, 1), (-0.3, far, 0.6, 2)], 160);
     let cam = camera(96);
-    for mut r in renderers() {
-        let f = r.render(&c, &cam, &transparent(bg)).unwrap();
+    for (mut r, smooth) in renderers()
+        .into_iter()
+        .map(|r| (r, false))
+        .chain(renderers().into_iter().map(|r| (r, true)))
+    {
+        let f = r.render(&c, &cam, &algorithm(bg, smooth)).unwrap();
         let a = |x: f32| (x * 255.0).round() / 255.0;
         let (an, af) = (a(0.5), a(0.6));
         for ch in 0..3 {
@@ -86,15 +97,17 @@ fn two_translucent_planes_composite_front_to_back() {
                 let got = f.rgba[(y * 96 + x) * 4 + ch];
                 assert!(
                     got.abs_diff(want8) <= 1,
-                    "{}: pixel ({x}, {y}) channel {ch}: {got}, want {want8}",
-                    r.describe()
+                    "{} (Algorithm {}): pixel ({x}, {y}) channel {ch}: {got}, want {want8}",
+                    r.describe(),
+                    if smooth { 3 } else { 2 }
                 );
             }
         }
     }
 }
 
-/// Black planes of opacity α over white: l layers let (1 − α)^l through.
+/// Black planes of opacity α over white: l layers let (1 − α)^l through (Algorithms 2
+/// and 3).
 #[test]
 fn layers_absorb_one_minus_alpha_to_the_l() {
     let lut = stipple_render::passes::shade::cpu::srgb_to_linear_table();
@@ -105,15 +118,19 @@ fn layers_absorb_one_minus_alpha_to_the_l() {
             .map(|k| (0.4 - 0.2 * k as f32, [0, 0, 0], alpha, k as u64 + 3))
             .collect();
         let c = planes(&specs, 120);
-        for mut r in renderers() {
+        for (mut r, smooth) in renderers()
+            .into_iter()
+            .map(|r| (r, false))
+            .chain(renderers().into_iter().map(|r| (r, true)))
+        {
             let f = r
-                .render(&c, &camera(64), &transparent([255, 255, 255]))
+                .render(&c, &camera(64), &algorithm([255, 255, 255], smooth))
                 .unwrap();
             let got = lut[f.rgba[(32 * 64 + 32) * 4] as usize];
             let want = (1.0 - stored).powi(l as i32);
             assert!(
                 (got - want).abs() <= 1.5 / 255.0,
-                "{}: {l} layers let {got} through, want {want}",
+                "{} (smooth {smooth}): {l} layers let {got} through, want {want}",
                 r.describe()
             );
         }

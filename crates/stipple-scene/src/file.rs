@@ -54,7 +54,8 @@ pub enum Transparency {
     /// Transparent splats (Zhang & Pajarola Algorithm 2): one pass.
     #[serde(rename = "splat-1pass")]
     Splat1Pass,
-    /// Algorithm 3 (refused: not built yet).
+    /// Transparent splats with the nearest layer smoothly interpolated (Zhang & Pajarola
+    /// Algorithm 3).
     #[serde(rename = "splat-2pass")]
     Splat2Pass,
 }
@@ -381,13 +382,6 @@ pub fn build(
             )));
         }
     }
-    if spec.render.transparency == Some(Transparency::Splat2Pass) {
-        return Err(err(
-            "transparency = \"splat-2pass\": Zhang & Pajarola's Algorithm 3 (the nearest layer \
-             drawn apart) is not built yet; use \"splat-1pass\" or \"peel\""
-                .into(),
-        ));
-    }
     if let Some(l) = spec.render.layers {
         if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&l) {
             return Err(err(format!(
@@ -687,11 +681,15 @@ impl LoadedScene {
         if let Some(l) = self.render.layers {
             pipe.layers = l;
         }
-        if self.render.transparency == Some(Transparency::Splat1Pass) {
-            // Splats drawn back to front with their opacities, every layer in one pass.
+        if let Some(t @ (Transparency::Splat1Pass | Transparency::Splat2Pass)) =
+            self.render.transparency
+        {
+            // Splats drawn back to front with their opacities, every layer in one pass
+            // (Algorithm 2), the nearest layer smoothly interpolated (Algorithm 3).
             let s = pipe.splat.unwrap_or_default();
             pipe.splat = Some(stipple_render::SplatSettings {
                 mode: stipple_render::SplatMode::Transparent,
+                smooth_nearest: t == Transparency::Splat2Pass || s.smooth_nearest,
                 ..s
             });
             pipe.geometry.clear();
@@ -943,10 +941,6 @@ samples = 8
             ),
             ("[[cloud]]\ndemo = \"sphere\"\n[render]\nlayers = 0\n", "layers = 0"),
             (
-                "[[cloud]]\ndemo = \"sphere\"\n[render]\ntransparency = \"splat-2pass\"\n",
-                "Algorithm 3",
-            ),
-            (
                 "[[cloud]]\ndemo = \"sphere\"\n[render]\ntransparency = \"glass\"\n",
                 "unknown variant `glass`",
             ),
@@ -1057,6 +1051,14 @@ samples = 8
         );
         assert_eq!(pipe.layers, 1);
         assert!(pipe.geometry.is_empty());
+        assert!(!pipe.splat.unwrap().smooth_nearest);
+        // Algorithm 3: the same, the nearest layer smoothly interpolated.
+        t.render.transparency = Some(Transparency::Splat2Pass);
+        let mut pipe = stipple_render::Pipeline::default();
+        t.apply_to(&mut pipe, false);
+        let s = pipe.splat.unwrap();
+        assert_eq!(s.mode, stipple_render::SplatMode::Transparent);
+        assert!(s.smooth_nearest);
     }
 
     /// The scene's camera: its size, fov and target, the framing's direction kept, near and

@@ -274,6 +274,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                     alpha: cloud.alpha.as_deref(),
                     colour: &colours,
                     epsilon: eps,
+                    smooth_nearest: sp.smooth_nearest,
                 };
                 timed(stats, PassId::Splat, || {
                     let f = crate::passes::splat::transparent::composite(

@@ -120,6 +120,9 @@ pub struct SplatSettings {
     /// The view-depth range of the cloud, for Eq. 6 (deferred mode; set when the pipeline
     /// is resolved for a cloud and view).
     pub depth_range: Option<(f32, f32)>,
+    /// Transparent mode: the nearest layer smoothly interpolated (Zhang & Pajarola's
+    /// Algorithm 3, §5.2.2) instead of each group's nearest fragment (Algorithm 2).
+    pub smooth_nearest: bool,
 }
 
 impl SplatSettings {
@@ -138,6 +141,7 @@ impl Default for SplatSettings {
             epsilon: None,
             c: stipple_core::grouping::DEFAULT_C,
             depth_range: None,
+            smooth_nearest: false,
         }
     }
 }

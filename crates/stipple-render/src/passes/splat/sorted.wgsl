@@ -46,6 +46,11 @@ struct SortedComposite {
     env_up: vec3<f32>,
     // Chromatic dispersion δ (env::EnvSettings::dispersion).
     dispersion: f32,
+    // 1: Algorithm 3, the nearest layer smoothly interpolated.
+    smooth_nearest: u32,
+    pad4: u32,
+    pad5: u32,
+    pad6: u32,
 }
 
 @group(0) @binding(11) var<uniform> sc: SortedChunk;
@@ -284,9 +289,10 @@ fn sorted_composite(
 //                          last one blended there; the K images kept per pixel between
 //                          dispatches and averaged by the last
 
-// Per pixel and group between dispatches, four vec4 (transparent::Layered): (colour behind
+// Per pixel and group between dispatches, five vec4 (transparent::Layered): (colour behind
 // the current layer, its fragment's α), (the fragment's colour, depth), ((d/r)², point,
-// what the layers behind let through, how many they are), (the layer's weighted normals).
+// what the layers behind let through, how many they are), (the layer's weighted normals,
+// weight sum), (its weighted colour and opacity).
 @group(0) @binding(26) var<storage, read_write> t_acc: array<vec4<f32>>;
 // The groups each point of the cloud is drawn in (bit k: group k).
 @group(0) @binding(27) var<storage, read> t_masks: array<u32>;
@@ -561,8 +567,10 @@ fn transparent_composite(
     var st0: array<vec4<f32>, 4>;
     var st1: array<vec4<f32>, 4>;
     var st2: array<vec4<f32>, 4>;
-    // The current layer's kernel-weighted normal sum (with an environment).
+    // The current layer's kernel-weighted normal sum (with an environment) and, for
+    // Algorithm 3, weight sum; its kernel-weighted colour and opacity sums.
     var st3: array<vec4<f32>, 4>;
+    var st4: array<vec4<f32>, 4>;
     // transparent::pixel_ray
     let sxn = (2.0 * f32(px) + 1.0) / f32(view.width) - 1.0;
     let syn = 1.0 - (2.0 * f32(py) + 1.0) / f32(view.height);
@@ -585,14 +593,16 @@ fn transparent_composite(
         // (d/r)², point, what the layers behind let through, how many they are.
         st2[g] = vec4<f32>(0.0, bitcast<f32>(BACKGROUND), 1.0, 0.0);
         st3[g] = vec4<f32>(0.0);
+        st4[g] = vec4<f32>(0.0);
     }
     if (inside && scomp.first == 0u) {
         for (var g = 0u; g < k_groups; g++) {
-            let b = 4u * (g * npix + pix);
+            let b = 5u * (g * npix + pix);
             st0[g] = t_acc[b];
             st1[g] = t_acc[b + 1u];
             st2[g] = t_acc[b + 2u];
             st3[g] = t_acc[b + 3u];
+            st4[g] = t_acc[b + 4u];
         }
     }
     let fx = f32(px);
@@ -646,10 +656,17 @@ fn transparent_composite(
                 let id = t_tile_id[j];
                 let cm = t_tile_c[j];
                 let al = nn.w;
-                var wn = vec3<f32>(0.0);
+                // splat::weight: of the normal turned to the eye (an environment), and for
+                // Algorithm 3 of the colour and opacity.
+                let wq = exp(-3.0 * q);
+                var wn = vec4<f32>(0.0);
+                var wc = vec4<f32>(0.0);
                 if (scomp.env_kind != 0u) {
-                    // splat::weight, of the normal turned to the eye.
-                    wn = exp(-3.0 * q) * select(nn.xyz, -nn.xyz, dn > 0.0);
+                    wn = vec4<f32>(wq * select(nn.xyz, -nn.xyz, dn > 0.0), 0.0);
+                }
+                if (scomp.smooth_nearest == 1u) {
+                    wn.w = wq;
+                    wc = wq * vec4<f32>(cm.xyz, al);
                 }
                 var bits = bitcast<u32>(cm.w);
                 loop {
@@ -670,9 +687,11 @@ fn transparent_composite(
                             st2[g].z = st2[g].z * (1.0 - s0.w);
                             st2[g].w = st2[g].w + 1.0;
                         }
-                        st3[g] = vec4<f32>(wn, 0.0);
+                        st3[g] = wn;
+                        st4[g] = wc;
                     } else {
-                        st3[g] = st3[g] + vec4<f32>(wn, 0.0);
+                        st3[g] = st3[g] + wn;
+                        st4[g] = st4[g] + wc;
                         let cq = st2[g].x;
                         let cid = bitcast<u32>(st2[g].y);
                         if (q > cq || (q == cq && id >= cid)) {
@@ -715,6 +734,42 @@ fn transparent_composite(
             }
             let inv = 1.0 / f32(k_groups);
             var out = sum * inv;
+            if (scomp.smooth_nearest == 1u && dep < infinity()) {
+                // transparent::composite, Algorithm 3.
+                let near = dep + scomp.epsilon;
+                var f = vec4<f32>(0.0);
+                var wsum = 0.0;
+                var co = vec3<f32>(0.0);
+                var to = 0.0;
+                var lo = 0.0;
+                for (var g = 0u; g < k_groups; g++) {
+                    if (st1[g].w <= near) {
+                        f = f + st4[g];
+                        wsum = wsum + st3[g].w;
+                        co = co + st0[g].xyz;
+                        to = to + st2[g].z;
+                        lo = lo + st2[g].w;
+                    } else {
+                        var c = st0[g].xyz;
+                        var tg = st2[g].z;
+                        var lg = st2[g].w;
+                        if (st1[g].w < infinity()) {
+                            c = st0[g].w * st1[g].xyz + (1.0 - st0[g].w) * st0[g].xyz;
+                            tg = tg * (1.0 - st0[g].w);
+                            lg = lg + 1.0;
+                        }
+                        co = co + c;
+                        to = to + tg;
+                        lo = lo + lg;
+                    }
+                }
+                if (wsum > 0.0) {
+                    let af = f.w / wsum;
+                    out = af * (f.xyz / wsum) + (1.0 - af) * (co * inv);
+                    through = (1.0 - af) * to;
+                    layers = lo + f32(k_groups);
+                }
+            }
             if (scomp.env_kind != 0u) {
                 // The mean normal of the groups' fragments at the nearest layer, each turned
                 // to the eye (transparent::composite).
@@ -733,11 +788,12 @@ fn transparent_composite(
             s_id[pix] = pid;
         } else {
             for (var g = 0u; g < k_groups; g++) {
-                let b = 4u * (g * npix + pix);
+                let b = 5u * (g * npix + pix);
                 t_acc[b] = st0[g];
                 t_acc[b + 1u] = st1[g];
                 t_acc[b + 2u] = st2[g];
                 t_acc[b + 3u] = st3[g];
+                t_acc[b + 4u] = st4[g];
             }
         }
     }

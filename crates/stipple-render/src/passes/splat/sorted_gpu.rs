@@ -62,6 +62,9 @@ pub(crate) struct SortedComposite {
     pub ior: f32,
     pub env_up: [f32; 3],
     pub dispersion: f32,
+    /// 1: Algorithm 3 (`SplatSettings::smooth_nearest`).
+    pub smooth_nearest: u32,
+    pub pad4: [u32; 3],
 }
 
 /// Splats a composite dispatch draws at most (see sorted.wgsl: on lavapipe one dispatch drew
@@ -137,7 +140,7 @@ pub(crate) fn record(
     let group_acc = match &masks {
         Some((_, k)) => Some(
             splat
-                .group_acc(ctx, 64 * *k as u64 * f.width as u64 * f.height as u64)?
+                .group_acc(ctx, 80 * *k as u64 * f.width as u64 * f.height as u64)?
                 .clone(),
         ),
         None => None,
@@ -278,6 +281,8 @@ pub(crate) fn record(
                 ior: env.and_then(|e| e.ior).unwrap_or(0.0),
                 env_up: env.map_or([0.0; 3], |e| e.up.to_array()),
                 dispersion: env.map_or(0.0, |e| e.dispersion),
+                smooth_nearest: s.smooth_nearest as u32,
+                pad4: [0; 3],
             }),
         );
         let mut res = vec![

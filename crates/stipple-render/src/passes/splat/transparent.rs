@@ -68,6 +68,8 @@ pub struct TransparentInput<'a> {
     /// Fragments within this depth of the last one blended into their group's image at a
     /// pixel are of its layer and culled.
     pub epsilon: f32,
+    /// Algorithm 3: the nearest layer smoothly interpolated (see the module docs).
+    pub smooth_nearest: bool,
 }
 
 /// A disc ready to draw: point, unit normal, squared radius, pixel rectangle.
@@ -177,6 +179,10 @@ struct Layered {
     behind_layers: f32,
     /// The current layer's kernel-weighted sum of normals (turned to the eye).
     normal: Vec3,
+    /// Algorithm 3: the current layer's kernel-weighted sums of colour and opacity, and of
+    /// the weights.
+    smooth: [f32; 4],
+    weight: f32,
 }
 
 impl Layered {
@@ -191,6 +197,8 @@ impl Layered {
             through: 1.0,
             behind_layers: 0.0,
             normal: Vec3::ZERO,
+            smooth: [0.0; 4],
+            weight: 0.0,
         }
     }
 
@@ -222,8 +230,15 @@ impl Layered {
         alpha: f32,
         epsilon: f32,
         normal: Option<Vec3>,
+        smooth: bool,
     ) {
-        let wn = normal.map_or(Vec3::ZERO, |n| n * super::weight(q));
+        let w = super::weight(q);
+        let wn = normal.map_or(Vec3::ZERO, |n| n * w);
+        let wc = if smooth {
+            [w * colour[0], w * colour[1], w * colour[2], w * alpha]
+        } else {
+            [0.0; 4]
+        };
         if z < self.depth - epsilon {
             if self.depth.is_finite() {
                 self.behind = self.composite();
@@ -231,8 +246,15 @@ impl Layered {
                 self.behind_layers += 1.0;
             }
             self.normal = wn;
+            (self.smooth, self.weight) = (wc, w);
         } else {
             self.normal += wn;
+            if smooth {
+                for (s, c) in self.smooth.iter_mut().zip(wc) {
+                    *s += c;
+                }
+                self.weight += w;
+            }
             if (q, id) >= (self.q, self.id) {
                 return;
             }
@@ -355,6 +377,7 @@ pub fn composite(
                                 alpha,
                                 input.epsilon,
                                 facing,
+                                input.smooth_nearest,
                             );
                             frags += 1;
                         }
@@ -381,6 +404,41 @@ pub fn composite(
                     }
                 }
                 *o = sum.map(|s| s * inv);
+                if input.smooth_nearest && drow[pix].is_finite() {
+                    // Algorithm 3: the nearest layer's colour C_F and opacity α from all its
+                    // fragments, kernel-weighted over the groups that reached it; the rest
+                    // (what lies behind it in those groups, everything in the others)
+                    // averaged as C_O; I = α·C_F + (1 − α)·C_O.
+                    let near = drow[pix] + input.epsilon;
+                    let (mut f, mut wsum) = ([0.0f32; 4], 0.0f32);
+                    let (mut co, mut to, mut lo) = ([0.0f32; 3], 0.0f32, 0.0f32);
+                    for g in 0..k_groups {
+                        let s = &acc[g * rows * w + pix];
+                        let (c, t, l) = if s.depth <= near {
+                            for (a, b) in f.iter_mut().zip(s.smooth) {
+                                *a += b;
+                            }
+                            wsum += s.weight;
+                            (s.behind, s.through, s.behind_layers)
+                        } else {
+                            let (t, l) = s.transmission();
+                            (s.composite(), t, l)
+                        };
+                        for ch in 0..3 {
+                            co[ch] += c[ch];
+                        }
+                        to += t;
+                        lo += l;
+                    }
+                    if wsum > 0.0 {
+                        let af = f[3] / wsum;
+                        *o = std::array::from_fn(|ch| {
+                            af * (f[ch] / wsum) + (1.0 - af) * (co[ch] * inv)
+                        });
+                        through = (1.0 - af) * to;
+                        layers = lo + k_groups as f32;
+                    }
+                }
                 if let Some(e) = env {
                     // The nearest layer's normal: its fragments' kernel-weighted normals
                     // summed over the groups (one splat's normal alone would show every
@@ -443,6 +501,7 @@ mod tests {
             alpha: Some(&alpha),
             colour: &colour,
             epsilon: 0.05,
+            smooth_nearest: false,
         };
         // Back to front: plane A, then B.
         let order: Vec<u32> = (0..positions.len() as u32).collect();
