@@ -1,4 +1,4 @@
-//! # Transparent splats: Zhang & Pajarola's Algorithm 2 (§3.3, §4.2, §5.2.1)
+//! # Transparent splats: Zhang & Pajarola's Algorithms 2 and 3 (§3.3, §4.2, §5.2)
 //!
 //! How it works: the splats are graph-coloured into K groups (`stipple_core::grouping`, the
 //! deferred mode's groups) and drawn back to front (the bucket sort, slices ε thick) as flat
@@ -12,7 +12,16 @@
 //! many splats overlap there, with the colour of the sample nearest the pixel.
 //! The pixel is the mean of the K images (§3.3, Fig. 6: the mean interpolates between
 //! neighbouring splats, which sit in different groups; the α-blending inside each image
-//! composites the layers). Colours are each point's own Phong shading
+//! composites the layers).
+//!
+//! Algorithm 3 (§5.2.2, `smooth_nearest`): each group also sums its current layer's
+//! fragments' colours and opacities weighted by the splat kernel, all of them, not only the
+//! Voronoi winner. At the end the groups at the nearest layer give its smoothly interpolated
+//! colour C_F and opacity α (the paper's first geometry pass), everything behind it (and the
+//! other groups' images) averages to C_O (its second pass), and I = α·C_F + (1 − α)·C_O.
+//! The paper needs two passes over the points because a GPU of 2008 could not keep a
+//! layer's sums while blending; here the sums restart whenever a nearer layer starts, so
+//! one pass suffices. Colours are each point's own Phong shading
 //! (`shade::cpu::shade_points`, as the sorted splats).
 //!
 //! Surface coverage (§4.2.2): a group holds splats that barely overlap, so alone it leaves
