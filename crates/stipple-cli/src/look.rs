@@ -151,8 +151,18 @@ fn environment(
         Some(p) => {
             let (w, h, rgba) = stipple_io::image::read_png(&p)
                 .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
-            Environment::from_rgba8(w, h, &rgba)
-                .map_err(|e| anyhow!("--env {}: {e}", p.display()))?
+            let env = Environment::from_rgba8(w, h, &rgba)
+                .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
+            if let Environment::Image { width, height, .. } = &env {
+                if (*width, *height) != (w, h) {
+                    eprintln!(
+                        "stipple: note: {}: the environment image ({w}×{h}) is used at \
+                         {width}×{height}, the most a GPU binds",
+                        p.display()
+                    );
+                }
+            }
+            env
         }
     };
     Ok(Some(EnvSettings {

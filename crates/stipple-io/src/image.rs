@@ -24,6 +24,10 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
     })
 }
 
+/// The most pixels a PNG read may hold (1 GiB of RGBA): a header claiming more is an error
+/// before anything is allocated.
+pub const MAX_PNG_PIXELS: u64 = 1 << 28;
+
 /// Reads a PNG into (width, height, RGBA8).
 pub fn read_png(path: &Path) -> Result<(u32, u32, Vec<u8>), IoError> {
     let f = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
@@ -32,6 +36,14 @@ pub fn read_png(path: &Path) -> Result<(u32, u32, Vec<u8>), IoError> {
     let mut r = dec
         .read_info()
         .map_err(|e| IoError::invalid(path, format!("PNG: {e}")))?;
+    // The header's size is checked before its pixels are allocated.
+    let (hw, hh) = (r.info().width as u64, r.info().height as u64);
+    if hw * hh > MAX_PNG_PIXELS {
+        return Err(IoError::invalid(
+            path,
+            format!("PNG: {hw}×{hh} pixels is more than stipple reads (at most {MAX_PNG_PIXELS})"),
+        ));
+    }
     let size = r
         .output_buffer_size()
         .ok_or_else(|| IoError::invalid(path, "PNG: image too large"))?;
@@ -156,4 +168,51 @@ pub fn read_npy_shaped(path: &Path) -> Result<(Vec<usize>, Vec<f32>), IoError> {
         .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
         .collect();
     Ok((dims, data))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A PNG whose header claims 100 000 × 100 000 pixels (and holds none) is refused from
+    /// its header, not by a 40 GB allocation.
+    #[test]
+    fn a_huge_png_header_is_refused_before_allocating() {
+        fn crc(bytes: &[u8]) -> u32 {
+            let mut c = 0xFFFF_FFFFu32;
+            for &b in bytes {
+                c ^= b as u32;
+                for _ in 0..8 {
+                    c = if c & 1 == 1 {
+                        0xEDB8_8320 ^ (c >> 1)
+                    } else {
+                        c >> 1
+                    };
+                }
+            }
+            !c
+        }
+        let mut ihdr = b"IHDR".to_vec();
+        ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+        ihdr.extend_from_slice(&100_000u32.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 6, 0, 0, 0]);
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        png.extend_from_slice(&13u32.to_be_bytes());
+        png.extend_from_slice(&ihdr);
+        png.extend_from_slice(&crc(&ihdr).to_be_bytes());
+        // An empty IDAT: the decoder reads the header up to the image data.
+        png.extend_from_slice(&0u32.to_be_bytes());
+        png.extend_from_slice(b"IDAT");
+        png.extend_from_slice(&crc(b"IDAT").to_be_bytes());
+        let mut iend = b"IEND".to_vec();
+        png.extend_from_slice(&0u32.to_be_bytes());
+        png.extend_from_slice(&iend);
+        iend = crc(&iend).to_be_bytes().to_vec();
+        png.extend_from_slice(&iend);
+        let p = std::env::temp_dir().join(format!("stipple-huge-{}.png", std::process::id()));
+        std::fs::write(&p, &png).unwrap();
+        let e = read_png(&p).unwrap_err().to_string();
+        let _ = std::fs::remove_file(&p);
+        assert!(e.contains("100000×100000"), "{e}");
+    }
 }

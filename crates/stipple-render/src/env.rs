@@ -54,6 +54,11 @@ pub enum Environment {
     },
 }
 
+/// The most texels an environment image keeps (4096 × 2048: 128 MiB on the GPU, where
+/// each is a vec4 of f32, the storage binding every adapter allows); larger images are
+/// halved until they fit.
+pub const MAX_ENV_TEXELS: usize = 4096 * 2048;
+
 /// Sky colours (linear RGB).
 pub const ZENITH: [f32; 3] = [0.18, 0.36, 0.75];
 pub const HORIZON: [f32; 3] = [0.80, 0.85, 0.92];
@@ -80,13 +85,32 @@ impl Environment {
             ));
         }
         let lut = crate::srgb::srgb_to_linear_table();
-        let texels = rgba
+        let mut texels: Vec<[f32; 3]> = rgba
             .chunks_exact(4)
             .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
             .collect();
+        let (mut w, mut h) = (width as usize, height as usize);
+        // Halved (2 × 2 means in linear colour) until it fits what every GPU binds.
+        while w * h > MAX_ENV_TEXELS && w >= 2 && h >= 2 {
+            let (nw, nh) = (w / 2, h / 2);
+            let at = |x: usize, y: usize| texels[y.min(h - 1) * w + x.min(w - 1)];
+            texels = (0..nh)
+                .flat_map(|y| (0..nw).map(move |x| (x, y)))
+                .map(|(x, y)| {
+                    let q = [
+                        at(2 * x, 2 * y),
+                        at(2 * x + 1, 2 * y),
+                        at(2 * x, 2 * y + 1),
+                        at(2 * x + 1, 2 * y + 1),
+                    ];
+                    std::array::from_fn(|c| 0.25 * (q[0][c] + q[1][c] + q[2][c] + q[3][c]))
+                })
+                .collect();
+            (w, h) = (nw, nh);
+        }
         Ok(Environment::Image {
-            width,
-            height,
+            width: w as u32,
+            height: h as u32,
             texels,
         })
     }
@@ -300,6 +324,42 @@ mod tests {
         }
         assert_eq!(refracted(d, n, 1.5, 0.0), d);
         assert_eq!(refracted(-Vec3::Z, n, 1.5, 2.0), -Vec3::Z);
+    }
+
+    /// An image over the limit is halved (2 × 2 means) until it fits; one within it is kept.
+    #[test]
+    fn large_images_are_halved_to_fit() {
+        let (w, h) = (8192u32, 2050u32);
+        let mut rgba = vec![0u8; (w * h * 4) as usize];
+        for (k, p) in rgba.chunks_exact_mut(4).enumerate() {
+            let v = if (k as u32 % w).is_multiple_of(2) {
+                255
+            } else {
+                0
+            };
+            p.copy_from_slice(&[v, v, v, 255]);
+        }
+        let Environment::Image {
+            width,
+            height,
+            texels,
+        } = Environment::from_rgba8(w, h, &rgba).unwrap()
+        else {
+            panic!("an image");
+        };
+        assert_eq!((width, height), (4096, 1025));
+        assert!(texels.len() <= MAX_ENV_TEXELS);
+        // Alternating columns of white and black mean to a grey of half white.
+        assert!(texels.iter().all(|t| (t[0] - 0.5).abs() < 1e-6));
+        let small = Environment::from_rgba8(4, 2, &[9u8; 32]).unwrap();
+        assert!(matches!(
+            small,
+            Environment::Image {
+                width: 4,
+                height: 2,
+                ..
+            }
+        ));
     }
 
     #[test]
