@@ -386,3 +386,20 @@ def test_scalar_fields_read_and_lookup_tables_render(tmp_path):
     table.write_text('key = "nope"\n')
     with pytest.raises(ValueError, match="nope"):
         stipple.render(c, cam, backend="cpu", lookup=str(table))
+
+
+def test_environments_and_algorithm_3_render_as_the_cli(cli, tmp_path):
+    # Transparent splats with an environment, refraction, dispersion and Algorithm 3: the
+    # keyword options are the flags, and the image is the CLI's.
+    png = tmp_path / "glass.png"
+    run_cli(cli, "render", "--demo", "sphere", "--points", "3000", "--opacity", "0.5",
+            "--env", "sky", "--ior", "1.5", "--dispersion", "0.02", "--smooth-nearest",
+            "--pipeline", "splat", "--size", "64", "--backend", "cpu", "-o", png)
+    c = stipple.demo("sphere", points=3000)
+    r = stipple.render(c, stipple.Camera.framing(c, size=64), backend="cpu", opacity=0.5,
+                       env="sky", ior=1.5, dispersion=0.02, smooth_nearest=True,
+                       pipeline="splat")
+    assert np.array_equal(r.image, read_png(png))
+    with pytest.raises(ValueError, match="ior"):
+        stipple.render(c, stipple.Camera.framing(c, size=32), backend="cpu", opacity=0.5,
+                       env="sky", ior=-2.0, pipeline="splat")
