@@ -446,6 +446,25 @@ fn env_finish(c: vec3<f32>, dir: vec3<f32>, normal: vec3<f32>, has_n: bool, thro
     return out;
 }
 
+// A group image at a pixel, all its layers composited: colour, what they let through of
+// what lies behind, how many they are.
+struct TLayers {
+    c: vec3<f32>,
+    through: f32,
+    layers: f32,
+}
+
+// transparent::Layered::composite and ::transmission.
+fn t_layers(s0: vec4<f32>, s1: vec4<f32>, s2: vec4<f32>) -> TLayers {
+    var r = TLayers(s0.xyz, s2.z, s2.w);
+    if (s1.w < infinity()) {
+        r.c = s0.w * s1.xyz + (1.0 - s0.w) * s0.xyz;
+        r.through = s2.z * (1.0 - s0.w);
+        r.layers = s2.w + 1.0;
+    }
+    return r;
+}
+
 // stipple_core::grouping::TRANSPARENT_GROUPS
 const T_MAX_GROUPS: u32 = 4u;
 // transparent::DRAW_SCALE
@@ -715,18 +734,10 @@ fn transparent_composite(
             var through = 0.0;
             var layers = 0.0;
             for (var g = 0u; g < k_groups; g++) {
-                // transparent::Layered::composite, ::transmission
-                var c = st0[g].xyz;
-                var tg = st2[g].z;
-                var lg = st2[g].w;
-                if (st1[g].w < infinity()) {
-                    c = st0[g].w * st1[g].xyz + (1.0 - st0[g].w) * st0[g].xyz;
-                    tg = tg * (1.0 - st0[g].w);
-                    lg = lg + 1.0;
-                }
-                sum = sum + c;
-                through = through + tg;
-                layers = layers + lg;
+                let all = t_layers(st0[g], st1[g], st2[g]);
+                sum = sum + all.c;
+                through = through + all.through;
+                layers = layers + all.layers;
                 if (st1[g].w < dep) {
                     dep = st1[g].w;
                     pid = bitcast<u32>(st2[g].y);
@@ -750,17 +761,10 @@ fn transparent_composite(
                         to = to + st2[g].z;
                         lo = lo + st2[g].w;
                     } else {
-                        var c = st0[g].xyz;
-                        var tg = st2[g].z;
-                        var lg = st2[g].w;
-                        if (st1[g].w < infinity()) {
-                            c = st0[g].w * st1[g].xyz + (1.0 - st0[g].w) * st0[g].xyz;
-                            tg = tg * (1.0 - st0[g].w);
-                            lg = lg + 1.0;
-                        }
-                        co = co + c;
-                        to = to + tg;
-                        lo = lo + lg;
+                        let all = t_layers(st0[g], st1[g], st2[g]);
+                        co = co + all.c;
+                        to = to + all.through;
+                        lo = lo + all.layers;
                     }
                 }
                 if (wsum > 0.0) {
