@@ -11,6 +11,7 @@ use crate::device::cloud::GpuCloud;
 use crate::device::context::{GpuContext, GpuError};
 use crate::device::shaders::SPLAT_MODULE;
 use crate::device::util::{self, Arena, Res, Slot, DYNAMIC, READ, UNIFORM, WRITE};
+use wgpu::util::DeviceExt;
 use wgpu::{Buffer, ComputePipeline, ShaderStages};
 
 /// Splats per workgroup (splat.wgsl's workgroup size).
@@ -92,6 +93,9 @@ pub(crate) struct SplatGpu {
     /// masks, K), and the K images per pixel kept between dispatches (its size in bytes).
     masks: Option<(u64, u32, Buffer, usize)>,
     group_acc: Option<(u64, Buffer)>,
+    /// Transparent splats: the environment's texels (vec4 each; one dummy texel for the
+    /// sky), kept while the frame's environment is the same one.
+    env: Option<(std::sync::Arc<crate::env::Environment>, Buffer)>,
 }
 
 impl SplatGpu {
@@ -229,6 +233,7 @@ impl SplatGpu {
             sorted: None,
             masks: None,
             group_acc: None,
+            env: None,
         }
     }
 
@@ -373,6 +378,59 @@ impl SplatGpu {
             ));
         }
         Ok(&self.group_acc.as_ref().expect("made above").1)
+    }
+
+    /// The environment's texels on the device (uploaded when the environment changes), and
+    /// the image's size (0 × 0: the sky, or none).
+    pub(crate) fn env_texels(
+        &mut self,
+        ctx: &GpuContext,
+        env: Option<&std::sync::Arc<crate::env::Environment>>,
+    ) -> Result<(&Buffer, u32, u32), GpuError> {
+        use crate::env::Environment;
+        // The sky and no environment both bind one dummy texel.
+        let image = |e: &Environment| matches!(e, Environment::Image { .. });
+        let same = match (&self.env, env) {
+            (Some((a, _)), Some(b)) if image(b) => std::sync::Arc::ptr_eq(a, b),
+            (Some((a, _)), _) => !image(a),
+            (None, _) => false,
+        };
+        let (w, h) = match env.map(|e| &**e) {
+            Some(Environment::Image { width, height, .. }) => (*width, *height),
+            _ => (0, 0),
+        };
+        if !same {
+            let texels: Vec<[f32; 4]> = match env.map(|e| &**e) {
+                Some(Environment::Image { texels, .. }) => {
+                    texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect()
+                }
+                _ => vec![[0.0; 4]],
+            };
+            let bytes = 16 * texels.len() as u64;
+            let limit = ctx
+                .limits
+                .max_storage_buffer_binding_size
+                .min(ctx.limits.max_buffer_size);
+            if bytes > limit {
+                return Err(GpuError::TooLarge(format!(
+                    "the environment image's {} MiB exceed the device's binding limit of {} MiB",
+                    bytes >> 20,
+                    limit >> 20
+                )));
+            }
+            let buf = ctx
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("environment"),
+                    contents: bytemuck::cast_slice(&texels),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+            let key = env
+                .cloned()
+                .unwrap_or_else(|| std::sync::Arc::new(Environment::Sky));
+            self.env = Some((key, buf));
+        }
+        Ok((&self.env.as_ref().expect("made above").1, w, h))
     }
 
     /// Records the pass: clears, then the five dispatches (six with `blend`), into `pass`

@@ -131,6 +131,15 @@ pub(crate) fn record(
     let transparent = s.mode == crate::SplatMode::Transparent;
     let q = rec.section();
     splat.make_sorted_buffers(ctx, cloud)?;
+    // The environment: the image's texels, kept on the device between frames.
+    let env = env.filter(|_| transparent);
+    let (env_buf, env_w, env_h) = splat.env_texels(ctx, env.map(|e| &e.env))?;
+    let env_buf = env_buf.clone();
+    let env_kind = match env.map(|e| &*e.env) {
+        None => 0,
+        Some(crate::env::Environment::Sky) => 1,
+        Some(crate::env::Environment::Image { .. }) => 2,
+    };
     let masks = if transparent {
         let (m, k) = splat.masks(cloud)?;
         Some((m.clone(), k))
@@ -238,27 +247,6 @@ pub(crate) fn record(
             keep.push(sc);
         }
     }
-    // The environment: the image's texels (a dummy texel for the sky).
-    let env = env.filter(|_| transparent);
-    let (env_kind, env_w, env_h, env_texels) = match env.map(|e| &*e.env) {
-        None => (0, 0, 0, vec![[0.0f32; 4]]),
-        Some(crate::env::Environment::Sky) => (1, 0, 0, vec![[0.0f32; 4]]),
-        Some(crate::env::Environment::Image {
-            width,
-            height,
-            texels,
-        }) => (
-            2,
-            *width,
-            *height,
-            texels.iter().map(|t| [t[0], t[1], t[2], 0.0]).collect(),
-        ),
-    };
-    let env_buf = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("environment"),
-        contents: bytemuck::cast_slice(&env_texels),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
     // The kept points are counted on the device: as many dispatches as the cloud's points
     // could need, each drawing no further than those kept.
     let dispatches = (cloud.len as u32).div_ceil(BATCH).max(1);
