@@ -17,9 +17,23 @@
 //! the absorption of Eq. 11, exact per pixel rather than from a constant α); the
 //! environment is then added as T·E(t), with t the view ray bent at the nearest layer by
 //! sin θ_T = (1/η)^l sin θ_I, the paper's heuristic of equal refraction at every interface.
-//! Chromatic dispersion refracts red with η(1 − δ) and blue with η(1 + δ). Refraction of
-//! opaque geometry behind the layers (a background edge shifted by a slab) is not built:
-//! only the environment, at infinity, is refracted.
+//! Chromatic dispersion refracts red with η(1 − δ) and blue with η(1 + δ).
+//!
+//! Opaque geometry behind the layers (a frame with opaque points and an index) is refracted
+//! too, by a model the paper does not have: the opaque points are drawn first, alone; a
+//! pixel's ray is refracted in at its nearest layer and out at its farthest (Snell's law at
+//! both, the farthest layer taken as the plane through its point with its blended normal),
+//! and what the layers let through is looked up where that ray meets the opaque surface
+//! (`passes::splat::transparent::refract_behind`), or in the environment along it where it
+//! passes the surface. A slab of thickness t shifts what lies behind it by
+//! t·sin(θ − θ_t)/cos θ_t, exactly (tested). In such a frame the environment is seen along
+//! the same ray, so the two never disagree at an opaque silhouette; Eq. 12 serves frames of
+//! transparent points alone, the paper's setting.
+//!
+//! Per object (a scene's `[cloud.material]`, `crate::material::Optics`) the index,
+//! dispersion, a factor on the Fresnel reflectance and a per-channel absorption
+//! (what l layers let through is multiplied by (1 − a)^l: tinted glass) are those of the
+//! nearest layer's object ([`Surface`]); the frame's `--ior` and `--dispersion` otherwise.
 //!
 //! Directions are world directions; the environment's frame has the scene's up axis (+Y for
 //! scanned objects, +Z for LiDAR) and +X as its reference east. The WGSL twin
@@ -39,6 +53,38 @@ pub struct EnvSettings {
     pub ior: Option<f32>,
     /// Chromatic dispersion: red is refracted with index η(1 − δ), green η, blue η(1 + δ).
     pub dispersion: f32,
+}
+
+/// The optics of the surface a pixel's nearest layer belongs to: its object's
+/// (`crate::material::Optics::resolve`), else the frame's.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Refractive index (None: the surface neither reflects nor refracts).
+    pub eta: Option<f32>,
+    pub dispersion: f32,
+    /// Multiplies the Fresnel reflectance.
+    pub reflectivity: f32,
+    /// The share of each channel each layer absorbs besides its opacity.
+    pub absorption: [f32; 3],
+}
+
+impl Surface {
+    /// The frame's settings alone.
+    pub fn of_frame(e: &EnvSettings) -> Surface {
+        crate::material::Optics::default().resolve(e)
+    }
+
+    /// Per channel, what `layers` layers that let `through` pass by their opacity let
+    /// through with the absorption: through · (1 − a)^l.
+    pub fn passed(&self, through: f32, layers: f32) -> [f32; 3] {
+        self.absorption.map(|a| {
+            if a > 0.0 {
+                through * (1.0 - a).max(1e-6).powf(layers)
+            } else {
+                through
+            }
+        })
+    }
 }
 
 /// The light from every direction.
@@ -199,6 +245,7 @@ pub fn refracted(d: Vec3, n: Vec3, eta: f32, layers: f32) -> Vec3 {
 pub fn finish(
     c: [f32; 3],
     e: &EnvSettings,
+    surface: &Surface,
     dir: Vec3,
     n: Option<Vec3>,
     through: f32,
@@ -210,26 +257,38 @@ pub fn finish(
         .filter(|n| *n != Vec3::ZERO && d != Vec3::ZERO);
     let n = n.map(|n| if n.dot(d) > 0.0 { -n } else { n });
     let mut out = c;
-    match (n, e.ior) {
+    let pass = surface.passed(through, layers);
+    match (n, surface.eta) {
         (Some(n), Some(eta)) if through > 0.0 => {
-            for (ch, o) in out.iter_mut().enumerate() {
-                let eta_c = eta * (1.0 + e.dispersion * (ch as f32 - 1.0));
-                let t = refracted(d, n, eta_c, layers);
-                *o += through * e.env.sample(t, e.up)[ch];
+            let seen = per_channel(eta, surface.dispersion, |eta| {
+                e.env.sample(refracted(d, n, eta, layers), e.up)
+            });
+            for ch in 0..3 {
+                out[ch] += pass[ch] * seen[ch];
             }
         }
         _ if through > 0.0 => {
             let s = e.env.sample(d, e.up);
             for ch in 0..3 {
-                out[ch] += through * s[ch];
+                out[ch] += pass[ch] * s[ch];
             }
         }
         _ => {}
     }
-    match (n, e.ior) {
-        (Some(n), Some(eta)) => reflect_into(out, &e.env, e.up, eta, d, n),
+    match (n, surface.eta) {
+        (Some(n), Some(eta)) => reflect_into(out, &e.env, e.up, (eta, surface.reflectivity), d, n),
         _ => out,
     }
+}
+
+/// What is seen through a refracting surface of index `eta` with chromatic dispersion δ:
+/// per colour channel, that channel of `seen(η_c)` with η_c = η(1 − δ) for red, η for green
+/// and η(1 + δ) for blue (one look without dispersion).
+pub fn per_channel(eta: f32, dispersion: f32, seen: impl Fn(f32) -> [f32; 3]) -> [f32; 3] {
+    if dispersion == 0.0 {
+        return seen(eta);
+    }
+    std::array::from_fn(|ch| seen(eta * (1.0 + dispersion * (ch as f32 - 1.0)))[ch])
 }
 
 /// A pixel's colour `c` (the composite of its layers) with the environment reflected by its
@@ -238,7 +297,7 @@ pub fn reflect_into(
     c: [f32; 3],
     env: &Environment,
     up: Vec3,
-    eta: f32,
+    (eta, reflectivity): (f32, f32),
     dir: Vec3,
     n: Vec3,
 ) -> [f32; 3] {
@@ -251,7 +310,7 @@ pub fn reflect_into(
         n = -n;
     }
     let cos_i = -n.dot(d);
-    let f = fresnel(cos_i, eta);
+    let f = fresnel(cos_i, eta) * reflectivity;
     let r = d + 2.0 * cos_i * n;
     let e = env.sample(r, up);
     std::array::from_fn(|k| f * e[k] + (1.0 - f) * c[k])
@@ -369,7 +428,7 @@ mod tests {
             height: 2,
             texels: vec![[1.0; 3]; 4],
         };
-        let c = reflect_into([0.0; 3], &white, Vec3::Y, 1.5, Vec3::Z, Vec3::Z);
+        let c = reflect_into([0.0; 3], &white, Vec3::Y, (1.5, 1.0), Vec3::Z, Vec3::Z);
         assert!((c[0] - 0.04).abs() < 1e-6, "{c:?}");
     }
 }

@@ -9,6 +9,8 @@ pub struct Material {
     pub shininess: f32,
     /// Linear RGB albedo for clouds without colours.
     pub base_colour: [f32; 3],
+    /// How the object's transparent surface treats its surroundings (transparent splats).
+    pub optics: Optics,
 }
 
 impl Default for Material {
@@ -19,6 +21,47 @@ impl Default for Material {
             specular: 0.25,
             shininess: 32.0,
             base_colour: [0.62, 0.62, 0.60],
+            optics: Optics::default(),
+        }
+    }
+}
+
+/// How an object's transparent surface reflects, refracts and absorbs what lies around and
+/// behind it (Zhang & Pajarola §5.2.3; transparent splats, `crate::env`): per object in a
+/// scene (`[cloud.material]`), the frame's `--ior` and `--dispersion` where not given.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Optics {
+    /// Refractive index (None: the frame's).
+    pub ior: Option<f32>,
+    /// Chromatic dispersion δ (None: the frame's).
+    pub dispersion: Option<f32>,
+    /// Multiplies the Fresnel reflectance (1: a clean dielectric; 0: no reflection).
+    pub reflectivity: f32,
+    /// The share of each linear RGB channel of what lies behind that each layer absorbs
+    /// besides its opacity: what the layers let through is multiplied by (1 − a)^l (tinted
+    /// glass).
+    pub absorption: [f32; 3],
+}
+
+impl Default for Optics {
+    fn default() -> Self {
+        Optics {
+            ior: None,
+            dispersion: None,
+            reflectivity: 1.0,
+            absorption: [0.0; 3],
+        }
+    }
+}
+
+impl Optics {
+    /// This object's surface in a frame whose environment settings are `frame`.
+    pub fn resolve(&self, frame: &crate::env::EnvSettings) -> crate::env::Surface {
+        crate::env::Surface {
+            eta: self.ior.or(frame.ior),
+            dispersion: self.dispersion.unwrap_or(frame.dispersion),
+            reflectivity: self.reflectivity,
+            absorption: self.absorption,
         }
     }
 }

@@ -374,3 +374,228 @@ fn the_environment_is_refracted_by_snell_and_dispersed() {
         }
     }
 }
+
+/// A refracting slab (Zhang & Pajarola §5.2.3, with opaque geometry behind) on both
+/// backends: an opaque plane, black for x < 0 and white for x ≥ 0, seen obliquely through a
+/// slab of thickness t and index η (two parallel translucent planes over its upper half).
+/// Through the slab the edge appears where the ray refracted in at the front face and out at
+/// the back face meets x = 0 (a parallel shift of t·sin(θ − θ_t)/cos θ_t): within one pixel
+/// of that, for two angles and indices, and well away from where it is seen beside the slab.
+#[test]
+fn a_refracting_slab_shifts_the_edge_behind_it_by_the_analytic_amount() {
+    use stipple_render::env::{EnvSettings, Environment};
+    use stipple_render::passes::splat::transparent::to_pixel;
+    let size = 120usize;
+    let (front, thick) = (0.5f32, 0.6f32);
+    let mut c = PointCloud::default();
+    // Points about a pixel apart.
+    let back_plane = common::jittered_square(150 * 150, 2.0, -1.0, 21);
+    c.colors = Some(
+        back_plane
+            .iter()
+            .map(|p| {
+                if p.x < 0.0 {
+                    [0, 0, 0]
+                } else {
+                    [255, 255, 255]
+                }
+            })
+            .collect(),
+    );
+    c.opacity = Some(vec![1.0; back_plane.len()]);
+    c.positions = back_plane;
+    for (z, seed) in [(front, 22), (front - thick, 23)] {
+        // Wide enough that the edge is seen through both faces.
+        let p: Vec<Vec3> = common::jittered_square(225 * 225, 3.0, z, seed)
+            .into_iter()
+            .filter(|p| p.y > 0.0)
+            .collect();
+        let k = p.len();
+        c.colors.as_mut().unwrap().extend(vec![[0, 0, 0]; k]);
+        c.opacity.as_mut().unwrap().extend(vec![0.3; k]);
+        c.positions.extend(p);
+    }
+    c.normals = Some(vec![Vec3::Z; c.positions.len()]);
+    let mut c = PreparedCloud::new(c);
+    c.prepare_surface(16, false).unwrap();
+    // Nothing to reflect: a black environment.
+    let black = std::sync::Arc::new(Environment::Image {
+        width: 2,
+        height: 2,
+        texels: vec![[0.0; 3]; 4],
+    });
+    for (theta_deg, eta) in [(35.0f64, 1.5f32), (25.0, 1.8)] {
+        let th = theta_deg.to_radians();
+        let cam = Camera {
+            eye: DVec3::new(5.0 * th.sin(), 0.0, 5.0 * th.cos()),
+            target: DVec3::ZERO,
+            up: DVec3::Y,
+            projection: Projection::Orthographic { height: 1.6 },
+            width: size as u32,
+            height: size as u32,
+            near: 0.5,
+            far: 20.0,
+        };
+        let v = stipple_render::params::ViewParams::new(&cam, DVec3::ZERO);
+        let u = Vec3::from(v.forward);
+        // The analytic path back from the edge at (0, y, −1): out of the back face along u,
+        // inside along Snell's ray, in at the front face.
+        let (sin_i, n) = ((1.0 - u.dot(Vec3::Z).powi(2)).sqrt(), Vec3::Z);
+        let inner = {
+            let sin_t = sin_i / eta;
+            let tangent = (u + n * (-n.dot(u))).normalize();
+            tangent * sin_t - n * (1.0 - sin_t * sin_t).sqrt()
+        };
+        let expect = |y: f32| {
+            let e = Vec3::new(0.0, y, -1.0);
+            let x = e - u * ((e.z - (front - thick)) / u.z);
+            let p = x - inner * (-thick / inner.z);
+            to_pixel(&v, p).unwrap().0
+        };
+        let straight = |y: f32| to_pixel(&v, Vec3::new(0.0, y, -1.0)).unwrap().0;
+        let mut pipe = transparent([0, 0, 0]);
+        pipe.environment = Some(EnvSettings {
+            env: black.clone(),
+            up: Vec3::Y,
+            ior: Some(eta),
+            dispersion: 0.0,
+        });
+        for mut r in renderers() {
+            let f = r.render(&c, &cam, &pipe).unwrap();
+            common::dump(&format!("slab-{theta_deg}"), &f);
+            // The edge in a row: where the red channel crosses half way between its levels
+            // on either side (interpolated between pixels).
+            let edge = |row: usize| {
+                let at = |x: usize| f.rgba[(row * size + x) * 4] as f32;
+                let (lo, hi) = (at(8), at(size - 8));
+                assert!(hi - lo > 40.0, "row {row}: no edge ({lo} to {hi})");
+                let mid = 0.5 * (lo + hi);
+                let x = (8..size - 8).find(|&x| at(x + 1) >= mid).unwrap();
+                x as f32 + (mid - at(x)) / (at(x + 1) - at(x)).max(1e-3)
+            };
+            for world_y in [0.3f32, 0.5] {
+                // The rows through the slab (above) and beside it (below).
+                let row = |y: f32| to_pixel(&v, Vec3::new(0.0, y, 0.0)).unwrap().1.round() as usize;
+                let (through, beside) = (edge(row(world_y)), edge(row(-world_y)));
+                let (want, plain) = (expect(world_y), straight(-world_y));
+                assert!(
+                    (beside - plain).abs() <= 1.0,
+                    "{} θ {theta_deg}: beside the slab the edge is at {beside}, want {plain}",
+                    r.describe()
+                );
+                assert!(
+                    (want - plain).abs() > 5.0,
+                    "the test's shift is too small to tell: {want} vs {plain}"
+                );
+                assert!(
+                    (through - want).abs() <= 1.0,
+                    "{} θ {theta_deg} η {eta}: through the slab the edge is at {through}, want \
+                     {want} (unrefracted {plain})",
+                    r.describe()
+                );
+            }
+        }
+    }
+}
+
+/// Per-object optics (`Material::optics`, a scene's `[cloud.material]`) on both backends,
+/// against known answers, in one frame of three side-by-side planes over a white
+/// environment: an opaque black plane of index 2.4 shows its own F0 = ((η − 1)/(η + 1))²;
+/// one of index 1.5 with reflectivity 0.5 half of its F0; a black plane of opacity α
+/// without an index (the frame has none) lets (1 − α)(1 − a_c) of each channel through
+/// with absorption a = (0.5, 0.2, 0).
+#[test]
+fn each_object_reflects_and_absorbs_by_its_own_optics() {
+    use stipple_render::env::{EnvSettings, Environment};
+    use stipple_render::material::Optics;
+    use stipple_render::Material;
+    use stipple_render::ObjectTable;
+    let white = Environment::Image {
+        width: 8,
+        height: 4,
+        texels: vec![[1.0; 3]; 32],
+    };
+    let alpha = 0.3f32;
+    let stored = (alpha * 255.0).round() / 255.0;
+    let absorption = [0.5f32, 0.2, 0.0];
+    let mut c = PointCloud::default();
+    let (mut index, mut opacity) = (Vec::new(), Vec::new());
+    for (k, a) in [(0u8, 1.0f32), (1, 1.0), (2, alpha)] {
+        let p: Vec<Vec3> = common::jittered_square(120 * 120, 2.0, 0.0, 30 + k as u64)
+            .into_iter()
+            .filter(|p| ((p.x + 1.0) * 1.5).floor() as u8 == k)
+            .collect();
+        index.extend(vec![k; p.len()]);
+        opacity.extend(vec![a; p.len()]);
+        c.positions.extend(p);
+    }
+    let n = c.positions.len();
+    c.normals = Some(vec![Vec3::Z; n]);
+    c.colors = Some(vec![[0, 0, 0]; n]);
+    c.opacity = Some(opacity);
+    let optics = [
+        Optics {
+            ior: Some(2.4),
+            ..Optics::default()
+        },
+        Optics {
+            ior: Some(1.5),
+            reflectivity: 0.5,
+            ..Optics::default()
+        },
+        Optics {
+            absorption,
+            ..Optics::default()
+        },
+    ];
+    let materials = optics
+        .iter()
+        .map(|&optics| Material {
+            optics,
+            ..Material::default()
+        })
+        .collect();
+    let mut c = PreparedCloud::new(c)
+        .with_objects(ObjectTable { index, materials })
+        .unwrap();
+    c.prepare_surface(16, false).unwrap();
+    let mut pipe = transparent([0, 0, 0]);
+    pipe.environment = Some(EnvSettings {
+        env: std::sync::Arc::new(white),
+        up: Vec3::Y,
+        ior: None,
+        dispersion: 0.0,
+    });
+    let mut cam = camera(96);
+    cam.eye = DVec3::new(0.0, 0.0, 4.0);
+    cam.projection = Projection::Orthographic { height: 2.2 };
+    let f0 = |eta: f32| ((eta - 1.0) / (eta + 1.0)).powi(2);
+    let through = |ch: usize| (1.0 - stored) * (1.0 - absorption[ch]);
+    // Columns at the middle of each third of the square (x = −2/3, 0, 2/3).
+    let col = |x: f32| ((x / 1.1 + 1.0) * 48.0) as usize;
+    let want: [(usize, [f32; 3]); 3] = [
+        (col(-2.0 / 3.0), [f0(2.4); 3]),
+        (col(0.0), [0.5 * f0(1.5); 3]),
+        (col(2.0 / 3.0), [through(0), through(1), through(2)]),
+    ];
+    let mut frames = Vec::new();
+    for mut r in renderers() {
+        let f = r.render(&c, &cam, &pipe).unwrap();
+        for (x, w) in want {
+            for ch in 0..3 {
+                let got = f.rgba[(48 * 96 + x) * 4 + ch];
+                let w8 = stipple_render::passes::shade::cpu::linear_to_srgb8(w[ch]);
+                assert!(
+                    got.abs_diff(w8) <= 1,
+                    "{} column {x} channel {ch}: {got}, want {w8} ({})",
+                    r.describe(),
+                    w[ch]
+                );
+            }
+        }
+        frames.push(f);
+    }
+    if let [a, b] = &frames[..] {
+        assert!(common::agreeing(&a.rgba, &b.rgba, 1) >= 0.99);
+    }
+}

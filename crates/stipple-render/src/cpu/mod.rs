@@ -264,6 +264,10 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             let (col, sd) = (&mut r.colour.0, &mut r.surface_depth);
             if sp.mode == crate::SplatMode::Transparent {
                 let cov = cloud.coverage(sp.c);
+                let optics = cloud.objects.as_ref().map(|t| {
+                    let o: Vec<_> = t.materials.iter().map(|m| m.optics).collect();
+                    (&t.index, o)
+                });
                 let ti = crate::passes::splat::transparent::TransparentInput {
                     positions: &c.positions,
                     normals: c.normals.as_deref(),
@@ -275,6 +279,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                     colour: &colours,
                     epsilon: eps,
                     smooth_nearest: sp.smooth_nearest,
+                    optics: optics.as_ref().map(|(i, o)| (&i[..], &o[..])),
                 };
                 timed(stats, PassId::Splat, || {
                     let f = crate::passes::splat::transparent::composite(

@@ -37,6 +37,10 @@ pub struct GpuCloud {
     pub has_albedo: bool,
     /// Material terms by object, for a scene (None: the pipeline's material).
     pub materials: Option<Vec<crate::material::Terms>>,
+    /// Optics by object, for a scene (None: the frame's).
+    pub optics: Option<Vec<crate::material::Optics>>,
+    /// Whether any point is opaque (transparent splats refract them, `transparent`).
+    pub has_opaque: bool,
     /// Samples per light of the uploaded shadow texture ([0; 4]: none).
     pub samples: [u32; 4],
     /// The mean opacity (see [`PreparedCloud::mean_alpha`]).
@@ -167,6 +171,11 @@ impl GpuCloud {
                 .objects
                 .as_ref()
                 .map(|_| cloud.terms(&crate::Pipeline::default())),
+            has_opaque: cloud.alpha.as_ref().is_none_or(|a| a.contains(&255)),
+            optics: cloud
+                .objects
+                .as_ref()
+                .map(|t| t.materials.iter().map(|m| m.optics).collect()),
             samples: [0; 4],
             mean_alpha: cloud.mean_alpha,
             lit_key: 0,

@@ -48,7 +48,9 @@ struct SortedComposite {
     dispersion: f32,
     // 1: Algorithm 3, the nearest layer smoothly interpolated.
     smooth_nearest: u32,
-    pad4: u32,
+    // transparent::Phase: 0 every fragment; with refraction 1 the opaque ones (the surface
+    // behind, written to t_acc's behind region), then 2 the translucent ones in front of it.
+    phase: u32,
     pad5: u32,
     pad6: u32,
 }
@@ -292,13 +294,56 @@ fn sorted_composite(
 // Per pixel and group between dispatches, five vec4 (transparent::Layered): (colour behind
 // the current layer, its fragment's α), (the fragment's colour, depth), ((d/r)², point,
 // what the layers behind let through, how many they are), (the layer's weighted normals,
-// weight sum), (its weighted colour and opacity).
+// weight sum), (its weighted colour and opacity). With refraction, after the K groups' 5 K
+// vec4 per pixel: per pixel the surface behind (colour, depth; transparent::Behind), then
+// per pixel the farthest translucent layer (weighted normals, depth).
 @group(0) @binding(26) var<storage, read_write> t_acc: array<vec4<f32>>;
 // The groups each point of the cloud is drawn in (bit k: group k).
 @group(0) @binding(27) var<storage, read> t_masks: array<u32>;
 
 // The environment image (env::Environment::Image), linear RGB, row 0 at the zenith.
 @group(0) @binding(28) var<storage, read> t_env: array<vec4<f32>>;
+
+// Per object (material::Optics): (index of refraction, 0: the frame's; dispersion, −1: the
+// frame's; reflectivity; 0), (absorption per channel, 0).
+@group(0) @binding(29) var<uniform> t_optics: array<vec4<f32>, 512>;
+
+// The optics of the pixel's nearest layer (env::Surface), set by t_set_surface.
+var<private> t_eta: f32;
+var<private> t_disp: f32;
+var<private> t_refl: f32;
+var<private> t_absorb: vec3<f32>;
+
+// transparent::TransparentInput::surface: point pid's object's optics, else the frame's.
+fn t_set_surface(pid: u32) {
+    t_eta = scomp.ior;
+    t_disp = scomp.dispersion;
+    t_refl = 1.0;
+    t_absorb = vec3<f32>(0.0);
+    if (pid != BACKGROUND) {
+        let obj = bitcast<u32>(s_splats[4u * pid + 2u].w) >> 8u;
+        let a = t_optics[2u * obj];
+        if (a.x > 0.0) {
+            t_eta = a.x;
+        }
+        if (a.y >= 0.0) {
+            t_disp = a.y;
+        }
+        t_refl = a.z;
+        t_absorb = t_optics[2u * obj + 1u].xyz;
+    }
+}
+
+// env::Surface::passed: what layers that let `through` pass let through with the absorption.
+fn t_passed(through: f32, layers: f32) -> vec3<f32> {
+    var p = vec3<f32>(through);
+    for (var ch = 0u; ch < 3u; ch++) {
+        if (t_absorb[ch] > 0.0) {
+            p[ch] = through * pow(max(1.0 - t_absorb[ch], 1e-6), layers);
+        }
+    }
+    return p;
+}
 
 // env::frame: (east, north, up).
 fn env_frame(up: vec3<f32>) -> mat3x3<f32> {
@@ -391,7 +436,7 @@ fn reflect_into(c: vec3<f32>, dir: vec3<f32>, normal: vec3<f32>) -> vec3<f32> {
         n = -n;
     }
     let cos_i = -dot(n, d);
-    let f = fresnel(cos_i, scomp.ior);
+    let f = fresnel(cos_i, t_eta) * t_refl;
     let r = d + 2.0 * cos_i * n;
     return f * env_sample(r) + (1.0 - f) * c;
 }
@@ -429,21 +474,138 @@ fn env_finish(c: vec3<f32>, dir: vec3<f32>, normal: vec3<f32>, has_n: bool, thro
         ok = true;
     }
     var out = c;
+    let passed = t_passed(through, layers);
     if (through > 0.0) {
-        if (ok && scomp.ior > 0.0) {
+        if (ok && t_eta > 0.0) {
             for (var ch = 0u; ch < 3u; ch++) {
-                let eta_c = scomp.ior * (1.0 + scomp.dispersion * (f32(ch) - 1.0));
+                let eta_c = t_eta * (1.0 + t_disp * (f32(ch) - 1.0));
                 let t = refracted(d, n, eta_c, layers);
-                out[ch] = out[ch] + through * env_sample(t)[ch];
+                out[ch] = out[ch] + passed[ch] * env_sample(t)[ch];
             }
         } else {
-            out = out + through * env_sample(d);
+            out = out + passed * env_sample(d);
         }
     }
-    if (ok && scomp.ior > 0.0) {
+    if (ok && t_eta > 0.0) {
         return reflect_into(out, d, n);
     }
     return out;
+}
+
+// Where the surface behind starts in t_acc (set by transparent_composite).
+var<private> t_bbase: u32;
+
+// transparent::to_pixel: (x, y, 1), or (0, 0, 0) behind the eye.
+fn t_to_pixel(p: vec3<f32>) -> vec3<f32> {
+    let d = p - view.eye;
+    let x = dot3(d, view.right);
+    let y = dot3(d, view.up);
+    let z = dot3(d, view.forward);
+    let w = f32(view.width);
+    let h = f32(view.height);
+    if (view.perspective == 1u) {
+        if (!(z > 0.0)) {
+            return vec3<f32>(0.0);
+        }
+        return vec3<f32>((x * view.sx / z + 1.0) * 0.5 * w - 0.5, (1.0 - y * view.sy / z) * 0.5 * h - 0.5, 1.0);
+    }
+    return vec3<f32>((x * view.sx + 1.0) * 0.5 * w - 0.5, (1.0 - y * view.sy) * 0.5 * h - 0.5, 1.0);
+}
+
+// transparent::Behind::depth_at
+fn t_behind_depth(x: f32, y: f32) -> f32 {
+    let i = u32(clamp(floor(x + 0.5), 0.0, f32(view.width) - 1.0));
+    let j = u32(clamp(floor(y + 0.5), 0.0, f32(view.height) - 1.0));
+    return t_acc[t_bbase + j * view.width + i].w;
+}
+
+fn t_behind_texel(i: f32, j: f32) -> vec3<f32> {
+    let ii = min(u32(i), view.width - 1u);
+    let jj = min(u32(j), view.height - 1u);
+    return t_acc[t_bbase + jj * view.width + ii].xyz;
+}
+
+// transparent::Behind::colour_at
+fn t_behind_colour(x_in: f32, y_in: f32) -> vec3<f32> {
+    let x = clamp(x_in, 0.0, f32(view.width - 1u));
+    let y = clamp(y_in, 0.0, f32(view.height - 1u));
+    let x0 = floor(x);
+    let y0 = floor(y);
+    let top = mix(t_behind_texel(x0, y0), t_behind_texel(x0 + 1.0, y0), x - x0);
+    let bottom = mix(t_behind_texel(x0, y0 + 1.0), t_behind_texel(x0 + 1.0, y0 + 1.0), x - x0);
+    return mix(top, bottom, y - y0);
+}
+
+// transparent::refract_behind: where the ray meets the surface behind (hit), else the
+// direction it leaves in.
+struct TBehind {
+    at: vec2<f32>,
+    hit: bool,
+    dir: vec3<f32>,
+}
+
+fn t_refract_behind(o: vec3<f32>, d: vec3<f32>, z_near: f32, n_near: vec3<f32>, has_far: bool, z_far: f32, n_far: vec3<f32>, eta: f32, z_start: f32) -> TBehind {
+    let ul = length(d);
+    var u = vec3<f32>(0.0);
+    if (ul > 0.0) {
+        u = d / ul;
+    }
+    let entry = o + d * z_near;
+    var exit = entry;
+    var out = u;
+    if (has_far) {
+        let inner = refracted(u, n_near, eta, 1.0);
+        var nf = n_far;
+        if (dot3(n_far, inner) < 0.0) {
+            nf = -n_far;
+        }
+        let den = dot3(inner, nf);
+        var s = 0.0;
+        if (den > 1e-4) {
+            s = max(dot3(o + d * z_far - entry, nf) / den, 0.0);
+        }
+        exit = entry + inner * s;
+        out = refracted(inner, -nf, 1.0 / eta, 1.0);
+    }
+    let missed = TBehind(vec2<f32>(0.0), false, out);
+    let z_exit = dot3(exit - view.eye, view.forward);
+    let along = dot3(out, view.forward);
+    if (along <= 1e-6) {
+        return missed;
+    }
+    var at = t_to_pixel(exit);
+    if (at.z == 0.0) {
+        return missed;
+    }
+    var z_hit = t_behind_depth(at.x, at.y);
+    if (!(z_hit < infinity())) {
+        z_hit = z_start;
+    }
+    if (!(z_hit < infinity())) {
+        return missed;
+    }
+    for (var k = 0u; k < 4u; k++) {
+        let s = max((z_hit - z_exit) / along, 0.0);
+        at = t_to_pixel(exit + out * s);
+        if (at.z == 0.0) {
+            return missed;
+        }
+        z_hit = t_behind_depth(at.x, at.y);
+        if (!(z_hit < infinity())) {
+            return missed;
+        }
+    }
+    return TBehind(at.xy, true, out);
+}
+
+// What the nearest layer at the pixel lets be seen: the surface behind, or the environment
+// (transparent::Drawing::run).
+fn t_seen_behind(o: vec3<f32>, d: vec3<f32>, z_near: f32, n_near: vec3<f32>, has_far: bool, z_far: f32, n_far: vec3<f32>, eta: f32, z_start: f32) -> vec3<f32> {
+    let b = t_refract_behind(o, d, z_near, n_near, has_far, z_far, n_far, eta, z_start);
+    if (b.hit) {
+        return t_behind_colour(b.at.x, b.at.y);
+    }
+    return env_sample(b.dir);
 }
 
 // A group image at a pixel, all its layers composited: colour, what they let through of
@@ -553,7 +715,8 @@ fn transparent_points(
     let c = shaded_point(local, q, object);
     s_splats[4u * g] = vec4<f32>(q, r * r);
     s_splats[4u * g + 1u] = vec4<f32>(n, alpha);
-    s_splats[4u * g + 2u] = vec4<f32>(c, bitcast<f32>(mask));
+    // The groups' bits, and above them the point's object (t_set_surface).
+    s_splats[4u * g + 2u] = vec4<f32>(c, bitcast<f32>((mask & 0xffu) | (object << 8u)));
     s_splats[4u * g + 3u] = rect;
 }
 
@@ -624,6 +787,17 @@ fn transparent_composite(
             st4[g] = t_acc[b + 4u];
         }
     }
+    // Refraction: the surface behind (culls the translucent fragments behind it) and the
+    // farthest translucent layer (weighted normals, depth).
+    t_bbase = 5u * k_groups * npix;
+    var behind_z = infinity();
+    var far = vec4<f32>(0.0, 0.0, 0.0, infinity());
+    if (inside && scomp.phase == 2u) {
+        behind_z = t_acc[t_bbase + pix].w;
+        if (scomp.first == 0u) {
+            far = t_acc[t_bbase + npix + pix];
+        }
+    }
     let fx = f32(px);
     let fy = f32(py);
     var base = scomp.begin;
@@ -675,6 +849,12 @@ fn transparent_composite(
                 let id = t_tile_id[j];
                 let cm = t_tile_c[j];
                 let al = nn.w;
+                // transparent::Phase: opaque fragments (α = 255/255) alone, then the
+                // translucent ones in front of them.
+                let opaque = al * 255.0 >= 254.5;
+                if ((scomp.phase == 1u && !opaque) || (scomp.phase == 2u && (opaque || t > behind_z))) {
+                    continue;
+                }
                 // splat::weight: of the normal turned to the eye (an environment), and for
                 // Algorithm 3 of the colour and opacity.
                 let wq = exp(-3.0 * q);
@@ -687,7 +867,14 @@ fn transparent_composite(
                     wn.w = wq;
                     wc = wq * vec4<f32>(cm.xyz, al);
                 }
-                var bits = bitcast<u32>(cm.w);
+                if (scomp.phase == 2u) {
+                    if (!(far.w < infinity())) {
+                        far = vec4<f32>(wn.xyz, t);
+                    } else if (t >= far.w - scomp.epsilon) {
+                        far = vec4<f32>(far.xyz + wn.xyz, far.w);
+                    }
+                }
+                var bits = bitcast<u32>(cm.w) & 0xffu;
                 loop {
                     if (bits == 0u) {
                         break;
@@ -775,6 +962,7 @@ fn transparent_composite(
                 }
             }
             if (scomp.env_kind != 0u) {
+                t_set_surface(pid);
                 // The mean normal of the groups' fragments at the nearest layer, each turned
                 // to the eye (transparent::composite).
                 var n = vec3<f32>(0.0);
@@ -784,7 +972,57 @@ fn transparent_composite(
                         n = n + st3[g].xyz;
                     }
                 }
-                out = env_finish(out, rd, n, pid != BACKGROUND, through * inv, layers * inv);
+                if (scomp.phase == 1u) {
+                    // The surface behind, over the environment along the pixel's ray,
+                    // reflecting it.
+                    out = env_finish(out, rd, n, pid != BACKGROUND, through * inv, 0.0);
+                    t_acc[t_bbase + pix] = vec4<f32>(out, dep);
+                    s_depth[pix] = dep;
+                    s_id[pix] = pid;
+                    return;
+                }
+                let bd = behind_z;
+                if (scomp.phase == 2u && pid == BACKGROUND) {
+                    // No translucent layer: the surface behind as it is.
+                    out = t_acc[t_bbase + pix].xyz;
+                    dep = bd;
+                    pid = s_id[pix];
+                } else if (scomp.phase == 2u) {
+                    let ul = length(rd);
+                    let nl = length(n);
+                    var nn = vec3<f32>(0.0);
+                    if (nl > 0.0) {
+                        nn = n / nl;
+                    }
+                    if (ul > 0.0 && dot3(nn, rd / ul) > 0.0) {
+                        nn = -nn;
+                    }
+                    let fl = length(far.xyz);
+                    let has_far = far.w > dep + scomp.epsilon && fl > 0.0;
+                    var nf = vec3<f32>(0.0);
+                    if (fl > 0.0) {
+                        nf = far.xyz / fl;
+                    }
+                    var seen = vec3<f32>(0.0);
+                    var eta = 1.0;
+                    if (t_eta > 0.0) {
+                        eta = t_eta;
+                    }
+                    if (t_disp == 0.0) {
+                        seen = t_seen_behind(ro, rd, dep, nn, has_far, far.w, nf, eta, bd);
+                    } else {
+                        for (var ch = 0u; ch < 3u; ch++) {
+                            let eta_c = eta * (1.0 + t_disp * (f32(ch) - 1.0));
+                            seen[ch] = t_seen_behind(ro, rd, dep, nn, has_far, far.w, nf, eta_c, bd)[ch];
+                        }
+                    }
+                    out = out + t_passed(through * inv, layers * inv) * seen;
+                    if (t_eta > 0.0) {
+                        out = reflect_into(out, rd, nn);
+                    }
+                } else {
+                    out = env_finish(out, rd, n, pid != BACKGROUND, through * inv, layers * inv);
+                }
             }
             colour[pix] = vec4<f32>(out, 1.0);
             surface_depth[pix] = dep;
@@ -798,6 +1036,9 @@ fn transparent_composite(
                 t_acc[b + 2u] = st2[g];
                 t_acc[b + 3u] = st3[g];
                 t_acc[b + 4u] = st4[g];
+            }
+            if (scomp.phase == 2u) {
+                t_acc[t_bbase + npix + pix] = far;
             }
         }
     }

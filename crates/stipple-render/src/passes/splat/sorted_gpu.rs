@@ -64,7 +64,10 @@ pub(crate) struct SortedComposite {
     pub dispersion: f32,
     /// 1: Algorithm 3 (`SplatSettings::smooth_nearest`).
     pub smooth_nearest: u32,
-    pub pad4: [u32; 3],
+    /// `transparent::Phase`: 0 every fragment; with refraction 1 the opaque ones, then 2 the
+    /// translucent ones.
+    pub phase: u32,
+    pub pad4: [u32; 2],
 }
 
 /// Splats a composite dispatch draws at most (see sorted.wgsl: on lavapipe one dispatch drew
@@ -100,7 +103,7 @@ impl GpuPass for SortedGpu {
         let mut t_points = points.to_vec();
         t_points.extend([SKIP, READ]);
         let mut t_composite = composite.to_vec();
-        t_composite.extend([SKIP, WRITE, SKIP, READ]);
+        t_composite.extend([SKIP, WRITE, SKIP, READ, UNIFORM]);
         SortedGpu {
             points: Pass::new(d, m, "sorted_points", &points),
             composite: Pass::new(d, m, "sorted_composite", &composite),
@@ -146,12 +149,51 @@ pub(crate) fn record(
     } else {
         None
     };
+    // With refraction the opaque points are drawn first, alone, then the translucent ones
+    // (transparent::composite).
+    // (As transparent::composite: only where opaque points are to be refracted.)
+    let refract = cloud.has_opaque
+        && env.is_some_and(|e| {
+            e.ior.is_some()
+                || cloud
+                    .optics
+                    .as_ref()
+                    .is_some_and(|o| o.iter().any(|o| o.ior.is_some()))
+        });
+    // Per object (sorted.wgsl `t_optics`): (index of refraction, 0: the frame's; dispersion,
+    // −1: the frame's; reflectivity; 0), (absorption, 0).
+    let mut optics = vec![[0.0f32; 4]; 2 * crate::MAX_OBJECTS];
+    for (k, o) in cloud
+        .optics
+        .iter()
+        .flatten()
+        .enumerate()
+        .take(crate::MAX_OBJECTS)
+    {
+        optics[2 * k] = [
+            o.ior.unwrap_or(0.0),
+            o.dispersion.unwrap_or(-1.0),
+            o.reflectivity,
+            0.0,
+        ];
+        let [r, g, b] = o.absorption;
+        optics[2 * k + 1] = [r, g, b, 0.0];
+    }
+    if cloud.optics.is_none() {
+        optics[0] = [0.0, -1.0, 1.0, 0.0];
+    }
     let group_acc = match &masks {
-        Some((_, k)) => Some(
-            splat
-                .group_acc(ctx, 80 * *k as u64 * f.width as u64 * f.height as u64)?
-                .clone(),
-        ),
+        Some((_, k)) => {
+            // As sorted.wgsl: K group images, then the surface behind and the farthest
+            // layer, a vec4 each per pixel.
+            let k = (*k as u64).clamp(1, stipple_core::grouping::TRANSPARENT_GROUPS as u64);
+            let per_pixel = 80 * k + if refract { 32 } else { 0 };
+            Some(
+                splat
+                    .group_acc(ctx, per_pixel * f.width as u64 * f.height as u64)?
+                    .clone(),
+            )
+        }
         None => None,
     };
     let (shapes, _) = splat.shapes(cloud)?;
@@ -180,6 +222,7 @@ pub(crate) fn record(
     };
     let sp = uniform("sorted shade", bytemuck::bytes_of(block));
     let mats = uniform("sorted materials", bytemuck::cast_slice(&materials[..]));
+    let optics = uniform("transparent optics", bytemuck::cast_slice(&optics[..]));
     let overlap = expected_overlap() * s.scale * s.scale;
     {
         let mut c = rec.enc.begin_compute_pass(&Default::default());
@@ -250,8 +293,12 @@ pub(crate) fn record(
     // The kept points are counted on the device: as many dispatches as the cloud's points
     // could need, each drawing no further than those kept.
     let dispatches = (cloud.len as u32).div_ceil(BATCH).max(1);
-    let mut groups = Vec::with_capacity(dispatches as usize);
-    for k in 0..dispatches {
+    let phases: &[u32] = if refract { &[1, 2] } else { &[0] };
+    let mut groups = Vec::with_capacity(dispatches as usize * phases.len());
+    for (phase, k) in phases
+        .iter()
+        .flat_map(|&p| (0..dispatches).map(move |k| (p, k)))
+    {
         let comp = uniform(
             "sorted composite",
             bytemuck::bytes_of(&SortedComposite {
@@ -270,7 +317,8 @@ pub(crate) fn record(
                 env_up: env.map_or([0.0; 3], |e| e.up.to_array()),
                 dispersion: env.map_or(0.0, |e| e.dispersion),
                 smooth_nearest: s.smooth_nearest as u32,
-                pad4: [0; 3],
+                phase,
+                pad4: [0; 2],
             }),
         );
         let mut res = vec![
@@ -301,7 +349,13 @@ pub(crate) fn record(
             Res::Buf(&f.acc),
         ];
         if let Some(acc) = &group_acc {
-            res.extend([Res::Skip, Res::Buf(acc), Res::Skip, Res::Buf(&env_buf)]);
+            res.extend([
+                Res::Skip,
+                Res::Buf(acc),
+                Res::Skip,
+                Res::Buf(&env_buf),
+                Res::Buf(&optics),
+            ]);
         }
         groups.push(composite_pass.bind(d, &res));
     }

@@ -44,7 +44,16 @@
 //! - Shading is per point (forward), not deferred per fragment (§5.2.4). An environment
 //!   ([`crate::env`]) shows behind the layers, and with an index of refraction the layers
 //!   refract it (Eq. 12, with the layer count of each pixel) and the nearest one reflects it
-//!   (Fresnel), both with that layer's point normal.
+//!   (Fresnel), both with that layer's blended normal, and with the optics of the nearest
+//!   layer's object.
+//! - Opaque geometry behind the layers is refracted as well (the paper refracts only the
+//!   environment): with an index of refraction and opaque points, the opaque points are
+//!   drawn first, alone (`Phase::Opaque`), into the surface behind; the translucent ones
+//!   are drawn over black with those behind that surface culled, keeping per pixel the
+//!   farthest layer's depth and blended normal; the ray refracted in at the nearest layer
+//!   and out at the farthest ([`refract_behind`]) then finds what they let through. The GPU
+//!   runs its dispatches twice (a phase each) and keeps the surface behind and the
+//!   farthest layer in two more vec4 per pixel after the group images.
 //!
 //! The CPU draws bands of rows in parallel (each band takes, in order, the splats that reach
 //! it); the GPU (`transparent.wgsl` in sorted.wgsl's module) draws one 16×16 tile per
@@ -79,6 +88,30 @@ pub struct TransparentInput<'a> {
     pub epsilon: f32,
     /// Algorithm 3: the nearest layer smoothly interpolated (see the module docs).
     pub smooth_nearest: bool,
+    /// Per point its object, and per object its optics (None: the frame's for all).
+    pub optics: Option<(&'a [u8], &'a [crate::material::Optics])>,
+}
+
+impl TransparentInput<'_> {
+    /// The optics of point `id`'s object in a frame with environment settings `e`.
+    pub fn surface(&self, id: u32, e: &crate::env::EnvSettings) -> crate::env::Surface {
+        match self.optics {
+            Some((index, optics)) if id != BACKGROUND => index
+                .get(id as usize)
+                .and_then(|&o| optics.get(o as usize))
+                .map_or_else(|| crate::env::Surface::of_frame(e), |o| o.resolve(e)),
+            _ => crate::env::Surface::of_frame(e),
+        }
+    }
+
+    /// Whether a frame with environment settings `e` refracts: its own index, or an
+    /// object's.
+    pub fn refracts(&self, e: &crate::env::EnvSettings) -> bool {
+        e.ior.is_some()
+            || self
+                .optics
+                .is_some_and(|(_, o)| o.iter().any(|o| o.ior.is_some()))
+    }
 }
 
 /// A disc ready to draw: point, unit normal, squared radius, pixel rectangle.
@@ -280,11 +313,176 @@ impl Layered {
     }
 }
 
+/// Which fragments a drawing of the splats takes (see [`composite`]).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Phase {
+    /// Every fragment: the layers' composite over the background (no refraction).
+    All,
+    /// Opaque fragments only (α = 1): the surface behind the transparent layers.
+    Opaque,
+    /// Translucent fragments only, those behind the opaque surface culled: the layers in
+    /// front of it, composited over black.
+    Translucent,
+}
+
+/// The opaque surface behind the transparent layers, drawn alone (refraction's first
+/// drawing), per pixel: its colour over the environment, its depth (∞: none) and point.
+struct Behind {
+    colour: Vec<[f32; 3]>,
+    depth: Vec<f32>,
+    id: Vec<u32>,
+}
+
+impl Behind {
+    /// The colour at continuous pixel coordinates (pixel centres at integers), bilinear,
+    /// clamped to the frame.
+    fn colour_at(&self, v: &ViewParams, x: f32, y: f32) -> [f32; 3] {
+        let (w, h) = (v.width as i64, v.height as i64);
+        let (x, y) = (x.clamp(0.0, (w - 1) as f32), y.clamp(0.0, (h - 1) as f32));
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: f32, j: f32| {
+            let i = (i as i64).min(w - 1) as usize;
+            let j = (j as i64).min(h - 1) as usize;
+            self.colour[j * w as usize + i]
+        };
+        let lerp = |a: [f32; 3], b: [f32; 3], t: f32| -> [f32; 3] {
+            std::array::from_fn(|c| a[c] + (b[c] - a[c]) * t)
+        };
+        let top = lerp(at(x0, y0), at(x0 + 1.0, y0), fx);
+        let bottom = lerp(at(x0, y0 + 1.0), at(x0 + 1.0, y0 + 1.0), fx);
+        lerp(top, bottom, fy)
+    }
+
+    /// The depth at the pixel nearest continuous pixel coordinates, clamped to the frame.
+    fn depth_at(&self, v: &ViewParams, x: f32, y: f32) -> f32 {
+        let i = ((x + 0.5).floor().clamp(0.0, v.width as f32 - 1.0)) as usize;
+        let j = ((y + 0.5).floor().clamp(0.0, v.height as f32 - 1.0)) as usize;
+        self.depth[j * v.width as usize + i]
+    }
+}
+
+/// The continuous pixel coordinates of a point (pixel centres at integers, as
+/// [`bound`]'s), None behind the eye.
+#[inline]
+pub fn to_pixel(v: &ViewParams, p: Vec3) -> Option<(f32, f32)> {
+    let d = p - Vec3::from(v.eye);
+    let x = d.dot(Vec3::from(v.right));
+    let y = d.dot(Vec3::from(v.up));
+    let z = d.dot(Vec3::from(v.forward));
+    let (w, h) = (v.width as f32, v.height as f32);
+    if v.perspective == 1 {
+        (z > 0.0).then(|| {
+            (
+                (x * v.sx / z + 1.0) * 0.5 * w - 0.5,
+                (1.0 - y * v.sy / z) * 0.5 * h - 0.5,
+            )
+        })
+    } else {
+        Some((
+            (x * v.sx + 1.0) * 0.5 * w - 0.5,
+            (1.0 - y * v.sy) * 0.5 * h - 0.5,
+        ))
+    }
+}
+
+/// Steps of the search for where a refracted ray meets the opaque surface behind.
+pub const BEHIND_STEPS: u32 = 4;
+
+/// Where the ray through a pixel (origin `o`, direction `d` of unit view-axis component),
+/// refracted into a transparent surface of index `eta` at its nearest layer (view depth
+/// `z_near`, unit normal `n_near` facing the eye) and out of it at its farthest (view depth
+/// and unit normal, None: the nearest layer is the only one, a thin sheet that bends the
+/// ray in and back out at the same place), meets the opaque surface behind, whose view
+/// depth at continuous pixel coordinates `depth_at` gives (`z_start`: the depth to start
+/// from where the exit point's own pixel has none): those pixel coordinates, or the exit
+/// ray's direction where it passes the opaque surface (it meets a pixel without one, or
+/// turns away from the eye's depth axis).
+///
+/// In at the nearest layer by Snell's law; straight through the surface to the plane of
+/// the farthest layer (through its point on the pixel's ray, with its normal); out there
+/// by Snell's law (total internal reflection: on along the inner ray); then along the
+/// exit ray to the opaque surface, found by [`BEHIND_STEPS`] steps: the ray's point at the
+/// depth the opaque surface has where the previous point projects (exact for a surface of
+/// constant depth, the screen-space refraction of Wyman 2005). As transparent.wgsl.
+#[allow(clippy::too_many_arguments)]
+pub fn refract_behind(
+    v: &ViewParams,
+    o: Vec3,
+    d: Vec3,
+    z_near: f32,
+    n_near: Vec3,
+    far: Option<(f32, Vec3)>,
+    eta: f32,
+    z_start: f32,
+    depth_at: impl Fn(f32, f32) -> f32,
+) -> Result<(f32, f32), Vec3> {
+    let u = d.normalize_or_zero();
+    let entry = o + d * z_near;
+    let (exit, out) = match far {
+        Some((z_far, n_far)) => {
+            let inner = crate::env::refracted(u, n_near, eta, 1.0);
+            // The far layer's normal, facing along the inner ray (out of the surface).
+            let nf = if n_far.dot(inner) < 0.0 {
+                -n_far
+            } else {
+                n_far
+            };
+            let den = inner.dot(nf);
+            let s = if den > 1e-4 {
+                ((o + d * z_far - entry).dot(nf) / den).max(0.0)
+            } else {
+                0.0
+            };
+            (
+                entry + inner * s,
+                crate::env::refracted(inner, -nf, 1.0 / eta, 1.0),
+            )
+        }
+        None => (entry, u),
+    };
+    let f = Vec3::from(v.forward);
+    let eye = Vec3::from(v.eye);
+    let (z_exit, along) = ((exit - eye).dot(f), out.dot(f));
+    if along <= 1e-6 {
+        return Err(out);
+    }
+    let Some(mut at) = to_pixel(v, exit) else {
+        return Err(out);
+    };
+    let mut z_hit = depth_at(at.0, at.1);
+    if !z_hit.is_finite() {
+        z_hit = z_start;
+    }
+    if !z_hit.is_finite() {
+        return Err(out);
+    }
+    for _ in 0..BEHIND_STEPS {
+        let s = ((z_hit - z_exit) / along).max(0.0);
+        let Some(p) = to_pixel(v, exit + out * s) else {
+            return Err(out);
+        };
+        at = p;
+        z_hit = depth_at(at.0, at.1);
+        if !z_hit.is_finite() {
+            return Err(out);
+        }
+    }
+    Ok(at)
+}
+
 /// Draws the points of `order` (back to front) over `background` (or the environment in
 /// each pixel's direction) into K group images and writes their mean (linear colour), with
 /// the environment reflected by the nearest layer where `env` has an index of refraction
 /// ([`crate::env`]); and per pixel the nearest blended fragment's depth and point. Returns
 /// the fragments blended.
+///
+/// With an index of refraction the opaque points (α = 1) are drawn first, alone, into the
+/// surface behind the transparent layers; the translucent points are then drawn over
+/// black (those behind that surface culled), and what their layers let through of it is
+/// looked up where each pixel's ray, refracted in at the nearest layer and out at the
+/// farthest, meets it ([`refract_behind`]); where no opaque surface lies behind, the
+/// environment along Eq. 12's refracted ray, as without opaque points.
 #[allow(clippy::too_many_arguments)]
 pub fn composite(
     v: &ViewParams,
@@ -296,8 +494,6 @@ pub fn composite(
     depth: &mut [f32],
     id: &mut [u32],
 ) -> u64 {
-    let (w, h) = (v.width as usize, v.height as usize);
-    let k_groups = input.groups.max(1);
     let eye = Vec3::from(v.eye);
     // Per splat in order: the disc (point, normal, squared radius) and its pixel rectangle.
     let discs: Vec<Option<FlatDisc>> = order
@@ -322,153 +518,282 @@ pub fn composite(
         })
         .collect();
     let per_band = band_lists(
-        h,
+        v.height as usize,
         discs
             .iter()
             .map(|d| d.map(|(_, _, _, [_, y0, _, y1])| (y0 as usize, y1 as usize))),
     );
-    colour
-        .par_chunks_mut(w * BAND)
-        .zip(depth.par_chunks_mut(w * BAND))
-        .zip(id.par_chunks_mut(w * BAND))
-        .zip(per_band.par_iter())
-        .enumerate()
-        .map(|(b, (((crow, drow), irow), list))| {
-            let rows = crow.len() / w;
-            let y_base = b * BAND;
-            drow.fill(f32::INFINITY);
-            irow.fill(BACKGROUND);
-            let rays: Vec<(Vec3, Vec3)> = (0..crow.len())
-                .map(|p| pixel_ray(v, (p % w) as u32, (y_base + p / w) as u32))
-                .collect();
-            // Per group and pixel: the layers behind and the current layer's fragment, over
-            // the background or the environment seen along the pixel's ray.
-            let mut acc = Vec::with_capacity(k_groups * crow.len());
-            for _ in 0..k_groups {
-                // With an environment the layers composite over black, and what they let
-                // through of it is added at the end, looked up along the refracted ray.
-                acc.extend(
-                    rays.iter()
-                        .map(|_| Layered::new(env.map_or(background, |_| [0.0; 3]))),
-                );
-            }
-            let mut frags = 0u64;
-            for &k in list {
-                let Some((p, n, r2, [x0, y0, x1, y1])) = discs[k as usize] else {
-                    continue;
+    let draw = Drawing {
+        v,
+        input,
+        order,
+        discs: &discs,
+        per_band: &per_band,
+        background,
+        env,
+    };
+    // Opaque points to refract (else the environment alone, by Eq. 12).
+    let opaque = input.alpha.is_none_or(|a| a.par_iter().any(|&a| a == 255));
+    match env.filter(|e| opaque && input.refracts(e)) {
+        None => draw.run(Phase::All, None, colour, depth, id),
+        Some(_) => {
+            let n = v.pixels();
+            let mut behind = Behind {
+                colour: vec![[0.0; 3]; n],
+                depth: vec![f32::INFINITY; n],
+                id: vec![BACKGROUND; n],
+            };
+            let f = draw.run(
+                Phase::Opaque,
+                None,
+                &mut behind.colour,
+                &mut behind.depth,
+                &mut behind.id,
+            );
+            f + draw.run(Phase::Translucent, Some(&behind), colour, depth, id)
+        }
+    }
+}
+
+/// What one drawing of the splats reads.
+struct Drawing<'a> {
+    v: &'a ViewParams,
+    input: &'a TransparentInput<'a>,
+    order: &'a [u32],
+    discs: &'a [Option<FlatDisc>],
+    per_band: &'a [Vec<u32>],
+    background: [f32; 3],
+    env: Option<&'a crate::env::EnvSettings>,
+}
+
+impl Drawing<'_> {
+    /// Draws the fragments of `phase` into the K group images of each band and writes the
+    /// pixels; returns the fragments blended.
+    fn run(
+        &self,
+        phase: Phase,
+        behind: Option<&Behind>,
+        colour: &mut [[f32; 3]],
+        depth: &mut [f32],
+        id: &mut [u32],
+    ) -> u64 {
+        let (v, input, env) = (self.v, self.input, self.env);
+        let w = v.width as usize;
+        let k_groups = input.groups.max(1);
+        colour
+            .par_chunks_mut(w * BAND)
+            .zip(depth.par_chunks_mut(w * BAND))
+            .zip(id.par_chunks_mut(w * BAND))
+            .zip(self.per_band.par_iter())
+            .enumerate()
+            .map(|(b, (((crow, drow), irow), list))| {
+                let rows = crow.len() / w;
+                let y_base = b * BAND;
+                let first = y_base * w;
+                drow.fill(f32::INFINITY);
+                irow.fill(BACKGROUND);
+                let rays: Vec<(Vec3, Vec3)> = (0..crow.len())
+                    .map(|p| pixel_ray(v, (p % w) as u32, (y_base + p / w) as u32))
+                    .collect();
+                // Per group and pixel: the layers behind and the current layer's fragment,
+                // over the background (with an environment: over black, what they let
+                // through of it added at the end, looked up along the refracted ray).
+                let start = env.map_or(self.background, |_| [0.0; 3]);
+                let mut acc = vec![Layered::new(start); k_groups * crow.len()];
+                // Refraction: per pixel, the farthest translucent layer's depth and its
+                // fragments' kernel-weighted normals (the first fragments in back-to-front
+                // order, and those within ε of them).
+                let mut far = if phase == Phase::Translucent {
+                    vec![(f32::INFINITY, Vec3::ZERO); crow.len()]
+                } else {
+                    Vec::new()
                 };
-                let i = order[k as usize] as usize;
-                let c = input.colour[i];
-                let alpha = input.alpha.map_or(1.0, |a| a[i] as f32 / 255.0);
-                let mask = input.masks[i];
-                let ylo = (y0 as usize).max(y_base);
-                let yhi = (y1 as usize).min(y_base + rows - 1);
-                for y in ylo..=yhi {
-                    for x in x0 as usize..=x1 as usize {
-                        let pix = (y - y_base) * w + x;
-                        let (o, d) = rays[pix];
-                        let Some((z, q)) = flat_hit(o, d, p, n, r2, v.near) else {
-                            continue;
-                        };
-                        let facing = env.map(|_| if n.dot(d) > 0.0 { -n } else { n });
-                        let mut bits = mask;
-                        while bits != 0 {
-                            let g = bits.trailing_zeros() as usize;
-                            bits &= bits - 1;
-                            if g >= k_groups {
-                                break;
+                let mut frags = 0u64;
+                for &k in list {
+                    let Some((p, n, r2, [x0, y0, x1, y1])) = self.discs[k as usize] else {
+                        continue;
+                    };
+                    let i = self.order[k as usize] as usize;
+                    let c = input.colour[i];
+                    let a8 = input.alpha.map_or(255, |a| a[i]);
+                    match phase {
+                        Phase::Opaque if a8 != 255 => continue,
+                        Phase::Translucent if a8 == 255 => continue,
+                        _ => {}
+                    }
+                    let alpha = a8 as f32 / 255.0;
+                    let mask = input.masks[i];
+                    let ylo = (y0 as usize).max(y_base);
+                    let yhi = (y1 as usize).min(y_base + rows - 1);
+                    for y in ylo..=yhi {
+                        for x in x0 as usize..=x1 as usize {
+                            let pix = (y - y_base) * w + x;
+                            let (o, d) = rays[pix];
+                            let Some((z, q)) = flat_hit(o, d, p, n, r2, v.near) else {
+                                continue;
+                            };
+                            let facing = env.map(|_| if n.dot(d) > 0.0 { -n } else { n });
+                            if let Some(bh) = behind {
+                                // Behind the opaque surface: hidden.
+                                if z > bh.depth[first + pix] {
+                                    continue;
+                                }
+                                let (fz, fnorm) = &mut far[pix];
+                                let wn = facing.unwrap_or(Vec3::ZERO) * super::weight(q);
+                                if !fz.is_finite() {
+                                    (*fz, *fnorm) = (z, wn);
+                                } else if z >= *fz - input.epsilon {
+                                    *fnorm += wn;
+                                }
                             }
-                            acc[g * crow.len() + pix].add(
-                                z,
-                                q,
-                                i as u32,
-                                c,
-                                alpha,
-                                input.epsilon,
-                                facing,
-                                input.smooth_nearest,
-                            );
-                            frags += 1;
+                            let mut bits = mask;
+                            while bits != 0 {
+                                let g = bits.trailing_zeros() as usize;
+                                bits &= bits - 1;
+                                if g >= k_groups {
+                                    break;
+                                }
+                                acc[g * crow.len() + pix].add(
+                                    z,
+                                    q,
+                                    i as u32,
+                                    c,
+                                    alpha,
+                                    input.epsilon,
+                                    facing,
+                                    input.smooth_nearest,
+                                );
+                                frags += 1;
+                            }
                         }
                     }
                 }
-            }
-            let inv = 1.0 / k_groups as f32;
-            for (pix, o) in crow.iter_mut().enumerate() {
-                let mut sum = [0.0f32; 3];
-                let (mut through, mut layers) = (0.0f32, 0.0f32);
-                for g in 0..k_groups {
-                    let s = &acc[g * rows * w + pix];
-                    let c = s.composite();
-                    for ch in 0..3 {
-                        sum[ch] += c[ch];
-                    }
-                    let (t, l) = s.transmission();
-                    through += t;
-                    layers += l;
-                    // The nearest layer's fragment over the groups (ties: the first group).
-                    if s.depth < drow[pix] {
-                        drow[pix] = s.depth;
-                        irow[pix] = s.id;
-                    }
-                }
-                *o = sum.map(|s| s * inv);
-                if input.smooth_nearest && drow[pix].is_finite() {
-                    // Algorithm 3: the nearest layer's colour C_F and opacity α from all its
-                    // fragments, kernel-weighted over the groups that reached it; the rest
-                    // (what lies behind it in those groups, everything in the others)
-                    // averaged as C_O; I = α·C_F + (1 − α)·C_O.
-                    let near = drow[pix] + input.epsilon;
-                    let (mut f, mut wsum) = ([0.0f32; 4], 0.0f32);
-                    let (mut co, mut to, mut lo) = ([0.0f32; 3], 0.0f32, 0.0f32);
-                    for g in 0..k_groups {
-                        let s = &acc[g * rows * w + pix];
-                        let (c, t, l) = if s.depth <= near {
-                            for (a, b) in f.iter_mut().zip(s.smooth) {
-                                *a += b;
-                            }
-                            wsum += s.weight;
-                            (s.behind, s.through, s.behind_layers)
-                        } else {
-                            let (t, l) = s.transmission();
-                            (s.composite(), t, l)
-                        };
-                        for ch in 0..3 {
-                            co[ch] += c[ch];
-                        }
-                        to += t;
-                        lo += l;
-                    }
-                    if wsum > 0.0 {
-                        let af = f[3] / wsum;
-                        *o = std::array::from_fn(|ch| {
-                            af * (f[ch] / wsum) + (1.0 - af) * (co[ch] * inv)
-                        });
-                        through = (1.0 - af) * to;
-                        layers = lo + k_groups as f32;
-                    }
-                }
-                if let Some(e) = env {
+                for (pix, o) in crow.iter_mut().enumerate() {
+                    let groups = (0..k_groups).map(|g| &acc[g * rows * w + pix]);
+                    let (c, through, layers) =
+                        finish_layers(groups.clone(), input, &mut drow[pix], &mut irow[pix]);
+                    *o = c;
+                    let Some(e) = env else { continue };
+                    let (ro, d) = rays[pix];
                     // The nearest layer's normal: its fragments' kernel-weighted normals
                     // summed over the groups (one splat's normal alone would show every
                     // splat as a facet in the refracted image).
-                    let d = rays[pix].1;
-                    let mut n = Vec3::ZERO;
-                    for g in 0..k_groups {
-                        let s = &acc[g * rows * w + pix];
-                        if s.id != BACKGROUND && s.depth <= drow[pix] + input.epsilon {
-                            n += s.normal;
-                        }
-                    }
+                    let n: Vec3 = groups
+                        .filter(|s| s.id != BACKGROUND && s.depth <= drow[pix] + input.epsilon)
+                        .map(|s| s.normal)
+                        .sum();
                     let n = (irow[pix] != BACKGROUND).then_some(n);
-                    *o = crate::env::finish(*o, e, d, n, through * inv, layers * inv);
+                    // The optics of the nearest layer's object.
+                    let surface = input.surface(irow[pix], e);
+                    if phase == Phase::Opaque {
+                        // The surface behind over the environment along the pixel's ray,
+                        // reflecting it.
+                        *o = crate::env::finish(*o, e, &surface, d, n, through, 0.0);
+                        continue;
+                    }
+                    match behind {
+                        Some(bh) => {
+                            let gp = first + pix;
+                            let Some(nn) = n else {
+                                // No translucent layer: the surface behind as it is.
+                                (*o, drow[pix], irow[pix]) =
+                                    (bh.colour[gp], bh.depth[gp], bh.id[gp]);
+                                continue;
+                            };
+                            let u = d.normalize_or_zero();
+                            let nn = nn.normalize_or_zero();
+                            let nn = if nn.dot(u) > 0.0 { -nn } else { nn };
+                            let (fz, fnorm) = far[pix];
+                            let far_layer = (fz > drow[pix] + input.epsilon)
+                                .then(|| (fz, fnorm.normalize_or_zero()))
+                                .filter(|(_, n)| *n != Vec3::ZERO);
+                            let eta = surface.eta.unwrap_or(1.0);
+                            let lookup = |eta: f32| {
+                                let z0 = bh.depth[gp];
+                                let depth_at = |x, y| bh.depth_at(v, x, y);
+                                match refract_behind(
+                                    v, ro, d, drow[pix], nn, far_layer, eta, z0, depth_at,
+                                ) {
+                                    Ok((x, y)) => bh.colour_at(v, x, y),
+                                    Err(dir) => e.env.sample(dir, e.up),
+                                }
+                            };
+                            let seen = crate::env::per_channel(eta, surface.dispersion, lookup);
+                            let pass = surface.passed(through, layers);
+                            *o = std::array::from_fn(|ch| o[ch] + pass[ch] * seen[ch]);
+                            if surface.eta.is_some() {
+                                let f = (eta, surface.reflectivity);
+                                *o = crate::env::reflect_into(*o, &e.env, e.up, f, d, nn);
+                            }
+                        }
+                        _ => *o = crate::env::finish(*o, e, &surface, d, n, through, layers),
+                    }
                 }
-            }
-            frags
-        })
-        .sum()
+                frags
+            })
+            .sum()
+    }
 }
 
+/// A pixel's K group images finished: the mean of their composites, what they let through
+/// of what lies behind (mean) and how many layers they hold (mean); sets the nearest
+/// layer's depth and point (ties: the first group). With Algorithm 3 the nearest layer's
+/// colour C_F and opacity α come from all its fragments, kernel-weighted over the groups
+/// that reached it; the rest (what lies behind it in those groups, everything in the
+/// others) averages to C_O; I = α·C_F + (1 − α)·C_O.
+fn finish_layers<'a>(
+    groups: impl Iterator<Item = &'a Layered> + Clone,
+    input: &TransparentInput,
+    depth: &mut f32,
+    id: &mut u32,
+) -> ([f32; 3], f32, f32) {
+    let k = input.groups.max(1);
+    let inv = 1.0 / k as f32;
+    let mut sum = [0.0f32; 3];
+    let (mut through, mut layers) = (0.0f32, 0.0f32);
+    for s in groups.clone() {
+        let c = s.composite();
+        for ch in 0..3 {
+            sum[ch] += c[ch];
+        }
+        let (t, l) = s.transmission();
+        through += t;
+        layers += l;
+        if s.depth < *depth {
+            (*depth, *id) = (s.depth, s.id);
+        }
+    }
+    let mut out = sum.map(|s| s * inv);
+    if input.smooth_nearest && depth.is_finite() {
+        let near = *depth + input.epsilon;
+        let (mut f, mut wsum) = ([0.0f32; 4], 0.0f32);
+        let (mut co, mut to, mut lo) = ([0.0f32; 3], 0.0f32, 0.0f32);
+        for s in groups {
+            let (c, t, l) = if s.depth <= near {
+                for (a, b) in f.iter_mut().zip(s.smooth) {
+                    *a += b;
+                }
+                wsum += s.weight;
+                (s.behind, s.through, s.behind_layers)
+            } else {
+                let (t, l) = s.transmission();
+                (s.composite(), t, l)
+            };
+            for ch in 0..3 {
+                co[ch] += c[ch];
+            }
+            to += t;
+            lo += l;
+        }
+        if wsum > 0.0 {
+            let af = f[3] / wsum;
+            out = std::array::from_fn(|ch| af * (f[ch] / wsum) + (1.0 - af) * (co[ch] * inv));
+            through = (1.0 - af) * to;
+            layers = lo + k as f32;
+        }
+    }
+    (out, through * inv, layers * inv)
+}
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -511,6 +836,7 @@ mod tests {
             colour: &colour,
             epsilon: 0.05,
             smooth_nearest: false,
+            optics: None,
         };
         // Back to front: plane A, then B.
         let order: Vec<u32> = (0..positions.len() as u32).collect();
