@@ -111,12 +111,18 @@ impl ShadowRefinement {
 }
 
 /// The environment of `--env` and `--ior`, else of the scene's `env` and `ior` (None when
-/// none is given), about the cloud's up axis.
+/// none is given and no object has an ior of its own), about the cloud's up axis.
 fn environment(
     look: &LookArgs,
     scene: Option<&LoadedScene>,
-    z_up: bool,
+    cloud: &PreparedCloud,
 ) -> Result<Option<stipple_render::env::EnvSettings>> {
+    let z_up = cloud.cloud.z_up;
+    // A scene's cloud whose material has an ior refracts and reflects on its own.
+    let object_ior = cloud
+        .objects
+        .as_ref()
+        .is_some_and(|t| t.materials.iter().any(|m| m.optics.ior.is_some()));
     use stipple_render::env::{EnvSettings, Environment};
     let ior = look.ior.or(scene.and_then(|s| s.render.ior));
     if let Some(eta) = ior {
@@ -133,7 +139,7 @@ fn environment(
             "--dispersion {dispersion}: 0 to 0.2 (glass: about 0.01)"
         ));
     }
-    if dispersion > 0.0 && ior.is_none() {
+    if dispersion > 0.0 && ior.is_none() && !object_ior {
         return Err(anyhow!(
             "--dispersion spreads the refraction of --ior: give --ior too"
         ));
@@ -145,7 +151,7 @@ fn environment(
         })
     });
     let env = match look.env.clone().or(from_scene) {
-        None if ior.is_none() => return Ok(None),
+        None if ior.is_none() && !object_ior => return Ok(None),
         None => Environment::Sky,
         Some(p) if p.as_os_str() == "sky" => Environment::Sky,
         Some(p) => {
@@ -229,15 +235,16 @@ pub fn apply_progressively(
             );
         }
     }
-    pipe.environment = environment(look, scene, cloud.cloud.z_up)?;
+    pipe.environment = environment(look, scene, cloud)?;
     if pipe.environment.is_some()
         && !pipe
             .splat
             .is_some_and(|s| s.mode == stipple_render::SplatMode::Transparent)
     {
         return Err(anyhow!(
-            "--env and --ior apply to transparent splats: add --pipeline splat --splat \
-             transparent (or --opacity below 1 with splats)"
+            "--env, --ior and a scene material's ior apply to transparent splats: add \
+             --pipeline splat --splat transparent (or --opacity below 1 with splats; in a \
+             scene, [render] transparency = \"splat-1pass\" or \"splat-2pass\")"
         ));
     }
     if look.opacity.is_some_and(|o| o < 1.0)

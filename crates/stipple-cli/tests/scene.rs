@@ -259,6 +259,7 @@ fn the_example_scenes_load() {
         "translucent-shadows.toml",
         "mixed.toml",
         "glass-bunny.toml",
+        "glass-objects.toml",
     ] {
         let p = root.join(name);
         let text = std::fs::read_to_string(&p).unwrap();

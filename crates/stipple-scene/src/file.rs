@@ -133,6 +133,24 @@ pub struct MaterialSpec {
     pub diffuse: Option<f32>,
     pub specular: Option<f32>,
     pub shininess: Option<f32>,
+    /// Transparent splats: this cloud's refractive index (default: `[render] ior`).
+    pub ior: Option<f32>,
+    /// Transparent splats: this cloud's chromatic dispersion (default: `[render]
+    /// dispersion`).
+    pub dispersion: Option<f32>,
+    /// Transparent splats: multiplies the Fresnel reflectance (default 1).
+    pub reflectivity: Option<f32>,
+    /// Transparent splats: the share of light behind absorbed per layer, besides the
+    /// opacity: one number, or one per channel `[r, g, b]` (tinted glass; default 0).
+    pub absorption: Option<Absorption>,
+}
+
+/// A material's `absorption`: one share for every channel, or one per channel.
+#[derive(Deserialize, Debug, Clone, Copy)]
+#[serde(untagged)]
+pub enum Absorption {
+    Grey(f32),
+    Rgb([f32; 3]),
 }
 
 #[derive(Deserialize, Debug, Clone)]
@@ -262,7 +280,7 @@ pub fn build(
         if !(0.0..=1.0).contains(&opacity) {
             return Err(what(format!("opacity {opacity}: must lie in 0..1")));
         }
-        let m = material(&c.material).map_err(what)?;
+        let m = material(&c.material, spec.render.ior).map_err(what)?;
         let t = transform(c);
         objects.push((content_hash(&cloud), t));
         let mut placed = place(cloud, &t, c.colour, opacity, &m);
@@ -485,14 +503,55 @@ fn source(
     }
 }
 
-fn material(m: &MaterialSpec) -> std::result::Result<Material, String> {
+/// A cloud's material, checked (`frame_ior`: the scene's `[render] ior`).
+fn material(m: &MaterialSpec, frame_ior: Option<f32>) -> std::result::Result<Material, String> {
     let d = Material::default();
+    let optics = stipple_render::material::Optics {
+        ior: m.ior,
+        dispersion: m.dispersion,
+        reflectivity: m.reflectivity.unwrap_or(1.0),
+        absorption: match m.absorption {
+            None => [0.0; 3],
+            Some(Absorption::Grey(a)) => [a; 3],
+            Some(Absorption::Rgb(a)) => a,
+        },
+    };
+    if let Some(eta) = optics.ior {
+        if !(eta > 0.0 && eta <= 10.0) {
+            return Err(format!(
+                "material ior {eta}: a refractive index lies in (0, 10] (glass 1.5, water 1.33)"
+            ));
+        }
+    }
+    if let Some(dv) = optics.dispersion {
+        if !(0.0..=0.2).contains(&dv) {
+            return Err(format!(
+                "material dispersion {dv}: 0 to 0.2 (glass: about 0.01)"
+            ));
+        }
+        if optics.ior.or(frame_ior).is_none() {
+            return Err(format!(
+                "material dispersion {dv} spreads the refraction of an ior: give the \
+                 material's ior or [render] ior"
+            ));
+        }
+    }
+    if !(0.0..=1.0).contains(&optics.reflectivity) {
+        return Err(format!(
+            "material reflectivity {}: must lie in 0..1",
+            optics.reflectivity
+        ));
+    }
+    if let Some(a) = optics.absorption.iter().find(|a| !(0.0..=1.0).contains(*a)) {
+        return Err(format!("material absorption {a}: must lie in 0..1"));
+    }
     let out = Material {
         ambient: m.ambient.unwrap_or(d.ambient),
         diffuse: m.diffuse.unwrap_or(d.diffuse),
         specular: m.specular.unwrap_or(d.specular),
         shininess: m.shininess.unwrap_or(d.shininess),
         base_colour: d.base_colour,
+        optics,
     };
     for (name, v) in [
         ("ambient", out.ambient),
@@ -882,12 +941,13 @@ translate = [10, 0, 0]
 scale = 2
 colour = [255, 0, 0]
 opacity = 0.5
-material = { ambient = 0.1, diffuse = 0.9 }
+material = { ambient = 0.1, diffuse = 0.9, ior = 1.33, dispersion = 0.01, absorption = [0.2, 0.1, 0.0] }
 
 [[cloud]]
 demo = "plane"
 points = 500
 rotate = [90, 0, 0]
+material = { reflectivity = 0.25, absorption = 0.3 }
 
 [[light]]
 type = "area"
@@ -904,6 +964,13 @@ samples = 8
         assert_eq!(o.index.iter().filter(|&&i| i == 0).count(), 1000);
         assert_eq!(o.materials[0].ambient, 0.1);
         assert_eq!(o.materials[1].ambient, Material::default().ambient);
+        // Optics per cloud; the frame's index and dispersion where not given.
+        let o0 = o.materials[0].optics;
+        assert_eq!((o0.ior, o0.dispersion), (Some(1.33), Some(0.01)));
+        assert_eq!((o0.reflectivity, o0.absorption), (1.0, [0.2, 0.1, 0.0]));
+        let o1 = o.materials[1].optics;
+        assert_eq!((o1.ior, o1.dispersion), (None, None));
+        assert_eq!((o1.reflectivity, o1.absorption), (0.25, [0.3; 3]));
         // The sphere: radius 2 around (10, 0, 0), red, α 0.5.
         for i in 0..1000 {
             let w = c.cloud.world(i);
@@ -929,6 +996,30 @@ samples = 8
             ("[[cloud]]\ndemo = \"cube\"\n", "unknown demo `cube`"),
             ("[[cloud]]\nfile = \"a.ply\"\ndemo = \"sphere\"\n", "exactly one of"),
             ("[[cloud]]\ndemo = \"sphere\"\nopacity = 2\n", "opacity 2"),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { ior = 0 }\n",
+                "cloud 1: material ior 0",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { ior = -1.5 }\n",
+                "material ior -1.5",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { ior = 1.5, dispersion = 0.5 }\n",
+                "material dispersion 0.5",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { dispersion = 0.01 }\n",
+                "give the material's ior or [render] ior",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { reflectivity = 2 }\n",
+                "material reflectivity 2",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { absorption = [0, 1.5, 0] }\n",
+                "material absorption 1.5",
+            ),
             ("[[cloud]]\ndemo = \"sphere\"\ncolor = [1, 2, 3]\n", "unknown field `color`"),
             ("[[cloud]]\nfile = \"missing.ply\"\n", "missing.ply"),
             (
