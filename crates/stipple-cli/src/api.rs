@@ -136,14 +136,21 @@ pub fn prepare_progressively(
         .filter(|s| s.mode == stipple_render::SplatMode::Transparent)
     {
         // Computed once here (kept by the cloud for every frame): say what it made.
-        let cov = cloud.coverage(sp.c);
-        note(&format!(
-            "transparent splats: {} groups, {} splats duplicated (+{:.0}%) so that each group \
-             covers the surface",
-            cov.groups,
-            cov.duplicates,
-            100.0 * cov.duplicates as f64 / cloud.cloud.len().max(1) as f64
-        ));
+        let cov = cloud.coverage(sp.c, sp.coverage);
+        let dup = 100.0 * cov.duplicates as f64 / cloud.cloud.len().max(1) as f64;
+        note(&match cov.enlarged {
+            None => format!(
+                "transparent splats: {} groups, {} splats duplicated (+{dup:.0}%) so that each \
+                 group covers the surface",
+                cov.groups, cov.duplicates
+            ),
+            Some((most, mean)) => format!(
+                "transparent splats: {} groups, splats enlarged {mean:.2}× on average (at \
+                 most {most:.2}×) so that each group covers the surface, {} duplicated \
+                 (+{dup:.1}%) where no neighbour of a group was",
+                cov.groups, cov.duplicates
+            ),
+        });
     }
     if a.layer_images.is_some() {
         if pipe.layers == 1 {

@@ -536,6 +536,7 @@ impl SplatArgs {
             c: self.splat_c,
             depth_range: None,
             smooth_nearest: self.smooth_nearest,
+            coverage: Default::default(),
         })
     }
 }
@@ -1013,6 +1014,12 @@ pub struct LookArgs {
     /// (0 to 0.2; glass about 0.01) [default: 0].
     #[arg(long, value_parser = finite_f32, value_name = "DELTA")]
     pub dispersion: Option<f32>,
+    /// Transparent splats: how each group of splats covers the surface (Zhang & Pajarola
+    /// §4.2.2): `duplicate` copies other groups' splats into it (sharp; the default),
+    /// `enlarge` grows its splats instead (four balanced groups, no copies, softer
+    /// silhouettes) [default: duplicate, or a scene's `coverage`].
+    #[arg(long, value_enum, value_name = "METHOD")]
+    pub coverage: Option<stipple_render::CoverageMethod>,
     /// Compute shadow textures for the lights that cast them (point and area lights, e.g.
     /// --light point:x,y,z or disc:x,y,z,r). Scene files have shadows on unless they say
     /// `shadows = false`.

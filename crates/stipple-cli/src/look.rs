@@ -193,6 +193,13 @@ pub fn apply_progressively(
     if let Some(s) = scene {
         s.apply_to(pipe, background_given);
     }
+    // Transparent splats' coverage: the command line's, else the scene's.
+    let coverage = look
+        .coverage
+        .or(scene.and_then(|s| s.render.coverage.map(Into::into)));
+    if let (Some(c), Some(s)) = (coverage, pipe.splat.as_mut()) {
+        s.coverage = c;
+    }
     aim_area_lights(&mut pipe.lights, cloud);
     stipple_render::lights::validate(&pipe.lights).map_err(|e| anyhow!("--light: {e}"))?;
     pipe.layers = layers(look, scene);
@@ -246,6 +253,16 @@ pub fn apply_progressively(
              --pipeline splat --splat transparent (or --opacity below 1 with splats; in a \
              scene, [render] transparency = \"splat-1pass\" or \"splat-2pass\")"
         ));
+    }
+    if look.coverage.is_some()
+        && !pipe
+            .splat
+            .is_some_and(|s| s.mode == stipple_render::SplatMode::Transparent)
+    {
+        eprintln!(
+            "stipple: note: --coverage applies to transparent splats (--pipeline splat --splat \
+             transparent, or a translucent cloud drawn with splats): not used here"
+        );
     }
     if look.opacity.is_some_and(|o| o < 1.0)
         && pipe.layers == 1

@@ -711,6 +711,71 @@ fn transparent_splats_from_the_command_line_and_a_scene() {
         o > 10.0,
         "the translucent sphere differs from the opaque one: {o}"
     );
+    // Enlarged radii (§4.2.2 method 2) instead of duplicates: the same composite within
+    // a level or so, said in the statistics; from a scene's `coverage` too.
+    let mut a = base.to_vec();
+    a.extend([
+        "--opacity",
+        "0.5",
+        "--pipeline",
+        "splat",
+        "--splat",
+        "transparent",
+        "--coverage",
+        "enlarge",
+        "-o",
+        "en.png",
+    ]);
+    let said = ok(&dir, &a);
+    assert!(said.contains("splats enlarged"), "{said}");
+    let enlarged = stipple_io::image::read_png(&dir.join("en.png")).unwrap().2;
+    let d = mean_diff(&splats, &enlarged);
+    assert!(
+        d < 1.5,
+        "enlarged radii against duplicates: {d} levels on average"
+    );
+    std::fs::write(
+        dir.join("en.toml"),
+        "[render]\ntransparency = \"splat-1pass\"\ncoverage = \"enlarge\"\n\n[[cloud]]\n\
+         demo = \"sphere\"\npoints = 20000\nopacity = 0.5\n",
+    )
+    .unwrap();
+    let said = ok(
+        &dir,
+        &[
+            "render",
+            "en.toml",
+            "--size",
+            "64x64",
+            "--backend",
+            "cpu",
+            "-o",
+            "s.png",
+        ],
+    );
+    assert!(
+        said.contains("splats enlarged"),
+        "the scene's coverage: {said}"
+    );
+    let said = ok(
+        &dir,
+        &[
+            "render",
+            "en.toml",
+            "--coverage",
+            "duplicate",
+            "--size",
+            "64x64",
+            "--backend",
+            "cpu",
+            "-o",
+            "s2.png",
+        ],
+    );
+    assert!(
+        said.contains("splats duplicated"),
+        "--coverage wins over the scene: {said}"
+    );
     let example =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/nested-tori-splats.toml");
     let o = stipple(

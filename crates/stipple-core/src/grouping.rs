@@ -243,6 +243,98 @@ pub fn coverage_masks(
     Ok((masks, dup))
 }
 
+/// The most a splat's radius is enlarged by [`coverage_by_radii`].
+pub const MAX_ENLARGE: f32 = 8.0;
+
+/// Memberships and radius factors of transparent splats by the paper's method (2) of
+/// §4.2.2: each point is in one of K = [`TRANSPARENT_GROUPS`] groups, and its splat is
+/// enlarged until its group's splats reach every sample of the cloud.
+///
+/// The groups are not the colouring's: Largest-First with relaxation leaves a few tiny
+/// groups beside one holding nearly every point (a sphere at c = 0.4: 19 989 and 11
+/// points), which no radius makes cover the surface. Instead each point, in index order,
+/// takes the group least present among its neighbours already placed (ties: the lowest),
+/// so every neighbourhood holds every group about equally and each group's splats lie
+/// about twice as far apart as the cloud's.
+///
+/// For every sample and every other group, the group's splat nearest the sample among its
+/// 16 neighbours must reach it (within [`COVER_REACH`] of the enlarged radius, as method (1)
+/// counts); a splat's factor is the largest such need over the samples it serves, at least
+/// 1 and at most [`MAX_ENLARGE`]. A sample with no neighbour of a group joins that group
+/// itself, as in method (1). Returns the masks, the number of such duplicates and the
+/// factor per point.
+pub fn coverage_by_radii(
+    positions: &[Vec3],
+    radii: &[f32],
+) -> Result<(Vec<u32>, usize, Vec<f32>), NormalError> {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let n = positions.len();
+    let k_groups = TRANSPARENT_GROUPS;
+    if n < 3 {
+        return Ok((vec![1; n], 0, vec![1.0; n]));
+    }
+    let nb = neighbours(positions, 16.min(n - 1))?;
+    const NONE: u8 = u8::MAX;
+    let mut group = vec![NONE; n];
+    for i in 0..n {
+        let mut count = [0u32; TRANSPARENT_GROUPS];
+        for &p in nb.of(i) {
+            if let Some(c) = count.get_mut(group[p as usize] as usize) {
+                *c += 1;
+            }
+        }
+        let least = (0..k_groups).min_by_key(|&k| count[k]).unwrap_or(0);
+        group[i] = least as u8;
+    }
+    let folded = |i: usize| group[i] as usize;
+    let mut masks: Vec<u32> = (0..n).map(|i| 1u32 << folded(i)).collect();
+    // The distance each splat must reach (non-negative floats order as their bits).
+    let need: Vec<AtomicU32> = (0..n).map(|_| AtomicU32::new(0)).collect();
+    let alone: Vec<u32> = (0..n)
+        .into_par_iter()
+        .map(|j| {
+            let mut nearest = [(f32::INFINITY, u32::MAX); TRANSPARENT_GROUPS];
+            for &p in nb.of(j) {
+                let d = (positions[p as usize] - positions[j]).length();
+                let k = folded(p as usize);
+                if d < nearest[k].0 {
+                    nearest[k] = (d, p);
+                }
+            }
+            let mut missing = 0u32;
+            for (k, &(d, p)) in nearest.iter().enumerate().take(k_groups) {
+                if k == folded(j) {
+                    continue;
+                }
+                if p == u32::MAX {
+                    missing |= 1 << k;
+                } else {
+                    need[p as usize].fetch_max(d.to_bits(), Ordering::Relaxed);
+                }
+            }
+            missing
+        })
+        .collect();
+    let mut dup = 0;
+    for (m, a) in masks.iter_mut().zip(&alone) {
+        *m |= a;
+        dup += a.count_ones() as usize;
+    }
+    let factor = need
+        .iter()
+        .zip(radii)
+        .map(|(d, &r)| {
+            let d = f32::from_bits(d.load(Ordering::Relaxed));
+            if r > 0.0 && d > 0.0 {
+                (d / (COVER_REACH * r)).clamp(1.0, MAX_ENLARGE)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    Ok((masks, dup, factor))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -316,6 +408,45 @@ mod tests {
         }
         // Far fewer duplicates than a copy of the cloud per group.
         assert!(dup < pts.len() * kt, "{dup} duplicates over {kt} groups");
+    }
+
+    /// Method (2): every point stays in its own group alone but for rare duplicates, and
+    /// each group's enlarged splats reach (within COVER_REACH of their radius) every
+    /// sample; some splats grow, none shrinks or grows past MAX_ENLARGE.
+    #[test]
+    fn enlarged_radii_let_each_group_reach_every_sample() {
+        let pts = sphere(20_000, 6);
+        let radii = crate::normals::splat_radii(&neighbours(&pts, 16).unwrap(), 1.0);
+        let (masks, dup, factor) = coverage_by_radii(&pts, &radii).unwrap();
+        let kt = TRANSPARENT_GROUPS;
+        let total: usize = masks.iter().map(|m| m.count_ones() as usize).sum();
+        assert_eq!(total, pts.len() + dup);
+        // The groups are about equal.
+        for k in 0..kt {
+            let own = masks
+                .iter()
+                .filter(|&&m| m.trailing_zeros() as usize == k)
+                .count();
+            assert!(own * kt * 10 > pts.len() * 9, "group {k}: {own} points");
+        }
+        assert!(
+            dup * 50 < pts.len(),
+            "{dup} duplicates: the radii should do the work"
+        );
+        assert!(factor.iter().all(|&f| (1.0..=MAX_ENLARGE).contains(&f)));
+        assert!(factor.iter().any(|&f| f > 1.5), "no splat grew");
+        for k in 0..kt {
+            let members: Vec<usize> = (0..pts.len())
+                .filter(|&i| masks[i] & (1 << k) != 0)
+                .collect();
+            for i in (0..pts.len()).step_by(37) {
+                assert!(
+                    members.iter().any(|&j| (pts[i] - pts[j]).length()
+                        <= COVER_REACH * radii[j] * factor[j] * 1.0001),
+                    "group {k} leaves sample {i} uncovered"
+                );
+            }
+        }
     }
 
     #[test]

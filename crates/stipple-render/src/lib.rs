@@ -32,7 +32,7 @@ pub use frame::Frame;
 pub use gbuffer::{is_point, GBuffer, BACKGROUND, HOLE};
 pub use lights::{AreaLight, AreaShape, Light};
 pub use params::ViewParams;
-pub use passes::splat::{SplatMode, SplatSettings};
+pub use passes::splat::{CoverageMethod, SplatMode, SplatSettings};
 pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Material, Pipeline};
 pub use prepared::*;
 pub use renderer::{render, Renderer};

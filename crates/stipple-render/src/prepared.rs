@@ -63,7 +63,9 @@ pub struct PreparedCloud {
     /// [`PreparedCloud::groups`]), with the key and c they were made for.
     groups: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<stipple_core::grouping::Grouping>)>>,
     /// The transparent splats' group memberships (see [`PreparedCloud::coverage`]).
-    coverage: std::sync::Mutex<Option<(u64, u32, std::sync::Arc<Coverage>)>>,
+    #[allow(clippy::type_complexity)]
+    coverage:
+        std::sync::Mutex<Option<(u64, (u32, crate::CoverageMethod), std::sync::Arc<Coverage>)>>,
     /// The cloud's bounds, computed on first use for the key they were made for (a frame
     /// needs them; recomputing them read every point, 30 ms a frame at 100 M points).
     bounds: std::sync::Mutex<Option<(u64, stipple_core::Bounds)>>,
@@ -515,30 +517,63 @@ impl PreparedCloud {
         gr
     }
 
-    /// The groups transparent splats are drawn in (Zhang & Pajarola §4.2.2): the groups for
-    /// relaxation `c`, each completed with duplicates until it covers the surface
-    /// (`stipple_core::grouping::coverage_masks`); computed on first use and kept until the
-    /// cloud or c changes.
-    pub fn coverage(&self, c: f32) -> std::sync::Arc<Coverage> {
+    /// The groups transparent splats are drawn in (Zhang & Pajarola §4.2.2): with
+    /// [`CoverageMethod::Duplicate`] the groups for relaxation `c`, each completed with
+    /// duplicates until it covers the surface (`stipple_core::grouping::coverage_masks`);
+    /// with [`CoverageMethod::Enlarge`] four balanced groups of enlarged splats
+    /// (`stipple_core::grouping::coverage_by_radii`, c not used); computed on first use and
+    /// kept until the cloud, c or the method changes.
+    pub fn coverage(&self, c: f32, method: crate::CoverageMethod) -> std::sync::Arc<Coverage> {
         let mut g = self.coverage.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((k, cb, cov)) = g.as_ref() {
-            if *k == self.key && *cb == c.to_bits() {
+        let tag = (c.to_bits(), method);
+        if let Some((k, t, cov)) = g.as_ref() {
+            if *k == self.key && *t == tag {
                 return cov.clone();
             }
         }
-        let groups = self.groups(c);
         let radii = self.splat_radii();
-        let (masks, duplicates) =
-            stipple_core::grouping::coverage_masks(&self.cloud.positions, &radii, &groups)
-                .unwrap_or_else(|_| (vec![1; self.cloud.len()], 0));
-        let cov = std::sync::Arc::new(Coverage {
-            masks,
-            groups: groups
-                .groups
-                .clamp(1, stipple_core::grouping::TRANSPARENT_GROUPS),
-            duplicates,
-        });
-        *g = Some((self.key, c.to_bits(), cov.clone()));
+        let n = self.cloud.len();
+        let cov = match method {
+            crate::CoverageMethod::Duplicate => {
+                let groups = self.groups(c);
+                let (masks, duplicates) =
+                    stipple_core::grouping::coverage_masks(&self.cloud.positions, &radii, &groups)
+                        .unwrap_or_else(|_| (vec![1; n], 0));
+                Coverage {
+                    masks,
+                    groups: groups
+                        .groups
+                        .clamp(1, stipple_core::grouping::TRANSPARENT_GROUPS),
+                    duplicates,
+                    enlarged: None,
+                }
+            }
+            crate::CoverageMethod::Enlarge => {
+                let (mut masks, duplicates, factor) =
+                    stipple_core::grouping::coverage_by_radii(&self.cloud.positions, &radii)
+                        .unwrap_or_else(|_| (vec![1; n], 0, vec![1.0; n]));
+                let (mut most, mut sum) = (1.0f32, 0.0f64);
+                for (m, f) in masks.iter_mut().zip(&factor) {
+                    let q = Coverage::quantise(*f);
+                    *m |= q << 16;
+                    let f = Coverage::factor(*m);
+                    most = most.max(f);
+                    sum += f as f64;
+                }
+                Coverage {
+                    masks,
+                    groups: if n < 3 {
+                        1
+                    } else {
+                        stipple_core::grouping::TRANSPARENT_GROUPS
+                    },
+                    duplicates,
+                    enlarged: Some((most, (sum / n.max(1) as f64) as f32)),
+                }
+            }
+        };
+        let cov = std::sync::Arc::new(cov);
+        *g = Some((self.key, tag, cov.clone()));
         cov
     }
 
@@ -678,10 +713,36 @@ mod tests {
 /// The groups transparent splats are drawn in ([`PreparedCloud::coverage`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Coverage {
-    /// Per point, the groups it is drawn in (bit k: group k).
+    /// Per point, the groups it is drawn in (bit k: group k; bits 0–7) and the factor its
+    /// splat is enlarged by in 1/256 (bits 16–31; 0: not enlarged), see
+    /// [`Coverage::factor`].
     pub masks: Vec<u32>,
     /// The number of groups K.
     pub groups: usize,
     /// Memberships beyond each point's own group.
     pub duplicates: usize,
+    /// With enlarged radii: the largest factor and the mean.
+    pub enlarged: Option<(f32, f32)>,
+}
+
+impl Coverage {
+    /// The groups of a mask (bit k: group k).
+    #[inline]
+    pub fn groups_of(mask: u32) -> u32 {
+        mask & 0xff
+    }
+
+    /// The factor a mask's splat is enlarged by (as the WGSL twin decodes it).
+    #[inline]
+    pub fn factor(mask: u32) -> f32 {
+        match mask >> 16 {
+            0 => 1.0,
+            q => q as f32 / 256.0,
+        }
+    }
+
+    /// A factor in 1/256, as a mask's upper 16 bits hold it.
+    pub fn quantise(f: f32) -> u32 {
+        ((f * 256.0).round() as u32).clamp(256, 0xffff)
+    }
 }

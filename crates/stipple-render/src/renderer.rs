@@ -179,7 +179,8 @@ impl Renderer {
                         renderer.set_splat_groups(up, &cloud.groups(sp.c))?;
                     }
                     if let Some(sp) = pipe.splat.filter(|s| s.mode == SplatMode::Transparent) {
-                        renderer.set_splat_masks(up, sp.c, &cloud.coverage(sp.c))?;
+                        let cov = cloud.coverage(sp.c, sp.coverage);
+                        renderer.set_splat_masks(up, (sp.c, sp.coverage), &cov)?;
                     }
                 }
                 let before = t0.elapsed().as_secs_f64() * 1e3;

@@ -87,6 +87,26 @@ pub struct RenderSpec {
     pub ior: Option<f32>,
     /// Chromatic dispersion of the refraction, as `--dispersion`.
     pub dispersion: Option<f32>,
+    /// How transparent splats make each group cover the surface: "duplicate" or
+    /// "enlarge", as `--coverage`.
+    pub coverage: Option<CoverageSpec>,
+}
+
+/// `[render] coverage` (see `stipple_render::CoverageMethod`).
+#[derive(Deserialize, Debug, Clone, Copy, PartialEq, Eq)]
+#[serde(rename_all = "kebab-case")]
+pub enum CoverageSpec {
+    Duplicate,
+    Enlarge,
+}
+
+impl From<CoverageSpec> for stipple_render::CoverageMethod {
+    fn from(c: CoverageSpec) -> Self {
+        match c {
+            CoverageSpec::Duplicate => stipple_render::CoverageMethod::Duplicate,
+            CoverageSpec::Enlarge => stipple_render::CoverageMethod::Enlarge,
+        }
+    }
 }
 
 #[derive(Deserialize, Debug, Clone)]
@@ -996,6 +1016,10 @@ samples = 8
             ("[[cloud]]\ndemo = \"cube\"\n", "unknown demo `cube`"),
             ("[[cloud]]\nfile = \"a.ply\"\ndemo = \"sphere\"\n", "exactly one of"),
             ("[[cloud]]\ndemo = \"sphere\"\nopacity = 2\n", "opacity 2"),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\n[render]\ncoverage = \"stretch\"\n",
+                "unknown variant `stretch`",
+            ),
             (
                 "[[cloud]]\ndemo = \"sphere\"\nmaterial = { ior = 0 }\n",
                 "cloud 1: material ior 0",

@@ -400,6 +400,14 @@ def test_environments_and_algorithm_3_render_as_the_cli(cli, tmp_path):
                        env="sky", ior=1.5, dispersion=0.02, smooth_nearest=True,
                        pipeline="splat")
     assert np.array_equal(r.image, read_png(png))
+    # Enlarged radii instead of duplicates (coverage="enlarge", --coverage enlarge).
+    png2 = tmp_path / "enlarged.png"
+    run_cli(cli, "render", "--demo", "sphere", "--points", "3000", "--opacity", "0.5",
+            "--coverage", "enlarge", "--pipeline", "splat", "--size", "64",
+            "--backend", "cpu", "-o", png2)
+    e = stipple.render(c, stipple.Camera.framing(c, size=64), backend="cpu", opacity=0.5,
+                       coverage="enlarge", pipeline="splat")
+    assert np.array_equal(e.image, read_png(png2))
     with pytest.raises(ValueError, match="ior"):
         stipple.render(c, stipple.Camera.framing(c, size=32), backend="cpu", opacity=0.5,
                        env="sky", ior=-2.0, pipeline="splat")

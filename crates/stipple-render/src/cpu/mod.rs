@@ -263,7 +263,7 @@ impl crate::schedule::PassExec for CpuExec<'_> {
             });
             let (col, sd) = (&mut r.colour.0, &mut r.surface_depth);
             if sp.mode == crate::SplatMode::Transparent {
-                let cov = cloud.coverage(sp.c);
+                let cov = cloud.coverage(sp.c, sp.coverage);
                 let optics = cloud.objects.as_ref().map(|t| {
                     let o: Vec<_> = t.materials.iter().map(|m| m.optics).collect();
                     (&t.index, o)

@@ -91,7 +91,7 @@ impl GpuRenderer {
     pub fn set_splat_masks(
         &mut self,
         cloud: &GpuCloud,
-        c: f32,
+        c: (f32, crate::CoverageMethod),
         cov: &crate::Coverage,
     ) -> Result<(), GpuError> {
         self.splat.set_masks(&self.ctx, cloud, c, cov)

@@ -91,7 +91,7 @@ pub(crate) struct SplatGpu {
     sorted: Option<(u64, crate::passes::bucket_sort::gpu::SortBuffers, Buffer)>,
     /// Transparent splats: the group masks of the cloud uploaded last (upload key, c bits,
     /// masks, K), and the K images per pixel kept between dispatches (its size in bytes).
-    masks: Option<(u64, u32, Buffer, usize)>,
+    masks: Option<(u64, (u32, crate::CoverageMethod), Buffer, usize)>,
     group_acc: Option<(u64, Buffer)>,
     /// Transparent splats: the environment's texels (vec4 each; one dummy texel for the
     /// sky), kept while the frame's environment is the same one.
@@ -320,13 +320,13 @@ impl SplatGpu {
         &mut self,
         ctx: &GpuContext,
         cloud: &GpuCloud,
-        c: f32,
+        (c, method): (f32, crate::CoverageMethod),
         cov: &crate::Coverage,
     ) -> Result<(), GpuError> {
         if self
             .masks
             .as_ref()
-            .is_some_and(|x| x.0 == cloud.key && x.1 == c.to_bits())
+            .is_some_and(|x| x.0 == cloud.key && x.1 == (c.to_bits(), method))
         {
             return Ok(());
         }
@@ -343,7 +343,7 @@ impl SplatGpu {
             &cov.masks
         };
         let buf = util::storage_init(&ctx.device, "transparent masks", bytemuck::cast_slice(data));
-        self.masks = Some((cloud.key, c.to_bits(), buf, cov.groups));
+        self.masks = Some((cloud.key, (c.to_bits(), method), buf, cov.groups));
         ctx.take_errors()
     }
 

@@ -100,6 +100,22 @@ pub enum SplatMode {
     Transparent,
 }
 
+/// How transparent splats make each group cover the surface (Zhang & Pajarola §4.2.2).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum CoverageMethod {
+    /// Method (1): splats of other groups are duplicated into a group until its splats reach
+    /// every sample (`stipple_core::grouping::coverage_masks`). The default: sharp, each
+    /// splat at its own size.
+    #[default]
+    Duplicate,
+    /// Method (2): every splat stays in one of four groups balanced in every neighbourhood,
+    /// and is enlarged until its group reaches every sample
+    /// (`stipple_core::grouping::coverage_by_radii`): no duplicates, larger splats (softer
+    /// silhouettes).
+    Enlarge,
+}
+
 impl SplatMode {
     /// Drawn back to front in one pass, shaded per point (no shade pass, no ε-z test).
     pub fn is_ordered(self) -> bool {
@@ -123,6 +139,8 @@ pub struct SplatSettings {
     /// Transparent mode: the nearest layer smoothly interpolated (Zhang & Pajarola's
     /// Algorithm 3, §5.2.2) instead of each group's nearest fragment (Algorithm 2).
     pub smooth_nearest: bool,
+    /// Transparent mode: how each group covers the surface.
+    pub coverage: CoverageMethod,
 }
 
 impl SplatSettings {
@@ -142,6 +160,7 @@ impl Default for SplatSettings {
             c: stipple_core::grouping::DEFAULT_C,
             depth_range: None,
             smooth_nearest: false,
+            coverage: CoverageMethod::Duplicate,
         }
     }
 }

@@ -191,6 +191,9 @@ var<workgroup> tile_a: array<vec4<f32>, 256>;
 var<workgroup> tile_b: array<vec4<f32>, 256>;
 var<workgroup> tile_id: array<u32, 256>;
 var<workgroup> tile_kept: u32;
+// Per round, bit j set: staged splat j meets the tile (two sets, alternating by round, so
+// that one is cleared while the other is read): the pixels walk only those, in order.
+var<workgroup> tile_hits: array<array<atomic<u32>, 8>, 2>;
 
 // The order is drawn in dispatches of at most sorted_gpu::BATCH splats, the accumulators
 // kept per pixel between them: on lavapipe one dispatch drew only the first 65 536 splats
@@ -223,53 +226,60 @@ fn sorted_composite(
     let cx = f32(px) + 0.5;
     let cy = f32(py) + 0.5;
     var base = scomp.begin;
+    var round = 0u;
     loop {
         if (base >= kept) {
             break;
         }
+        let buf = round & 1u;
         let k = base + li;
-        var a = vec4<f32>(0.0, 0.0, -1.0, 0.0);
-        var b = vec4<f32>(0.0);
-        var id = 0u;
         if (k < kept) {
-            id = s_order[k];
-            a = s_splats[4u * id];
-            b = s_splats[4u * id + 1u];
-            // A splat that misses the tile is skipped by every thread.
-            if (a.x + a.z < tx0 || a.x - a.z > tx0 + 16.0 || a.y + a.z < ty0 || a.y - a.z > ty0 + 16.0) {
-                a.z = -1.0;
+            let id = s_order[k];
+            let a = s_splats[4u * id];
+            // Only splats that meet the tile are staged and marked (a splat that misses it
+            // costs its one test here, not one per pixel).
+            if (!(a.z < 0.0 || a.x + a.z < tx0 || a.x - a.z > tx0 + 16.0 || a.y + a.z < ty0 || a.y - a.z > ty0 + 16.0)) {
+                tile_a[li] = a;
+                tile_b[li] = s_splats[4u * id + 1u];
+                tile_id[li] = id;
+                atomicOr(&tile_hits[buf][li >> 5u], 1u << (li & 31u));
             }
         }
-        tile_a[li] = a;
-        tile_b[li] = b;
-        tile_id[li] = id;
         workgroupBarrier();
-        let m = min(256u, kept - base);
+        if (li < 8u) {
+            atomicStore(&tile_hits[buf ^ 1u][li], 0u);
+        }
         if (inside) {
-            for (var j = 0u; j < m; j++) {
-                let s = tile_a[j];
-                if (s.z < 0.0) {
-                    continue;
-                }
-                let dx = cx - s.x;
-                let dy = cy - s.y;
-                let inv = 1.0 / (s.z * s.z);
-                let d2 = (dx * dx + dy * dy) * inv;
-                if (d2 > 1.0) {
-                    continue;
-                }
-                let t = tile_b[j];
-                let wgt = exp(-3.0 * d2);
-                let al = 1.0 - exp(-t.w * wgt);
-                acc = vec4<f32>(al * t.xyz + (1.0 - al) * acc.xyz, al + (1.0 - al) * acc.w);
-                if (wgt >= SORTED_ID_WEIGHT) {
-                    dep = s.w;
-                    pid = tile_id[j];
+            for (var w = 0u; w < 8u; w++) {
+                var bits = atomicLoad(&tile_hits[buf][w]);
+                loop {
+                    if (bits == 0u) {
+                        break;
+                    }
+                    let j = 32u * w + firstTrailingBit(bits);
+                    bits = bits & (bits - 1u);
+                    let s = tile_a[j];
+                    let dx = cx - s.x;
+                    let dy = cy - s.y;
+                    let inv = 1.0 / (s.z * s.z);
+                    let d2 = (dx * dx + dy * dy) * inv;
+                    if (d2 > 1.0) {
+                        continue;
+                    }
+                    let t = tile_b[j];
+                    let wgt = exp(-3.0 * d2);
+                    let al = 1.0 - exp(-t.w * wgt);
+                    acc = vec4<f32>(al * t.xyz + (1.0 - al) * acc.xyz, al + (1.0 - al) * acc.w);
+                    if (wgt >= SORTED_ID_WEIGHT) {
+                        dep = s.w;
+                        pid = tile_id[j];
+                    }
                 }
             }
         }
         workgroupBarrier();
         base = base + 256u;
+        round = round + 1u;
     }
     if (inside) {
         s_acc[pix] = acc;
@@ -691,7 +701,14 @@ fn transparent_points(
     }
     let g = sc.base + local;
     let q = vec3<f32>(s_positions[3u * local], s_positions[3u * local + 1u], s_positions[3u * local + 2u]);
-    let r = s_shapes[3u * local].x * sc.scale * T_DRAW_SCALE;
+    // The groups (bits 0–7) and the radius factor in 1/256 (bits 16–31, 0: none;
+    // Coverage::factor).
+    let mask = t_masks[g];
+    var factor = 1.0;
+    if ((mask >> 16u) != 0u) {
+        factor = f32(mask >> 16u) / 256.0;
+    }
+    let r = s_shapes[3u * local].x * sc.scale * T_DRAW_SCALE * factor;
     var n = -view.forward;
     if (sc.disc_normals == 1u) {
         n = vec3<f32>(s_normals[3u * local], s_normals[3u * local + 1u], s_normals[3u * local + 2u]);
@@ -707,9 +724,8 @@ fn transparent_points(
     let st = point_style(local);
     let alpha = f32((st >> 8u) & 0xffu) / 255.0;
     let object = st & 0xffu;
-    let mask = t_masks[g];
     var rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
-    if (ok && r > 0.0 && mask != 0u) {
+    if (ok && r > 0.0 && (mask & 0xffu) != 0u) {
         rect = t_bound(q, r);
     }
     let c = shaded_point(local, q, object);
@@ -726,6 +742,8 @@ var<workgroup> t_tile_c: array<vec4<f32>, 128>;
 var<workgroup> t_tile_r: array<vec4<f32>, 128>;
 var<workgroup> t_tile_id: array<u32, 128>;
 var<workgroup> t_kept: u32;
+// As tile_hits: bit j set when staged splat j meets the tile.
+var<workgroup> t_hits: array<array<atomic<u32>, 4>, 2>;
 
 @compute @workgroup_size(16, 16)
 fn transparent_composite(
@@ -801,117 +819,129 @@ fn transparent_composite(
     let fx = f32(px);
     let fy = f32(py);
     var base = scomp.begin;
+    var round = 0u;
     loop {
         if (base >= kept) {
             break;
         }
+        let buf = round & 1u;
         if (li < 128u) {
             let k = base + li;
-            var rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
-            var id = 0u;
             if (k < kept) {
-                id = s_order[k];
-                rect = s_splats[4u * id + 3u];
-                // A splat that misses the tile is skipped by every thread.
-                if (rect.z < tx0 || rect.x > tx0 + 15.0 || rect.w < ty0 || rect.y > ty0 + 15.0) {
-                    rect = vec4<f32>(1.0, 1.0, 0.0, 0.0);
+                let id = s_order[k];
+                let rect = s_splats[4u * id + 3u];
+                // Only splats that meet the tile are staged and marked (a splat that misses
+                // it costs its one test here, not one per pixel).
+                if (rect.x <= rect.z && !(rect.z < tx0 || rect.x > tx0 + 15.0 || rect.w < ty0 || rect.y > ty0 + 15.0)) {
+                    t_tile_p[li] = s_splats[4u * id];
+                    t_tile_n[li] = s_splats[4u * id + 1u];
+                    t_tile_c[li] = s_splats[4u * id + 2u];
+                    t_tile_r[li] = rect;
+                    t_tile_id[li] = id;
+                    atomicOr(&t_hits[buf][li >> 5u], 1u << (li & 31u));
                 }
-                t_tile_p[li] = s_splats[4u * id];
-                t_tile_n[li] = s_splats[4u * id + 1u];
-                t_tile_c[li] = s_splats[4u * id + 2u];
             }
-            t_tile_r[li] = rect;
-            t_tile_id[li] = id;
         }
         workgroupBarrier();
-        let m = min(128u, kept - base);
+        if (li < 4u) {
+            atomicStore(&t_hits[buf ^ 1u][li], 0u);
+        }
         if (inside) {
-            for (var j = 0u; j < m; j++) {
-                let rect = t_tile_r[j];
-                if (fx < rect.x || fx > rect.z || fy < rect.y || fy > rect.w) {
-                    continue;
-                }
-                let sp4 = t_tile_p[j];
-                let nn = t_tile_n[j];
-                // transparent::flat_hit
-                let dn = dot3(rd, nn.xyz);
-                if (dn == 0.0) {
-                    continue;
-                }
-                let a = ro - sp4.xyz;
-                let t = -dot3(a, nn.xyz) / dn;
-                let hit = a + rd * t;
-                let d2 = dot3(hit, hit);
-                if (!(t > view.near && d2 < sp4.w)) {
-                    continue;
-                }
-                let q = d2 / sp4.w;
-                let id = t_tile_id[j];
-                let cm = t_tile_c[j];
-                let al = nn.w;
-                // transparent::Phase: opaque fragments (α = 255/255) alone, then the
-                // translucent ones in front of them.
-                let opaque = al * 255.0 >= 254.5;
-                if ((scomp.phase == 1u && !opaque) || (scomp.phase == 2u && (opaque || t > behind_z))) {
-                    continue;
-                }
-                // splat::weight: of the normal turned to the eye (an environment), and for
-                // Algorithm 3 of the colour and opacity.
-                let wq = exp(-3.0 * q);
-                var wn = vec4<f32>(0.0);
-                var wc = vec4<f32>(0.0);
-                if (scomp.env_kind != 0u) {
-                    wn = vec4<f32>(wq * select(nn.xyz, -nn.xyz, dn > 0.0), 0.0);
-                }
-                if (scomp.smooth_nearest == 1u) {
-                    wn.w = wq;
-                    wc = wq * vec4<f32>(cm.xyz, al);
-                }
-                if (scomp.phase == 2u) {
-                    if (!(far.w < infinity())) {
-                        far = vec4<f32>(wn.xyz, t);
-                    } else if (t >= far.w - scomp.epsilon) {
-                        far = vec4<f32>(far.xyz + wn.xyz, far.w);
-                    }
-                }
-                var bits = bitcast<u32>(cm.w) & 0xffu;
+            for (var w = 0u; w < 4u; w++) {
+                var hit_bits = atomicLoad(&t_hits[buf][w]);
                 loop {
-                    if (bits == 0u) {
+                    if (hit_bits == 0u) {
                         break;
                     }
-                    let g = firstTrailingBit(bits);
-                    bits = bits & (bits - 1u);
-                    if (g >= k_groups) {
-                        break;
+                    let j = 32u * w + firstTrailingBit(hit_bits);
+                    hit_bits = hit_bits & (hit_bits - 1u);
+                    let rect = t_tile_r[j];
+                    if (fx < rect.x || fx > rect.z || fy < rect.y || fy > rect.w) {
+                        continue;
                     }
-                    // transparent::Layered::add
-                    let depth = st1[g].w;
-                    if (t < depth - scomp.epsilon) {
-                        if (depth < infinity()) {
-                            let s0 = st0[g];
-                            st0[g] = vec4<f32>(s0.w * st1[g].xyz + (1.0 - s0.w) * s0.xyz, s0.w);
-                            st2[g].z = st2[g].z * (1.0 - s0.w);
-                            st2[g].w = st2[g].w + 1.0;
-                        }
-                        st3[g] = wn;
-                        st4[g] = wc;
-                    } else {
-                        st3[g] = st3[g] + wn;
-                        st4[g] = st4[g] + wc;
-                        let cq = st2[g].x;
-                        let cid = bitcast<u32>(st2[g].y);
-                        if (q > cq || (q == cq && id >= cid)) {
-                            continue;
+                    let sp4 = t_tile_p[j];
+                    let nn = t_tile_n[j];
+                    // transparent::flat_hit
+                    let dn = dot3(rd, nn.xyz);
+                    if (dn == 0.0) {
+                        continue;
+                    }
+                    let a = ro - sp4.xyz;
+                    let t = -dot3(a, nn.xyz) / dn;
+                    let hit = a + rd * t;
+                    let d2 = dot3(hit, hit);
+                    if (!(t > view.near && d2 < sp4.w)) {
+                        continue;
+                    }
+                    let q = d2 / sp4.w;
+                    let id = t_tile_id[j];
+                    let cm = t_tile_c[j];
+                    let al = nn.w;
+                    // transparent::Phase: opaque fragments (α = 255/255) alone, then the
+                    // translucent ones in front of them.
+                    let opaque = al * 255.0 >= 254.5;
+                    if ((scomp.phase == 1u && !opaque) || (scomp.phase == 2u && (opaque || t > behind_z))) {
+                        continue;
+                    }
+                    // splat::weight: of the normal turned to the eye (an environment), and for
+                    // Algorithm 3 of the colour and opacity.
+                    let wq = exp(-3.0 * q);
+                    var wn = vec4<f32>(0.0);
+                    var wc = vec4<f32>(0.0);
+                    if (scomp.env_kind != 0u) {
+                        wn = vec4<f32>(wq * select(nn.xyz, -nn.xyz, dn > 0.0), 0.0);
+                    }
+                    if (scomp.smooth_nearest == 1u) {
+                        wn.w = wq;
+                        wc = wq * vec4<f32>(cm.xyz, al);
+                    }
+                    if (scomp.phase == 2u) {
+                        if (!(far.w < infinity())) {
+                            far = vec4<f32>(wn.xyz, t);
+                        } else if (t >= far.w - scomp.epsilon) {
+                            far = vec4<f32>(far.xyz + wn.xyz, far.w);
                         }
                     }
-                    st0[g].w = al;
-                    st1[g] = vec4<f32>(cm.xyz, t);
-                    st2[g] = vec4<f32>(q, bitcast<f32>(id), st2[g].z, st2[g].w);
+                    var bits = bitcast<u32>(cm.w) & 0xffu;
+                    loop {
+                        if (bits == 0u) {
+                            break;
+                        }
+                        let g = firstTrailingBit(bits);
+                        bits = bits & (bits - 1u);
+                        if (g >= k_groups) {
+                            break;
+                        }
+                        // transparent::Layered::add
+                        let depth = st1[g].w;
+                        if (t < depth - scomp.epsilon) {
+                            if (depth < infinity()) {
+                                let s0 = st0[g];
+                                st0[g] = vec4<f32>(s0.w * st1[g].xyz + (1.0 - s0.w) * s0.xyz, s0.w);
+                                st2[g].z = st2[g].z * (1.0 - s0.w);
+                                st2[g].w = st2[g].w + 1.0;
+                            }
+                            st3[g] = wn;
+                            st4[g] = wc;
+                        } else {
+                            st3[g] = st3[g] + wn;
+                            st4[g] = st4[g] + wc;
+                            let cq = st2[g].x;
+                            let cid = bitcast<u32>(st2[g].y);
+                            if (q > cq || (q == cq && id >= cid)) {
+                                continue;
+                            }
+                        }
+                        st0[g].w = al;
+                        st1[g] = vec4<f32>(cm.xyz, t);
+                        st2[g] = vec4<f32>(q, bitcast<f32>(id), st2[g].z, st2[g].w);
+                    }
                 }
             }
         }
         workgroupBarrier();
         base = base + 128u;
+        round = round + 1u;
     }
     if (inside) {
         if (scomp.last == 1u) {
