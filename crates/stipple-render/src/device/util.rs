@@ -97,6 +97,7 @@ pub(crate) fn compute(
 }
 
 /// A bind group from buffers (and texture views) in binding order; `None` skips a number.
+#[derive(Clone, Copy)]
 pub(crate) enum Res<'a> {
     Buf(&'a wgpu::Buffer),
     /// A uniform block of `size` bytes inside the arena (offset given at dispatch).

@@ -93,6 +93,9 @@ pub(crate) struct SplatGpu {
     /// masks, K), and the K images per pixel kept between dispatches (its size in bytes).
     masks: Option<(u64, (u32, crate::CoverageMethod), Buffer, usize)>,
     group_acc: Option<(u64, Buffer)>,
+    /// Sorted and transparent splats' per-tile lists (sorted.wgsl `bin_cnt`, `bin_pairs`)
+    /// with their sizes in bytes, kept between frames of one size and cloud size.
+    bins: Option<((u64, u64), Buffer, Buffer)>,
     /// Transparent splats: the environment's texels (vec4 each; one dummy texel for the
     /// sky), kept while the frame's environment is the same one.
     env: Option<(std::sync::Arc<crate::env::Environment>, Buffer)>,
@@ -233,6 +236,7 @@ impl SplatGpu {
             sorted: None,
             masks: None,
             group_acc: None,
+            bins: None,
             env: None,
         }
     }
@@ -378,6 +382,24 @@ impl SplatGpu {
             ));
         }
         Ok(&self.group_acc.as_ref().expect("made above").1)
+    }
+
+    /// The per-tile lists' buffers (counts and offsets, entries) of these sizes in bytes
+    /// (kept between frames of the same sizes).
+    pub(crate) fn bins(
+        &mut self,
+        ctx: &GpuContext,
+        (cnt, pairs): (u64, u64),
+    ) -> (&Buffer, &Buffer) {
+        if self.bins.as_ref().map(|b| b.0) != Some((cnt, pairs)) {
+            self.bins = Some((
+                (cnt, pairs),
+                util::storage(&ctx.device, "splat tile counts", cnt),
+                util::storage(&ctx.device, "splat tile lists", pairs),
+            ));
+        }
+        let b = self.bins.as_ref().expect("made above");
+        (&b.1, &b.2)
     }
 
     /// The environment's texels on the device (uploaded when the environment changes), and

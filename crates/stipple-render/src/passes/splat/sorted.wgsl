@@ -190,7 +190,11 @@ fn sorted_points(
 var<workgroup> tile_a: array<vec4<f32>, 256>;
 var<workgroup> tile_b: array<vec4<f32>, 256>;
 var<workgroup> tile_id: array<u32, 256>;
-var<workgroup> tile_kept: u32;
+// The entries this tile walks: [tile_lo, tile_hi) of its binned list (tile_binned 1) or
+// of the sorted order (bin_range).
+var<workgroup> tile_lo: u32;
+var<workgroup> tile_hi: u32;
+var<workgroup> tile_binned: u32;
 // Per round, bit j set: staged splat j meets the tile (two sets, alternating by round, so
 // that one is cleared while the other is read): the pixels walk only those, in order.
 var<workgroup> tile_hits: array<array<atomic<u32>, 8>, 2>;
@@ -212,9 +216,14 @@ fn sorted_composite(
     let tx0 = f32(wg.x * 16u);
     let ty0 = f32(wg.y * 16u);
     if (li == 0u) {
-        tile_kept = min(s_counts[2u * scomp.n], scomp.end);
+        let r = bin_range(wg.y * binp.tiles_x + wg.x, scomp.begin, min(s_counts[2u * scomp.n], scomp.end));
+        tile_lo = r.x;
+        tile_hi = r.y;
+        tile_binned = r.z;
     }
-    let kept = workgroupUniformLoad(&tile_kept);
+    let lo = workgroupUniformLoad(&tile_lo);
+    let hi = workgroupUniformLoad(&tile_hi);
+    let binned = workgroupUniformLoad(&tile_binned);
     var acc = vec4<f32>(0.0);
     var dep = infinity();
     var pid = BACKGROUND;
@@ -225,15 +234,19 @@ fn sorted_composite(
     }
     let cx = f32(px) + 0.5;
     let cy = f32(py) + 0.5;
-    var base = scomp.begin;
+    var base = lo;
     var round = 0u;
     loop {
-        if (base >= kept) {
+        if (base >= hi) {
             break;
         }
         let buf = round & 1u;
-        let k = base + li;
-        if (k < kept) {
+        let e = base + li;
+        if (e < hi) {
+            var k = e;
+            if (binned == 1u) {
+                k = bin_pairs[e];
+            }
             let id = s_order[k];
             let a = s_splats[4u * id];
             // Only splats that meet the tile are staged and marked (a splat that misses it
@@ -741,7 +754,9 @@ var<workgroup> t_tile_n: array<vec4<f32>, 128>;
 var<workgroup> t_tile_c: array<vec4<f32>, 128>;
 var<workgroup> t_tile_r: array<vec4<f32>, 128>;
 var<workgroup> t_tile_id: array<u32, 128>;
-var<workgroup> t_kept: u32;
+var<workgroup> t_lo: u32;
+var<workgroup> t_hi: u32;
+var<workgroup> t_binned: u32;
 // As tile_hits: bit j set when staged splat j meets the tile.
 var<workgroup> t_hits: array<array<atomic<u32>, 4>, 2>;
 
@@ -759,9 +774,14 @@ fn transparent_composite(
     let tx0 = f32(wg.x * 16u);
     let ty0 = f32(wg.y * 16u);
     if (li == 0u) {
-        t_kept = min(s_counts[2u * scomp.n], scomp.end);
+        let r = bin_range(wg.y * binp.tiles_x + wg.x, scomp.begin, min(s_counts[2u * scomp.n], scomp.end));
+        t_lo = r.x;
+        t_hi = r.y;
+        t_binned = r.z;
     }
-    let kept = workgroupUniformLoad(&t_kept);
+    let lo = workgroupUniformLoad(&t_lo);
+    let hi = workgroupUniformLoad(&t_hi);
+    let binned = workgroupUniformLoad(&t_binned);
     let k_groups = min(max(scomp.groups, 1u), T_MAX_GROUPS);
     // transparent::Layered per group
     var st0: array<vec4<f32>, 4>;
@@ -818,16 +838,20 @@ fn transparent_composite(
     }
     let fx = f32(px);
     let fy = f32(py);
-    var base = scomp.begin;
+    var base = lo;
     var round = 0u;
     loop {
-        if (base >= kept) {
+        if (base >= hi) {
             break;
         }
         let buf = round & 1u;
         if (li < 128u) {
-            let k = base + li;
-            if (k < kept) {
+            let e = base + li;
+            if (e < hi) {
+                var k = e;
+                if (binned == 1u) {
+                    k = bin_pairs[e];
+                }
                 let id = s_order[k];
                 let rect = s_splats[4u * id + 3u];
                 // Only splats that meet the tile are staged and marked (a splat that misses
@@ -1072,4 +1096,236 @@ fn transparent_composite(
             }
         }
     }
+}
+
+// ---- Per-tile binning of the sorted splats (sorted and transparent composites) ----
+//   bin_count  per sorted position: count the 16×16 tiles its splat reaches
+//   bin_scan   one workgroup: the tiles' offsets (exclusive prefix sum) and the total
+//   bin_fill   per sorted position: its index into each tile's list (unordered)
+//   bin_sort   one workgroup per tile: its list sorted by position (back to front again)
+// The composites then walk only their tile's list, unless the lists overflowed bin_pairs
+// (the total exceeds the capacity), when they walk every splat as before.
+
+struct BinParams {
+    // First-level buckets of the sort: the points kept are at s_counts[2 n].
+    n: u32,
+    tiles_x: u32,
+    tiles_y: u32,
+    // Entries bin_pairs holds.
+    capacity: u32,
+    // 1: transparent splats (pixel rectangle at s_splats[4 id + 3]); 0: sorted splats
+    // (centre and footprint radius in pixels at s_splats[4 id]).
+    transparent: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+// [0, T): per tile its count, then its fill cursor; [T, 2T]: the offsets (exclusive), the
+// total at 2T. T = tiles_x · tiles_y.
+@group(0) @binding(30) var<storage, read_write> bin_cnt: array<atomic<u32>>;
+// Per tile its list of sorted positions, at its offset.
+@group(0) @binding(31) var<storage, read_write> bin_pairs: array<u32>;
+@group(0) @binding(32) var<uniform> binp: BinParams;
+
+// The tiles (x0, y0, x1, y1) splat `id` may reach (a superset of the composites' own
+// test); x0 > x1 when none.
+fn bin_tiles(id: u32) -> vec4<i32> {
+    let none = vec4<i32>(1, 0, 0, 0);
+    var lo = vec2<f32>(0.0);
+    var hi = vec2<f32>(0.0);
+    if (binp.transparent == 1u) {
+        let r = s_splats[4u * id + 3u];
+        if (!(r.x <= r.z && r.y <= r.w)) {
+            return none;
+        }
+        lo = r.xy;
+        hi = r.zw;
+    } else {
+        let a = s_splats[4u * id];
+        if (a.z < 0.0) {
+            return none;
+        }
+        lo = a.xy - vec2<f32>(a.z + 1.0);
+        hi = a.xy + vec2<f32>(a.z + 1.0);
+    }
+    let tmax = vec2<f32>(f32(binp.tiles_x) - 1.0, f32(binp.tiles_y) - 1.0);
+    if (hi.x < 0.0 || hi.y < 0.0 || lo.x > (tmax.x + 1.0) * 16.0 || lo.y > (tmax.y + 1.0) * 16.0) {
+        return none;
+    }
+    let t0 = clamp(floor(lo / 16.0), vec2<f32>(0.0), tmax);
+    let t1 = clamp(floor(hi / 16.0), vec2<f32>(0.0), tmax);
+    return vec4<i32>(i32(t0.x), i32(t0.y), i32(t1.x), i32(t1.y));
+}
+
+@compute @workgroup_size(256)
+fn bin_count(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let k = group_index(wg, groups) * 256u + li;
+    if (k >= s_counts[2u * binp.n]) {
+        return;
+    }
+    let t = bin_tiles(s_order[k]);
+    for (var ty = t.y; ty <= t.w; ty++) {
+        for (var tx = t.x; tx <= t.z; tx++) {
+            atomicAdd(&bin_cnt[u32(ty) * binp.tiles_x + u32(tx)], 1u);
+        }
+    }
+}
+
+var<workgroup> bin_sums: array<u32, 256>;
+
+@compute @workgroup_size(256)
+fn bin_scan(@builtin(local_invocation_index) li: u32) {
+    let tiles = binp.tiles_x * binp.tiles_y;
+    let per = (tiles + 255u) / 256u;
+    let first = li * per;
+    var sum = 0u;
+    for (var t = first; t < min(first + per, tiles); t++) {
+        sum = sum + atomicLoad(&bin_cnt[t]);
+    }
+    bin_sums[li] = sum;
+    workgroupBarrier();
+    if (li == 0u) {
+        var run = 0u;
+        for (var i = 0u; i < 256u; i++) {
+            let s = bin_sums[i];
+            bin_sums[i] = run;
+            run = run + s;
+        }
+        atomicStore(&bin_cnt[2u * tiles], run);
+    }
+    workgroupBarrier();
+    var off = bin_sums[li];
+    for (var t = first; t < min(first + per, tiles); t++) {
+        let c = atomicLoad(&bin_cnt[t]);
+        atomicStore(&bin_cnt[tiles + t], off);
+        atomicStore(&bin_cnt[t], 0u);
+        off = off + c;
+    }
+}
+
+@compute @workgroup_size(256)
+fn bin_fill(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let k = group_index(wg, groups) * 256u + li;
+    let tiles = binp.tiles_x * binp.tiles_y;
+    if (k >= s_counts[2u * binp.n] || atomicLoad(&bin_cnt[2u * tiles]) > binp.capacity) {
+        return;
+    }
+    let t = bin_tiles(s_order[k]);
+    for (var ty = t.y; ty <= t.w; ty++) {
+        for (var tx = t.x; tx <= t.z; tx++) {
+            let tile = u32(ty) * binp.tiles_x + u32(tx);
+            let slot = atomicAdd(&bin_cnt[tile], 1u);
+            bin_pairs[atomicLoad(&bin_cnt[tiles + tile]) + slot] = k;
+        }
+    }
+}
+
+var<workgroup> bin_len: u32;
+
+@compute @workgroup_size(256)
+fn bin_sort(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let tiles = binp.tiles_x * binp.tiles_y;
+    let tile = wg.y * binp.tiles_x + wg.x;
+    if (li == 0u) {
+        bin_len = 0u;
+        if (tile < tiles && atomicLoad(&bin_cnt[2u * tiles]) <= binp.capacity) {
+            bin_len = atomicLoad(&bin_cnt[tile]);
+        }
+    }
+    let n = workgroupUniformLoad(&bin_len);
+    if (n < 2u) {
+        return;
+    }
+    let base = atomicLoad(&bin_cnt[tiles + tile]);
+    var p2 = 2u;
+    loop {
+        if (p2 >= n) {
+            break;
+        }
+        p2 = p2 * 2u;
+    }
+    // Bitonic sort with every comparison ascending (each merge starts by comparing mirrored
+    // positions), so the virtual padding past n (+∞) never moves and its pairs are skipped.
+    var size = 2u;
+    loop {
+        if (size > p2) {
+            break;
+        }
+        var half = size / 2u;
+        var mirrored = true;
+        loop {
+            if (half == 0u) {
+                break;
+            }
+            for (var i = li; i < p2 / 2u; i += 256u) {
+                let blk = i / half;
+                let pos = i % half;
+                var a = 0u;
+                var b = 0u;
+                if (mirrored) {
+                    a = blk * size + pos;
+                    b = blk * size + size - 1u - pos;
+                } else {
+                    a = blk * 2u * half + pos;
+                    b = a + half;
+                }
+                if (b < n) {
+                    let va = bin_pairs[base + a];
+                    let vb = bin_pairs[base + b];
+                    if (va > vb) {
+                        bin_pairs[base + a] = vb;
+                        bin_pairs[base + b] = va;
+                    }
+                }
+            }
+            storageBarrier();
+            mirrored = false;
+            half = half / 2u;
+        }
+        size = size * 2u;
+    }
+}
+
+// The first index of tile `tile`'s sorted list [lo, hi) whose position is at least `k`.
+fn bin_lower_bound(lo_in: u32, hi_in: u32, k: u32) -> u32 {
+    var lo = lo_in;
+    var hi = hi_in;
+    loop {
+        if (lo >= hi) {
+            break;
+        }
+        let mid = lo + (hi - lo) / 2u;
+        if (bin_pairs[mid] < k) {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    return lo;
+}
+
+// The entries a composite's tile walks in this dispatch: its list's entries for positions
+// [begin, kept) when binned (x, y: the entries; z: 1), else the positions themselves.
+fn bin_range(tile: u32, begin: u32, kept: u32) -> vec3<u32> {
+    let tiles = binp.tiles_x * binp.tiles_y;
+    if (binp.capacity == 0u || atomicLoad(&bin_cnt[2u * tiles]) > binp.capacity) {
+        return vec3<u32>(begin, max(begin, kept), 0u);
+    }
+    let lo = atomicLoad(&bin_cnt[tiles + tile]);
+    let hi = lo + atomicLoad(&bin_cnt[tile]);
+    let a = bin_lower_bound(lo, hi, begin);
+    let b = bin_lower_bound(a, hi, kept);
+    return vec3<u32>(a, b, 1u);
 }

@@ -7,10 +7,18 @@
 //! per cloud and kept in [`SplatGpu`] from frame to frame; the uniform blocks are still made
 //! per frame.
 //!
-//! Cost: every tile walks every splat in order (a bounds test for those that miss it), in
-//! dispatches of [`BATCH`] splats; there is no per-tile binning yet, which is what the CPU's
-//! bands do. On lavapipe that is a functional check only (the tooth volume, 405 k splats at
-//! 512², took 250 s against the CPU's 90 ms).
+//! Per-tile lists (sorted.wgsl `bin_count`, `bin_scan`, `bin_fill`, `bin_sort`), as the
+//! CPU's bands: after the sort, each sorted splat is counted into every 16×16 tile its
+//! footprint reaches, the counts become offsets, each splat writes its sorted position into
+//! those tiles' lists (in any order), and one workgroup per tile sorts its list back into
+//! the sorted order (a bitonic sort whose comparisons all go one way, so a list need not be
+//! a power of two long). A composite's tile then walks only its list, in dispatches of
+//! [`BATCH`] sorted positions (found by binary search), staging 128 or 256 entries at a
+//! time and marking those that meet the tile, so that its pixels test only those. Lists
+//! longer in all than [`BIN_ENTRIES_PER_POINT`] entries per point overflow, and the
+//! composites then walk every splat instead (correct, slower); `STIPPLE_SPLAT_NO_BINS=1`
+//! forces that, for comparison. On lavapipe the bunny at 512² went from 6.3 s to 0.93 s a
+//! frame (transparent) and from 1.18 s to 0.14 s (sorted).
 
 use super::gpu::SplatGpu;
 use super::sorted::expected_overlap;
@@ -70,6 +78,22 @@ pub(crate) struct SortedComposite {
     pub pad4: [u32; 2],
 }
 
+/// sorted.wgsl `BinParams`: the per-tile lists' parameters.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+pub(crate) struct BinParams {
+    pub n: u32,
+    pub tiles_x: u32,
+    pub tiles_y: u32,
+    pub capacity: u32,
+    pub transparent: u32,
+    pub pad: [u32; 3],
+}
+
+/// Entries of the per-tile lists per point (a splat reaching more tiles on average than
+/// this overflows them, and the composites walk every splat instead).
+const BIN_ENTRIES_PER_POINT: u64 = 8;
+
 /// Splats a composite dispatch draws at most (see sorted.wgsl: on lavapipe one dispatch drew
 /// only the first 65 536 splats of larger clouds).
 pub(crate) const BATCH: u32 = 16384;
@@ -80,6 +104,10 @@ pub(crate) struct SortedGpu {
     composite: Pass,
     t_points: Pass,
     t_composite: Pass,
+    bin_count: Pass,
+    bin_scan: Pass,
+    bin_fill: Pass,
+    bin_sort: Pass,
 }
 
 const SKIP: Slot = Slot::Skip;
@@ -102,13 +130,28 @@ impl GpuPass for SortedGpu {
         ];
         let mut t_points = points.to_vec();
         t_points.extend([SKIP, READ]);
-        let mut t_composite = composite.to_vec();
-        t_composite.extend([SKIP, WRITE, SKIP, READ, UNIFORM]);
+        // Both composites read the per-tile lists (bindings 30–32).
+        let mut composite = composite.to_vec();
+        let mut t_composite = composite.clone();
+        t_composite.extend([SKIP, WRITE, SKIP, READ, UNIFORM, WRITE, WRITE, UNIFORM]);
+        composite.extend([SKIP, SKIP, SKIP, SKIP, SKIP, WRITE, WRITE, UNIFORM]);
+        // The binning kernels: splats (18), order (19), counts (20), lists (30–32).
+        let mut bins = vec![SKIP; 33];
+        bins[18] = WRITE;
+        bins[19] = READ;
+        bins[20] = READ;
+        bins[30] = WRITE;
+        bins[31] = WRITE;
+        bins[32] = UNIFORM;
         SortedGpu {
             points: Pass::new(d, m, "sorted_points", &points),
             composite: Pass::new(d, m, "sorted_composite", &composite),
             t_points: Pass::new(d, m, "transparent_points", &t_points),
             t_composite: Pass::new(d, m, "transparent_composite", &t_composite),
+            bin_count: Pass::new(d, m, "bin_count", &bins),
+            bin_scan: Pass::new(d, m, "bin_scan", &bins),
+            bin_fill: Pass::new(d, m, "bin_fill", &bins),
+            bin_sort: Pass::new(d, m, "bin_sort", &bins),
         }
     }
 }
@@ -196,6 +239,36 @@ pub(crate) fn record(
         }
         None => None,
     };
+    // Per-tile lists of the sorted splats (sorted.wgsl `bin_*`): each tile's composite then
+    // walks only the splats that reach it, in order, instead of every splat.
+    let (tiles_x, tiles_y) = (f.width.div_ceil(16), f.height.div_ceil(16));
+    let tiles = tiles_x as u64 * tiles_y as u64;
+    let limit = ctx
+        .limits
+        .max_storage_buffer_binding_size
+        .min(ctx.limits.max_buffer_size);
+    let capacity = (cloud.len as u64 * BIN_ENTRIES_PER_POINT)
+        .max(1 << 16)
+        .min(limit / 4)
+        .min(u32::MAX as u64);
+    let binp = d.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("splat bins"),
+        usage: wgpu::BufferUsages::UNIFORM,
+        contents: bytemuck::bytes_of(&BinParams {
+            n: slicing.n,
+            tiles_x,
+            tiles_y,
+            capacity: if std::env::var_os("STIPPLE_SPLAT_NO_BINS").is_some() {
+                0
+            } else {
+                capacity as u32
+            },
+            transparent: transparent as u32,
+            pad: [0; 3],
+        }),
+    });
+    let (bin_cnt, bin_pairs) = splat.bins(ctx, (4 * (2 * tiles + 1), 4 * capacity));
+    let (bin_cnt, bin_pairs) = (bin_cnt.clone(), bin_pairs.clone());
     let (shapes, _) = splat.shapes(cloud)?;
     let (sorted, splats) = splat.sorted_buffers(cloud)?;
     crate::passes::bucket_sort::gpu::record_sort(
@@ -290,6 +363,31 @@ pub(crate) fn record(
             keep.push(sc);
         }
     }
+    rec.enc.clear_buffer(&bin_cnt, 0, None);
+    {
+        let bins = |p: &Pass| {
+            let mut res = vec![Res::Skip; 33];
+            res[18] = Res::Buf(splats);
+            res[19] = Res::Buf(&sorted.order);
+            res[20] = Res::Buf(&sorted.counts);
+            res[30] = Res::Buf(&bin_cnt);
+            res[31] = Res::Buf(&bin_pairs);
+            res[32] = Res::Buf(&binp);
+            p.bind(d, &res)
+        };
+        let (gx, gy) = flat_groups(ctx, cloud.len as u64);
+        let mut c = rec.enc.begin_compute_pass(&Default::default());
+        for (p, (x, y)) in [
+            (&pass.bin_count, (gx, gy)),
+            (&pass.bin_scan, (1, 1)),
+            (&pass.bin_fill, (gx, gy)),
+            (&pass.bin_sort, (tiles_x, tiles_y)),
+        ] {
+            c.set_pipeline(&p.pipeline);
+            c.set_bind_group(0, &bins(p), &[]);
+            c.dispatch_workgroups(x, y, 1);
+        }
+    }
     // The kept points are counted on the device: as many dispatches as the cloud's points
     // could need, each drawing no further than those kept.
     let dispatches = (cloud.len as u32).div_ceil(BATCH).max(1);
@@ -356,7 +454,10 @@ pub(crate) fn record(
                 Res::Buf(&env_buf),
                 Res::Buf(&optics),
             ]);
+        } else {
+            res.extend([Res::Skip; 5]);
         }
+        res.extend([Res::Buf(&bin_cnt), Res::Buf(&bin_pairs), Res::Buf(&binp)]);
         groups.push(composite_pass.bind(d, &res));
     }
     {

@@ -62,9 +62,10 @@
 //!   farthest layer in two more vec4 per pixel after the group images.
 //!
 //! The CPU draws bands of rows in parallel (each band takes, in order, the splats that reach
-//! it); the GPU (`transparent.wgsl` in sorted.wgsl's module) draws one 16×16 tile per
-//! workgroup, one pixel per thread, with the splats in order through workgroup memory, and
-//! keeps the K images per pixel between its dispatches. Both compute a pixel's ray and a
+//! it); the GPU (`transparent_composite` in sorted.wgsl's module) draws one 16×16 tile per
+//! workgroup, one pixel per thread, with the tile's list of splats (`sorted_gpu`'s per-tile
+//! lists) in order through workgroup memory, and keeps the K images per pixel between its
+//! dispatches. Both compute a pixel's ray and a
 //! disc's hit with the same operations ([`pixel_ray`], [`flat_hit`]).
 
 use super::sorted::{band_lists, BAND};
