@@ -393,19 +393,7 @@ mod tests {
                 "point {i} left its group"
             );
         }
-        for k in 0..kt {
-            let members: Vec<usize> = (0..pts.len())
-                .filter(|&i| masks[i] & (1 << k) != 0)
-                .collect();
-            for i in (0..pts.len()).step_by(37) {
-                assert!(
-                    members
-                        .iter()
-                        .any(|&j| (pts[i] - pts[j]).length() <= radii[j]),
-                    "group {k} leaves sample {i} uncovered"
-                );
-            }
-        }
+        each_group_covers(&pts, &masks, kt, |j| radii[j]);
         // Far fewer duplicates than a copy of the cloud per group.
         assert!(dup < pts.len() * kt, "{dup} duplicates over {kt} groups");
     }
@@ -435,14 +423,23 @@ mod tests {
         );
         assert!(factor.iter().all(|&f| (1.0..=MAX_ENLARGE).contains(&f)));
         assert!(factor.iter().any(|&f| f > 1.5), "no splat grew");
+        each_group_covers(&pts, &masks, kt, |j| {
+            COVER_REACH * radii[j] * factor[j] * 1.0001
+        });
+    }
+
+    /// Every one of `kt` groups (bit k of `masks`) has a member j within `reach(j)` of
+    /// every 37th sample.
+    fn each_group_covers(pts: &[Vec3], masks: &[u32], kt: usize, reach: impl Fn(usize) -> f32) {
         for k in 0..kt {
             let members: Vec<usize> = (0..pts.len())
                 .filter(|&i| masks[i] & (1 << k) != 0)
                 .collect();
             for i in (0..pts.len()).step_by(37) {
                 assert!(
-                    members.iter().any(|&j| (pts[i] - pts[j]).length()
-                        <= COVER_REACH * radii[j] * factor[j] * 1.0001),
+                    members
+                        .iter()
+                        .any(|&j| (pts[i] - pts[j]).length() <= reach(j)),
                     "group {k} leaves sample {i} uncovered"
                 );
             }
