@@ -168,7 +168,7 @@ pub fn grouping(
 
 /// Share of a splat's radius within which it counts as covering a sample (the rest is
 /// margin for the surface between samples).
-const COVER_REACH: f32 = 0.5;
+pub const COVER_REACH: f32 = 0.5;
 /// Groups of transparent splats: the paper's choice (§6.2, "sufficient to set K = 4").
 pub const TRANSPARENT_GROUPS: usize = 4;
 

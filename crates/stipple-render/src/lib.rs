@@ -33,6 +33,12 @@ pub use gbuffer::{is_point, GBuffer, BACKGROUND, HOLE};
 pub use lights::{AreaLight, AreaShape, Light};
 pub use params::ViewParams;
 pub use passes::splat::{CoverageMethod, SplatMode, SplatSettings};
+
+/// For comparison and tests: the GPU's sorted and transparent splats walk every splat per
+/// tile instead of the tile's list, as `STIPPLE_SPLAT_NO_BINS=1` does (see
+/// `passes::splat::sorted_gpu`).
+#[doc(hidden)]
+pub static SPLAT_NO_BINS: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Material, Pipeline};
 pub use prepared::*;
 pub use renderer::{render, Renderer};

@@ -698,9 +698,11 @@ fn the_gpu_tile_lists_change_no_pixel() {
     for pipe in [&glass, &sorted] {
         let binned = g.render(&c, &cam, pipe).unwrap();
         let again = g.render(&c, &cam, pipe).unwrap();
-        std::env::set_var("STIPPLE_SPLAT_NO_BINS", "1");
+        // (Not the environment variable: setting one while other threads run is a race.)
+        use std::sync::atomic::Ordering;
+        stipple_render::SPLAT_NO_BINS.store(true, Ordering::Relaxed);
         let walked = g.render(&c, &cam, pipe);
-        std::env::remove_var("STIPPLE_SPLAT_NO_BINS");
+        stipple_render::SPLAT_NO_BINS.store(false, Ordering::Relaxed);
         let walked = walked.unwrap();
         if binned.rgba == again.rgba {
             // The sort's order within a slice (atomics) repeats on this adapter: the lists

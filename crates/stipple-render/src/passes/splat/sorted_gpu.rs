@@ -258,7 +258,9 @@ pub(crate) fn record(
             n: slicing.n,
             tiles_x,
             tiles_y,
-            capacity: if std::env::var_os("STIPPLE_SPLAT_NO_BINS").is_some() {
+            capacity: if crate::SPLAT_NO_BINS.load(std::sync::atomic::Ordering::Relaxed)
+                || std::env::var_os("STIPPLE_SPLAT_NO_BINS").is_some()
+            {
                 0
             } else {
                 capacity as u32
