@@ -39,6 +39,12 @@ pub use passes::splat::{CoverageMethod, SplatMode, SplatSettings};
 /// `passes::splat::sorted_gpu`).
 #[doc(hidden)]
 pub static SPLAT_NO_BINS: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// For comparison and tests: transparent splats shade each point on its own (forward) even
+/// where they would shade each layer from its blended normal (deferred, §5.2.4).
+#[doc(hidden)]
+pub static SPLAT_SHADE_POINTS: std::sync::atomic::AtomicBool =
+    std::sync::atomic::AtomicBool::new(false);
 pub use pipeline::{ColourPass, GeometryPass, Iterations, Kernel, Material, Pipeline};
 pub use prepared::*;
 pub use renderer::{render, Renderer};

@@ -256,9 +256,19 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 let k = s.order.len() as u64;
                 (s, 1, k)
             });
+            // Transparent splats of a lit frame without shadow textures shade each layer
+            // from its blended normal (deferred, §5.2.4): the points give their albedo.
+            let deferred = sp.mode == crate::SplatMode::Transparent
+                && input.normals.is_some()
+                && input.lit.is_none()
+                && !crate::SPLAT_SHADE_POINTS.load(std::sync::atomic::Ordering::Relaxed);
             let colours = timed(stats, PassId::Shade, || {
                 let forward = (v.perspective == 0).then(|| glam::Vec3::from(v.forward));
-                let col = shade::shade_points(glam::Vec3::from(v.eye), forward, &input, &params);
+                let col = if deferred {
+                    shade::point_albedo(&input)
+                } else {
+                    shade::shade_points(glam::Vec3::from(v.eye), forward, &input, &params)
+                };
                 (col, 1, 0)
             });
             let (col, sd) = (&mut r.colour.0, &mut r.surface_depth);
@@ -280,6 +290,10 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                     epsilon: eps,
                     smooth_nearest: sp.smooth_nearest,
                     optics: optics.as_ref().map(|(i, o)| (&i[..], &o[..])),
+                    deferred: deferred.then_some(crate::passes::splat::transparent::Deferred {
+                        params: &params,
+                        objects: input.objects,
+                    }),
                 };
                 timed(stats, PassId::Splat, || {
                     let f = crate::passes::splat::transparent::composite(

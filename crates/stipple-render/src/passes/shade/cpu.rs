@@ -193,6 +193,40 @@ pub fn falloff(d0: f32, d2: f32) -> f32 {
     }
 }
 
+/// Every point's linear albedo, as [`shade_points`] reads it.
+pub fn point_albedo(input: &ShadeInput) -> Vec<[f32; 3]> {
+    let lut = srgb_to_linear_table();
+    (0..input.positions.len())
+        .into_par_iter()
+        .with_min_len(4096)
+        .map(|id| match input.albedo {
+            Albedo::Colours(c) => c[id].map(|x| lut[x as usize]),
+            Albedo::Intensity(t, s) => [lut[intensity_grey(t[id], s) as usize]; 3],
+            Albedo::Constant(c) => c,
+        })
+        .collect()
+}
+
+/// A surface fragment shaded on its own (deferred shading, Zhang & Pajarola §5.2.4): albedo,
+/// normal (either side; zero: the ambient term alone), the point `hit` (local), the object's
+/// terms, seen from `eye` (`forward` for an orthographic view), no shadow textures.
+/// sorted.wgsl's `t_shade`.
+pub fn shade_fragment(
+    p: &ShadeParams,
+    albedo: [f32; 3],
+    n: Vec3,
+    (eye, forward): (Vec3, Option<Vec3>),
+    hit: Vec3,
+    object: usize,
+) -> [f32; 3] {
+    let to_eye = match forward {
+        Some(f) => -f,
+        None => (eye - hit).normalize_or_zero(),
+    };
+    let t = &p.materials[object.min(p.materials.len().saturating_sub(1))];
+    phong_lights(p, albedo, n, to_eye, hit, [[1.0; 3]; 4], t)
+}
+
 /// Shades every point as seen from `eye` (local; `forward` for an orthographic view, else
 /// None): linear RGB per point, as [`shade`] shades a pixel showing it (its own normal and
 /// position: no ray, no depth correction). For splats blended in order (Gunjee §4.2), which

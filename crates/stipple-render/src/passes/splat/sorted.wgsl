@@ -20,7 +20,8 @@ struct SortedChunk {
     mode: u32,
     // 1: the chunk's normals orient the discs (lit or not).
     disc_normals: u32,
-    pad1: u32,
+    // 1: transparent splats shaded per layer (deferred): the points give their albedo.
+    deferred: u32,
     pad2: u32,
 }
 
@@ -36,7 +37,8 @@ struct SortedComposite {
     // Transparent splats: the number of groups K and the culling ε.
     groups: u32,
     epsilon: f32,
-    pad2: u32,
+    // 1: each layer shaded from its blended normal (transparent::Deferred).
+    deferred: u32,
     // Transparent splats' environment (env.rs): 0 none, 1 the sky, 2 the image t_env of
     // env_w × env_h texels; ior > 0: the nearest layer reflects it; the scene's up axis.
     env_kind: u32,
@@ -97,12 +99,18 @@ fn point_style(local: u32) -> u32 {
 }
 
 // Chunk point `local` at q shaded as shade::cpu::shade_points shades it.
-fn shaded_point(local: u32, q: vec3<f32>, object: u32) -> vec3<f32> {
+// shade::cpu::point_albedo
+fn point_albedo(local: u32) -> vec3<f32> {
     var albedo = sp.base_colour;
     if (sc.has_albedo == 1u) {
         let bits = s_albedo[local];
         albedo = vec3<f32>(to_linear[bits & 0xffu], to_linear[(bits >> 8u) & 0xffu], to_linear[(bits >> 16u) & 0xffu]);
     }
+    return albedo;
+}
+
+fn shaded_point(local: u32, q: vec3<f32>, object: u32) -> vec3<f32> {
+    let albedo = point_albedo(local);
     let mat = materials[object];
     var m = array<vec3<f32>, 4>(vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0));
     if (sc.has_lit != 0u) {
@@ -306,8 +314,8 @@ fn sorted_composite(
 }
 
 // ---- transparent splats (Zhang & Pajarola Algorithm 2), twin of transparent.rs ----
-//   transparent_points     per chunk: each point's disc, shaded colour, opacity, group mask
-//                          and pixel rectangle (transparent::bound)
+//   transparent_points     per chunk: each point's disc, shaded colour (deferred: albedo),
+//                          opacity, group mask and pixel rectangle (transparent::bound)
 //   transparent_composite  one 16×16 tile a workgroup, one pixel a thread: the splats in the
 //                          bucket sort's order, 128 at a time through workgroup memory, each
 //                          fragment blended into its groups' images unless within ε of the
@@ -639,11 +647,42 @@ struct TLayers {
     layers: f32,
 }
 
-// transparent::Layered::composite and ::transmission.
-fn t_layers(s0: vec4<f32>, s1: vec4<f32>, s2: vec4<f32>) -> TLayers {
+// transparent::TransparentInput::layer_colour: a layer's albedo shaded from its blended
+// normal `nsum` at `depth` on the pixel's ray with point pid's object (deferred), else
+// `albedo` itself (the point's own shading).
+fn t_layer_colour(albedo: vec3<f32>, nsum: vec3<f32>, depth: f32, pid: u32, ro: vec3<f32>, rd: vec3<f32>) -> vec3<f32> {
+    if (scomp.deferred == 0u) {
+        return albedo;
+    }
+    var obj = 0u;
+    if (pid != BACKGROUND) {
+        obj = bitcast<u32>(s_splats[4u * pid + 2u].w) >> 8u;
+    }
+    let hit = ro + rd * depth;
+    var to_eye = -view.forward;
+    if (view.perspective == 1u) {
+        let e = view.eye - hit;
+        let len = sqrt(dot3(e, e));
+        if (len > 0.0) {
+            to_eye = e * (1.0 / len);
+        } else {
+            to_eye = vec3<f32>(0.0);
+        }
+    }
+    var n = vec3<f32>(0.0);
+    let nl = sqrt(dot3(nsum, nsum));
+    if (nl > 0.0) {
+        n = nsum * (1.0 / nl);
+    }
+    let ones = array<vec3<f32>, 4>(vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0), vec3<f32>(1.0));
+    return phong_lights(albedo, n, to_eye, hit, ones, materials[obj]);
+}
+
+// transparent::Layered::composite and ::transmission, the current layer's colour `c`.
+fn t_layers(s0: vec4<f32>, s1: vec4<f32>, s2: vec4<f32>, c: vec3<f32>) -> TLayers {
     var r = TLayers(s0.xyz, s2.z, s2.w);
     if (s1.w < infinity()) {
-        r.c = s0.w * s1.xyz + (1.0 - s0.w) * s0.xyz;
+        r.c = s0.w * c + (1.0 - s0.w) * s0.xyz;
         r.through = s2.z * (1.0 - s0.w);
         r.layers = s2.w + 1.0;
     }
@@ -741,7 +780,12 @@ fn transparent_points(
     if (ok && r > 0.0 && (mask & 0xffu) != 0u) {
         rect = t_bound(q, r);
     }
-    let c = shaded_point(local, q, object);
+    var c = vec3<f32>(0.0);
+    if (sc.deferred == 1u) {
+        c = point_albedo(local);
+    } else {
+        c = shaded_point(local, q, object);
+    }
     s_splats[4u * g] = vec4<f32>(q, r * r);
     s_splats[4u * g + 1u] = vec4<f32>(n, alpha);
     // The groups' bits, and above them the point's object (t_set_surface).
@@ -912,7 +956,7 @@ fn transparent_composite(
                     let wq = exp(-3.0 * q);
                     var wn = vec4<f32>(0.0);
                     var wc = vec4<f32>(0.0);
-                    if (scomp.env_kind != 0u) {
+                    if (scomp.env_kind != 0u || scomp.deferred == 1u) {
                         wn = vec4<f32>(wq * select(nn.xyz, -nn.xyz, dn > 0.0), 0.0);
                     }
                     if (scomp.smooth_nearest == 1u) {
@@ -941,7 +985,8 @@ fn transparent_composite(
                         if (t < depth - scomp.epsilon) {
                             if (depth < infinity()) {
                                 let s0 = st0[g];
-                                st0[g] = vec4<f32>(s0.w * st1[g].xyz + (1.0 - s0.w) * s0.xyz, s0.w);
+                                let lc = t_layer_colour(st1[g].xyz, st3[g].xyz, depth, bitcast<u32>(st2[g].y), ro, rd);
+                                st0[g] = vec4<f32>(s0.w * lc + (1.0 - s0.w) * s0.xyz, s0.w);
                                 st2[g].z = st2[g].z * (1.0 - s0.w);
                                 st2[g].w = st2[g].w + 1.0;
                             }
@@ -975,7 +1020,8 @@ fn transparent_composite(
             var through = 0.0;
             var layers = 0.0;
             for (var g = 0u; g < k_groups; g++) {
-                let all = t_layers(st0[g], st1[g], st2[g]);
+                let lc = t_layer_colour(st1[g].xyz, st3[g].xyz, st1[g].w, bitcast<u32>(st2[g].y), ro, rd);
+                let all = t_layers(st0[g], st1[g], st2[g], lc);
                 sum = sum + all.c;
                 through = through + all.through;
                 layers = layers + all.layers;
@@ -991,6 +1037,7 @@ fn transparent_composite(
                 let near = dep + scomp.epsilon;
                 var f = vec4<f32>(0.0);
                 var wsum = 0.0;
+                var nsum = vec3<f32>(0.0);
                 var co = vec3<f32>(0.0);
                 var to = 0.0;
                 var lo = 0.0;
@@ -998,11 +1045,13 @@ fn transparent_composite(
                     if (st1[g].w <= near) {
                         f = f + st4[g];
                         wsum = wsum + st3[g].w;
+                        nsum = nsum + st3[g].xyz;
                         co = co + st0[g].xyz;
                         to = to + st2[g].z;
                         lo = lo + st2[g].w;
                     } else {
-                        let all = t_layers(st0[g], st1[g], st2[g]);
+                        let lc = t_layer_colour(st1[g].xyz, st3[g].xyz, st1[g].w, bitcast<u32>(st2[g].y), ro, rd);
+                        let all = t_layers(st0[g], st1[g], st2[g], lc);
                         co = co + all.c;
                         to = to + all.through;
                         lo = lo + all.layers;
@@ -1010,7 +1059,10 @@ fn transparent_composite(
                 }
                 if (wsum > 0.0) {
                     let af = f.w / wsum;
-                    out = af * (f.xyz / wsum) + (1.0 - af) * (co * inv);
+                    // C_F: the blended colours (deferred: the blended albedo, shaded from
+                    // the blended normal).
+                    let cf = t_layer_colour(f.xyz / wsum, nsum, dep, pid, ro, rd);
+                    out = af * cf + (1.0 - af) * (co * inv);
                     through = (1.0 - af) * to;
                     layers = lo + f32(k_groups);
                 }

@@ -47,7 +47,9 @@ pub(crate) struct SortedChunk {
     pub mode: u32,
     /// 1: the chunk's normals orient the discs (lit or not).
     pub disc_normals: u32,
-    pub pad: [u32; 2],
+    /// 1: transparent splats shaded per layer (deferred): the points give their albedo.
+    pub deferred: u32,
+    pub pad: u32,
 }
 
 #[repr(C)]
@@ -61,7 +63,8 @@ pub(crate) struct SortedComposite {
     /// Transparent splats: the number of groups and the culling ε.
     pub groups: u32,
     pub epsilon: f32,
-    pub pad: u32,
+    /// 1: each layer shaded from its blended normal (`transparent::Deferred`).
+    pub deferred: u32,
     /// The environment (sorted.wgsl `env_sample`): 0 none, 1 sky, 2 image; its size; the
     /// index of refraction (0: no reflection or refraction); the up axis; the dispersion.
     pub env_kind: u32,
@@ -134,6 +137,8 @@ impl GpuPass for SortedGpu {
         let mut composite = composite.to_vec();
         let mut t_composite = composite.clone();
         t_composite.extend([SKIP, WRITE, SKIP, READ, UNIFORM, WRITE, WRITE, UNIFORM]);
+        // Deferred shading reads the material table.
+        t_composite[10] = UNIFORM;
         composite.extend([SKIP, SKIP, SKIP, SKIP, SKIP, WRITE, WRITE, UNIFORM]);
         // The binning kernels: splats (18), order (19), counts (20), lists (30–32).
         let mut bins = vec![SKIP; 33];
@@ -195,6 +200,12 @@ pub(crate) fn record(
     // With refraction the opaque points are drawn first, alone, then the translucent ones
     // (transparent::composite).
     // (As transparent::composite: only where opaque points are to be refracted.)
+    // Transparent splats of a lit frame without shadow textures shade each layer from its
+    // blended normal (as cpu::mod's `deferred`).
+    let deferred = transparent
+        && block.has_normals == 1
+        && cloud.samples == [0; 4]
+        && !crate::SPLAT_SHADE_POINTS.load(std::sync::atomic::Ordering::Relaxed);
     let refract = cloud.has_opaque
         && env.is_some_and(|e| {
             e.ior.is_some()
@@ -323,7 +334,8 @@ pub(crate) fn record(
                     },
                     mode: transparent as u32,
                     disc_normals: ch.normals.is_some() as u32,
-                    pad: [0; 2],
+                    deferred: deferred as u32,
+                    pad: 0,
                 }),
             );
             let dummy = &cloud.dummy;
@@ -409,7 +421,7 @@ pub(crate) fn record(
                 last: (k + 1 == dispatches) as u32,
                 groups: masks.as_ref().map_or(0, |m| m.1 as u32),
                 epsilon: s.epsilon.unwrap_or(0.0),
-                pad: 0,
+                deferred: deferred as u32,
                 env_kind,
                 env_w,
                 env_h,
@@ -448,6 +460,9 @@ pub(crate) fn record(
             Res::Buf(&f.id[0]),
             Res::Buf(&f.acc),
         ];
+        if transparent {
+            res[10] = Res::Buf(&mats);
+        }
         if let Some(acc) = &group_acc {
             res.extend([
                 Res::Skip,
