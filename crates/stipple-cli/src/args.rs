@@ -1000,9 +1000,10 @@ pub struct LookArgs {
     #[arg(long, value_parser = finite_f32, value_name = "ALPHA")]
     pub opacity: Option<f32>,
     /// An environment behind transparent splats (Zhang & Pajarola §5.2.3): `sky` (a
-    /// procedural sky over a checkered ground) or an equirectangular PNG. Seen through
-    /// every layer; with --ior the surfaces reflect it.
-    #[arg(long, value_name = "sky|FILE.png")]
+    /// procedural sky over a checkered ground) or an equirectangular image: a PNG (sRGB)
+    /// or a Radiance `.hdr` (linear, high dynamic range). Seen through every layer; with
+    /// --ior the surfaces reflect it.
+    #[arg(long, value_name = "sky|FILE.png|FILE.hdr")]
     pub env: Option<std::path::PathBuf>,
     /// Refractive index of transparent surfaces (e.g. 1.5 for glass): their nearest layer
     /// reflects the environment by Fresnel's law, more at grazing angles, and the layers

@@ -155,10 +155,18 @@ fn environment(
         None => Environment::Sky,
         Some(p) if p.as_os_str() == "sky" => Environment::Sky,
         Some(p) => {
-            let (w, h, rgba) = stipple_io::image::read_png(&p)
-                .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
-            let env = Environment::from_rgba8(w, h, &rgba)
-                .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
+            // A Radiance HDR file (linear, high dynamic range) or a PNG (sRGB).
+            let hdr = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("hdr"));
+            let (w, h, env) = if hdr {
+                let (w, h, texels) = stipple_io::hdr::read_hdr(&p)
+                    .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
+                (w, h, Environment::from_linear(w, h, texels))
+            } else {
+                let (w, h, rgba) = stipple_io::image::read_png(&p)
+                    .map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
+                (w, h, Environment::from_rgba8(w, h, &rgba))
+            };
+            let env = env.map_err(|e| anyhow!("--env {}: {e}", p.display()))?;
             if let Environment::Image { width, height, .. } = &env {
                 if (*width, *height) != (w, h) {
                     eprintln!(

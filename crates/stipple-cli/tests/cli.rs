@@ -1462,7 +1462,40 @@ fn an_environment_shows_behind_transparent_splats() {
         "ground: {:?}",
         at(32, 63)
     );
+    // The same environment as a Radiance HDR file (flat RGBE scanlines), its sky 4× over
+    // white: still red above (clipped), green below.
+    let mut hdr = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 2 +X 4\n".to_vec();
+    for y in 0..2 {
+        for _ in 0..4 {
+            // 4.0 = (128 + 0.5)·2^(131 − 136) ≈ 4.0; 1.0 = (128 + 0.5)·2^(129 − 136).
+            hdr.extend(if y == 0 {
+                [128, 0, 0, 131]
+            } else {
+                [0, 128, 0, 129]
+            });
+        }
+    }
+    std::fs::write(dir.join("env.hdr"), &hdr).unwrap();
+    let o = stipple(
+        &dir,
+        &[&base[..], &["--env", "env.hdr", "-o", "h.png"]].concat(),
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let (w, _, px) = stipple_io::image::read_png(&dir.join("h.png")).unwrap();
+    let at = |x: u32, y: u32| &px[((y * w + x) * 4) as usize..((y * w + x) * 4 + 3) as usize];
+    assert!(
+        at(32, 0)[0] == 255 && at(32, 0)[1] < 60,
+        "HDR sky: {:?}",
+        at(32, 0)
+    );
+    assert!(
+        at(32, 63)[1] > 200 && at(32, 63)[0] < 60,
+        "HDR ground: {:?}",
+        at(32, 63)
+    );
+    std::fs::write(dir.join("bad.hdr"), b"#?RADIANCE\n\n-Y 9000 +X 9000\n").unwrap();
     for (args, want) in [
+        (vec!["--env", "bad.hdr"], "bad.hdr"),
         (vec!["--env", "missing.png"], "missing.png"),
         (vec!["--env", "sky", "--ior=-1"], "--ior -1"),
         (

@@ -7,6 +7,7 @@
 //! count was checked against the bytes that are actually there.
 
 pub mod e57_io;
+pub mod hdr;
 pub mod image;
 pub mod las_io;
 pub mod mesh_io;

@@ -131,10 +131,34 @@ impl Environment {
             ));
         }
         let lut = crate::srgb::srgb_to_linear_table();
-        let mut texels: Vec<[f32; 3]> = rgba
+        let texels: Vec<[f32; 3]> = rgba
             .chunks_exact(4)
             .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
             .collect();
+        Environment::from_linear(width, height, texels)
+    }
+
+    /// An equirectangular image from linear RGB rows (a high-dynamic-range file's), halved
+    /// (2 × 2 means) until it fits what every GPU binds.
+    pub fn from_linear(
+        width: u32,
+        height: u32,
+        mut texels: Vec<[f32; 3]>,
+    ) -> Result<Environment, String> {
+        if width < 2 || height < 2 || texels.len() != width as usize * height as usize {
+            return Err(format!(
+                "an environment image needs at least 2×2 pixels ({width}×{height}, {} texels)",
+                texels.len()
+            ));
+        }
+        if let Some(t) = texels
+            .iter()
+            .find(|t| !t.iter().all(|v| v.is_finite() && *v >= 0.0))
+        {
+            return Err(format!(
+                "a texel is not a finite, non-negative colour: {t:?}"
+            ));
+        }
         let (mut w, mut h) = (width as usize, height as usize);
         // Halved (2 × 2 means in linear colour) until it fits what every GPU binds.
         while w * h > MAX_ENV_TEXELS && w >= 2 && h >= 2 {

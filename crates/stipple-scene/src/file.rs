@@ -79,7 +79,7 @@ pub struct RenderSpec {
     /// default) or "splat-1pass" (Zhang & Pajarola's transparent splats, every layer in one
     /// pass; `layers` is then not used).
     pub transparency: Option<Transparency>,
-    /// An environment behind transparent splats: "sky" or an equirectangular PNG (relative
+    /// An environment behind transparent splats: "sky" or an equirectangular PNG or Radiance .hdr (relative
     /// to the scene file), as `--env`.
     pub env: Option<String>,
     /// Refractive index of transparent surfaces (they reflect and refract the environment),
