@@ -76,10 +76,7 @@ impl GpuCloud {
                 c.len()
             )));
         }
-        let binding = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let binding = ctx.binding_limit();
         let mut per = (binding / STRIDE) as usize;
         if let Some(m) = ctx.options.max_chunk_points {
             per = per.min(m);
@@ -171,7 +168,7 @@ impl GpuCloud {
                 .objects
                 .as_ref()
                 .map(|_| cloud.terms(&crate::Pipeline::default())),
-            has_opaque: cloud.alpha.as_ref().is_none_or(|a| a.contains(&255)),
+            has_opaque: crate::passes::splat::transparent::any_opaque(cloud.alpha.as_deref()),
             optics: cloud
                 .objects
                 .as_ref()

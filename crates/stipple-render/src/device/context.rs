@@ -311,6 +311,14 @@ impl GpuContext {
         }
     }
 
+    /// The largest storage buffer a binding may hold (the binding limit and the buffer
+    /// limit, whichever is smaller).
+    pub fn binding_limit(&self) -> u64 {
+        self.limits
+            .max_storage_buffer_binding_size
+            .min(self.limits.max_buffer_size)
+    }
+
     pub fn max_groups_per_dim(&self) -> u32 {
         self.options
             .max_groups_per_dim

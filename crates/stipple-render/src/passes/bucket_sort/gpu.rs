@@ -85,10 +85,7 @@ impl SortBuffers {
 /// The index buffers' size for `cloud`, or the error when they exceed a binding.
 fn index_bytes(ctx: &GpuContext, cloud: &GpuCloud) -> Result<u64, GpuError> {
     let n_points = cloud.len as u64;
-    let max = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
+    let max = ctx.binding_limit();
     if 4 * n_points > max {
         return Err(GpuError::TooLarge(format!(
             "bucket sort of {n_points} points: its index buffers of {} MiB exceed the device's \

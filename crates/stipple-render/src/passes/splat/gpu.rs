@@ -114,10 +114,7 @@ impl SplatGpu {
         }
         self.sorted = None;
         let bytes = 64 * cloud.len as u64;
-        let limit = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let limit = ctx.binding_limit();
         if bytes > limit {
             return Err(GpuError::TooLarge(format!(
                 "sorted splats of {} points: their per-point buffer of {} MiB exceeds the \
@@ -363,10 +360,7 @@ impl SplatGpu {
 
     /// The K images per pixel of transparent splats (kept between frames of one size).
     pub(crate) fn group_acc(&mut self, ctx: &GpuContext, bytes: u64) -> Result<&Buffer, GpuError> {
-        let limit = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let limit = ctx.binding_limit();
         if bytes > limit {
             return Err(GpuError::TooLarge(format!(
                 "transparent splats: the group images need {} MiB, more than the device's \
@@ -429,10 +423,7 @@ impl SplatGpu {
                 _ => vec![[0.0; 4]],
             };
             let bytes = 16 * texels.len() as u64;
-            let limit = ctx
-                .limits
-                .max_storage_buffer_binding_size
-                .min(ctx.limits.max_buffer_size);
+            let limit = ctx.binding_limit();
             if bytes > limit {
                 return Err(GpuError::TooLarge(format!(
                     "the environment image's {} MiB exceed the device's binding limit of {} MiB",
@@ -486,10 +477,7 @@ impl SplatGpu {
             }
             _ => 0,
         };
-        let max = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let max = ctx.binding_limit();
         if self.scratch.as_ref().map(|s| s.pixels) != Some(pixels) {
             self.scratch = Some(Scratch {
                 pixels,

@@ -277,8 +277,7 @@ fn sorted_composite(
                     if (bits == 0u) {
                         break;
                     }
-                    let j = 32u * w + firstTrailingBit(bits);
-                    bits = bits & (bits - 1u);
+                    let j = 32u * w + pop_bit(&bits);
                     let s = tile_a[j];
                     let dx = cx - s.x;
                     let dy = cy - s.y;
@@ -647,6 +646,14 @@ struct TLayers {
     layers: f32,
 }
 
+// The index of the lowest bit set in *bits, cleared there (staged splats that meet a tile,
+// groups of a fragment).
+fn pop_bit(bits: ptr<function, u32>) -> u32 {
+    let j = firstTrailingBit(*bits);
+    *bits = *bits & (*bits - 1u);
+    return j;
+}
+
 // transparent::TransparentInput::layer_colour: a layer's albedo shaded from its blended
 // normal `nsum` at `depth` on the pixel's ray with point pid's object (deferred), else
 // `albedo` itself (the point's own shading).
@@ -921,8 +928,7 @@ fn transparent_composite(
                     if (hit_bits == 0u) {
                         break;
                     }
-                    let j = 32u * w + firstTrailingBit(hit_bits);
-                    hit_bits = hit_bits & (hit_bits - 1u);
+                    let j = 32u * w + pop_bit(&hit_bits);
                     let rect = t_tile_r[j];
                     if (fx < rect.x || fx > rect.z || fy < rect.y || fy > rect.w) {
                         continue;
@@ -975,8 +981,7 @@ fn transparent_composite(
                         if (bits == 0u) {
                             break;
                         }
-                        let g = firstTrailingBit(bits);
-                        bits = bits & (bits - 1u);
+                        let g = pop_bit(&bits);
                         if (g >= k_groups) {
                             break;
                         }

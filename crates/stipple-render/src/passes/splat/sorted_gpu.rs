@@ -206,14 +206,9 @@ pub(crate) fn record(
         && block.has_normals == 1
         && cloud.samples == [0; 4]
         && !crate::SPLAT_SHADE_POINTS.load(std::sync::atomic::Ordering::Relaxed);
-    let refract = cloud.has_opaque
-        && env.is_some_and(|e| {
-            e.ior.is_some()
-                || cloud
-                    .optics
-                    .as_ref()
-                    .is_some_and(|o| o.iter().any(|o| o.ior.is_some()))
-        });
+    let refract = env.is_some_and(|e| {
+        super::transparent::refracts_behind(e, cloud.optics.as_deref(), cloud.has_opaque)
+    });
     // Per object (sorted.wgsl `t_optics`): (index of refraction, 0: the frame's; dispersion,
     // −1: the frame's; reflectivity; 0), (absorption, 0).
     let mut optics = vec![[0.0f32; 4]; 2 * crate::MAX_OBJECTS];
@@ -254,10 +249,7 @@ pub(crate) fn record(
     // walks only the splats that reach it, in order, instead of every splat.
     let (tiles_x, tiles_y) = (f.width.div_ceil(16), f.height.div_ceil(16));
     let tiles = tiles_x as u64 * tiles_y as u64;
-    let limit = ctx
-        .limits
-        .max_storage_buffer_binding_size
-        .min(ctx.limits.max_buffer_size);
+    let limit = ctx.binding_limit();
     let capacity = (cloud.len as u64 * BIN_ENTRIES_PER_POINT)
         .max(1 << 16)
         .min(limit / 4)

@@ -162,15 +162,22 @@ impl TransparentInput<'_> {
             object,
         )
     }
+}
 
-    /// Whether a frame with environment settings `e` refracts: its own index, or an
-    /// object's.
-    pub fn refracts(&self, e: &crate::env::EnvSettings) -> bool {
-        e.ior.is_some()
-            || self
-                .optics
-                .is_some_and(|(_, o)| o.iter().any(|o| o.ior.is_some()))
-    }
+/// Whether points of these 8-bit opacities (None: all opaque) include opaque ones.
+pub fn any_opaque(alpha: Option<&[u8]>) -> bool {
+    alpha.is_none_or(|a| a.contains(&255))
+}
+
+/// Whether a frame of environment settings `e` refracts opaque geometry behind its
+/// transparent splats (the two drawings of [`composite`], both backends): it has an index
+/// of refraction (its own, or an object's among `optics`) and opaque points.
+pub fn refracts_behind(
+    e: &crate::env::EnvSettings,
+    optics: Option<&[crate::material::Optics]>,
+    any_opaque: bool,
+) -> bool {
+    any_opaque && (e.ior.is_some() || optics.is_some_and(|o| o.iter().any(|o| o.ior.is_some())))
 }
 
 /// A disc ready to draw: point, unit normal, squared radius, pixel rectangle.
@@ -597,8 +604,8 @@ pub fn composite(
         env,
     };
     // Opaque points to refract (else the environment alone, by Eq. 12).
-    let opaque = input.alpha.is_none_or(|a| a.par_iter().any(|&a| a == 255));
-    match env.filter(|e| opaque && input.refracts(e)) {
+    let opaque = any_opaque(input.alpha);
+    match env.filter(|e| refracts_behind(e, input.optics.map(|(_, o)| o), opaque)) {
         None => draw.run(Phase::All, None, colour, depth, id),
         Some(_) => {
             let n = v.pixels();
