@@ -695,36 +695,48 @@ fn the_gpu_tile_lists_change_no_pixel() {
             ..SplatSettings::default()
         })
     };
+    // The bucket sort's order within a slice comes from atomics and need not repeat from
+    // frame to frame (on a loaded machine it does not always), so one frame with the lists
+    // and one without can differ where splats of one slice overlap. Up to four pairs are
+    // drawn: the lists pass when some frame without them equals some frame with them, bit
+    // for bit. Only when the frames vary among themselves (the order does not repeat on
+    // this adapter) do they fall back to nearly all pixels agreeing.
+    let same = |a: &stipple_render::Frame, b: &stipple_render::Frame| {
+        a.rgba == b.rgba
+            && a.depth
+                .iter()
+                .zip(&b.depth)
+                .all(|(x, y)| x.to_bits() == y.to_bits())
+    };
     for pipe in [&glass, &sorted] {
-        let binned = g.render(&c, &cam, pipe).unwrap();
-        let again = g.render(&c, &cam, pipe).unwrap();
-        // (Not the environment variable: setting one while other threads run is a race.)
-        use std::sync::atomic::Ordering;
-        stipple_render::SPLAT_NO_BINS.store(true, Ordering::Relaxed);
-        let walked = g.render(&c, &cam, pipe);
-        stipple_render::SPLAT_NO_BINS.store(false, Ordering::Relaxed);
-        let walked = walked.unwrap();
-        if binned.rgba == again.rgba {
-            // The sort's order within a slice (atomics) repeats on this adapter: the lists
-            // must give exactly the same frame.
-            assert!(
-                binned.rgba == walked.rgba,
-                "{:?}: the lists changed pixels",
-                pipe.splat
-            );
-            assert!(
-                binned
-                    .depth
-                    .iter()
-                    .zip(&walked.depth)
-                    .all(|(a, b)| a.to_bits() == b.to_bits()),
-                "{:?}: the lists changed depths",
-                pipe.splat
-            );
-        } else {
-            let agree = common::agreeing(&binned.rgba, &walked.rgba, 2);
-            assert!(agree >= 0.995, "{:?}: {agree} agree", pipe.splat);
+        let (mut binned, mut walked) = (Vec::new(), Vec::new());
+        let mut matched = false;
+        for _ in 0..4 {
+            binned.push(g.render(&c, &cam, pipe).unwrap());
+            // (Not the environment variable: setting one while other threads run is a race.)
+            use std::sync::atomic::Ordering;
+            stipple_render::SPLAT_NO_BINS.store(true, Ordering::Relaxed);
+            let w = g.render(&c, &cam, pipe);
+            stipple_render::SPLAT_NO_BINS.store(false, Ordering::Relaxed);
+            walked.push(w.unwrap());
+            if walked.iter().any(|w| binned.iter().any(|b| same(b, w))) {
+                matched = true;
+                break;
+            }
         }
+        if matched {
+            continue;
+        }
+        let varies = binned.windows(2).any(|p| !same(&p[0], &p[1]))
+            || walked.windows(2).any(|p| !same(&p[0], &p[1]));
+        assert!(
+            varies,
+            "{:?}: the lists changed pixels (four frames with them agree, four without agree, \
+             and the two differ)",
+            pipe.splat
+        );
+        let agree = common::agreeing(&binned[0].rgba, &walked[0].rgba, 2);
+        assert!(agree >= 0.995, "{:?}: {agree} agree", pipe.splat);
     }
 }
 
