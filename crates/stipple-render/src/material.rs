@@ -41,6 +41,10 @@ pub struct Optics {
     /// besides its opacity: what the layers let through is multiplied by (1 − a)^l (tinted
     /// glass).
     pub absorption: [f32; 3],
+    /// Whether the object's nearest layer is smoothly interpolated where it is the nearest
+    /// at a pixel: Zhang & Pajarola's Algorithm 3 (true) or Algorithm 2 (false); None: the
+    /// frame's choice (`SplatSettings::smooth_nearest`).
+    pub smooth_nearest: Option<bool>,
 }
 
 impl Default for Optics {
@@ -50,6 +54,7 @@ impl Default for Optics {
             dispersion: None,
             reflectivity: 1.0,
             absorption: [0.0; 3],
+            smooth_nearest: None,
         }
     }
 }

@@ -163,6 +163,11 @@ pub struct MaterialSpec {
     /// Transparent splats: the share of light behind absorbed per layer, besides the
     /// opacity: one number, or one per channel `[r, g, b]` (tinted glass; default 0).
     pub absorption: Option<Absorption>,
+    /// Transparent splats: how this cloud's nearest layer is drawn where it is the nearest,
+    /// "splat-1pass" (Algorithm 2) or "splat-2pass" (Algorithm 3, smoothly interpolated);
+    /// default: `[render] transparency`. A scene without `[render] transparency` whose
+    /// clouds choose draws transparent splats.
+    pub transparency: Option<Transparency>,
 }
 
 /// A material's `absorption`: one share for every channel, or one per channel.
@@ -253,7 +258,7 @@ pub fn load_with(
 /// file. `path` names the scene in messages, and its directory is where relative cloud files
 /// are looked for.
 pub fn build(
-    spec: SceneFile,
+    mut spec: SceneFile,
     path: &Path,
     host: &mut dyn Host,
 ) -> std::result::Result<(PreparedCloud, LoadedScene), SceneError> {
@@ -420,6 +425,25 @@ pub fn build(
             )));
         }
     }
+    // A cloud that picks its transparent-splat algorithm makes a scene of transparent
+    // splats; one that peels cannot have it.
+    if let Some(k) = spec
+        .clouds
+        .iter()
+        .position(|c| c.material.transparency.is_some())
+    {
+        match spec.render.transparency {
+            None => spec.render.transparency = Some(Transparency::Splat1Pass),
+            Some(Transparency::Peel) => {
+                return Err(err(format!(
+                    "cloud {}: material transparency is for transparent splats, and \
+                     [render] transparency = \"peel\" peels the frame (drop one of them)",
+                    k + 1
+                )))
+            }
+            Some(_) => {}
+        }
+    }
     if let Some(l) = spec.render.layers {
         if !(1..=stipple_render::pipeline::MAX_LAYERS).contains(&l) {
             return Err(err(format!(
@@ -534,6 +558,19 @@ fn material(m: &MaterialSpec, frame_ior: Option<f32>) -> std::result::Result<Mat
             None => [0.0; 3],
             Some(Absorption::Grey(a)) => [a; 3],
             Some(Absorption::Rgb(a)) => a,
+        },
+        smooth_nearest: match m.transparency {
+            None => None,
+            Some(Transparency::Splat1Pass) => Some(false),
+            Some(Transparency::Splat2Pass) => Some(true),
+            Some(Transparency::Peel) => {
+                return Err(
+                    "material transparency \"peel\": depth peeling draws the whole \
+                            frame ([render] transparency = \"peel\"); a cloud picks \
+                            \"splat-1pass\" or \"splat-2pass\""
+                        .into(),
+                )
+            }
         },
     };
     if let Some(eta) = optics.ior {
@@ -967,7 +1004,7 @@ material = { ambient = 0.1, diffuse = 0.9, ior = 1.33, dispersion = 0.01, absorp
 demo = "plane"
 points = 500
 rotate = [90, 0, 0]
-material = { reflectivity = 0.25, absorption = 0.3 }
+material = { reflectivity = 0.25, absorption = 0.3, transparency = "splat-2pass" }
 
 [[light]]
 type = "area"
@@ -991,6 +1028,16 @@ samples = 8
         let o1 = o.materials[1].optics;
         assert_eq!((o1.ior, o1.dispersion), (None, None));
         assert_eq!((o1.reflectivity, o1.absorption), (0.25, [0.3; 3]));
+        // The transparency algorithm per cloud: the plane's Algorithm 3, the sphere the
+        // frame's; a cloud that chooses makes a frame of transparent splats (Algorithm 2
+        // where no cloud chooses).
+        assert_eq!((o0.smooth_nearest, o1.smooth_nearest), (None, Some(true)));
+        assert_eq!(s.render.transparency, Some(Transparency::Splat1Pass));
+        let mut pipe = stipple_render::Pipeline::default();
+        s.apply_to(&mut pipe, false);
+        let sp = pipe.splat.unwrap();
+        assert_eq!(sp.mode, stipple_render::SplatMode::Transparent);
+        assert!(!sp.smooth_nearest);
         // The sphere: radius 2 around (10, 0, 0), red, α 0.5.
         for i in 0..1000 {
             let w = c.cloud.world(i);
@@ -1058,6 +1105,14 @@ samples = 8
             (
                 "[[cloud]]\ndemo = \"sphere\"\n[render]\ntransparency = \"glass\"\n",
                 "unknown variant `glass`",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\nmaterial = { transparency = \"peel\" }\n",
+                "material transparency \"peel\"",
+            ),
+            (
+                "[[cloud]]\ndemo = \"sphere\"\n[[cloud]]\ndemo = \"plane\"\nmaterial = { transparency = \"splat-2pass\" }\n[render]\ntransparency = \"peel\"\n",
+                "cloud 2: material transparency is for transparent splats",
             ),
         ] {
             let p = write(&d, "bad.toml", text);

@@ -48,7 +48,8 @@ struct SortedComposite {
     env_up: vec3<f32>,
     // Chromatic dispersion δ (env::EnvSettings::dispersion).
     dispersion: f32,
-    // 1: Algorithm 3, the nearest layer smoothly interpolated.
+    // Bit 0: Algorithm 3 (the nearest layer smoothly interpolated) where the nearest layer's
+    // object does not choose; bit 1: some pixel may take it (sum the layers' colours).
     smooth_nearest: u32,
     // transparent::Phase: 0 every fragment; with refraction 1 the opaque ones (the surface
     // behind, written to t_acc's behind region), then 2 the translucent ones in front of it.
@@ -362,6 +363,22 @@ fn t_set_surface(pid: u32) {
         t_refl = a.z;
         t_absorb = t_optics[2u * obj + 1u].xyz;
     }
+}
+
+// transparent::TransparentInput::smooth_at: whether a pixel whose nearest layer is point
+// pid's takes Algorithm 3 (its object's choice, else the frame's).
+fn t_smooth_at(pid: u32) -> bool {
+    var own = 0.0;
+    if (pid != BACKGROUND) {
+        own = t_optics[2u * (bitcast<u32>(s_splats[4u * pid + 2u].w) >> 8u) + 1u].w;
+    }
+    if (own > 1.5) {
+        return true;
+    }
+    if (own > 0.5) {
+        return false;
+    }
+    return (scomp.smooth_nearest & 1u) != 0u;
 }
 
 // env::Surface::passed: what layers that let `through` pass let through with the absorption.
@@ -965,7 +982,7 @@ fn transparent_composite(
                     if (scomp.env_kind != 0u || scomp.deferred == 1u) {
                         wn = vec4<f32>(wq * select(nn.xyz, -nn.xyz, dn > 0.0), 0.0);
                     }
-                    if (scomp.smooth_nearest == 1u) {
+                    if ((scomp.smooth_nearest & 2u) != 0u) {
                         wn.w = wq;
                         wc = wq * vec4<f32>(cm.xyz, al);
                     }
@@ -1037,7 +1054,7 @@ fn transparent_composite(
             }
             let inv = 1.0 / f32(k_groups);
             var out = sum * inv;
-            if (scomp.smooth_nearest == 1u && dep < infinity()) {
+            if (dep < infinity() && t_smooth_at(pid)) {
                 // transparent::composite, Algorithm 3.
                 let near = dep + scomp.epsilon;
                 var f = vec4<f32>(0.0);

@@ -73,7 +73,9 @@ pub(crate) struct SortedComposite {
     pub ior: f32,
     pub env_up: [f32; 3],
     pub dispersion: f32,
-    /// 1: Algorithm 3 (`SplatSettings::smooth_nearest`).
+    /// Bit 0: Algorithm 3 where the nearest layer's object does not choose
+    /// (`SplatSettings::smooth_nearest`); bit 1: some pixel may take it (the frame or an
+    /// object chooses it; the groups sum their current layer's colours).
     pub smooth_nearest: u32,
     /// `transparent::Phase`: 0 every fragment; with refraction 1 the opaque ones, then 2 the
     /// translucent ones.
@@ -210,7 +212,8 @@ pub(crate) fn record(
         super::transparent::refracts_behind(e, cloud.optics.as_deref(), cloud.has_opaque)
     });
     // Per object (sorted.wgsl `t_optics`): (index of refraction, 0: the frame's; dispersion,
-    // −1: the frame's; reflectivity; 0), (absorption, 0).
+    // −1: the frame's; reflectivity; 0), (absorption; Algorithm 3 for its nearest layer,
+    // 0: the frame's choice, 1: no, 2: yes).
     let mut optics = vec![[0.0f32; 4]; 2 * crate::MAX_OBJECTS];
     for (k, o) in cloud
         .optics
@@ -226,7 +229,12 @@ pub(crate) fn record(
             0.0,
         ];
         let [r, g, b] = o.absorption;
-        optics[2 * k + 1] = [r, g, b, 0.0];
+        let smooth = match o.smooth_nearest {
+            None => 0.0,
+            Some(false) => 1.0,
+            Some(true) => 2.0,
+        };
+        optics[2 * k + 1] = [r, g, b, smooth];
     }
     if cloud.optics.is_none() {
         optics[0] = [0.0, -1.0, 1.0, 0.0];
@@ -420,7 +428,15 @@ pub(crate) fn record(
                 ior: env.and_then(|e| e.ior).unwrap_or(0.0),
                 env_up: env.map_or([0.0; 3], |e| e.up.to_array()),
                 dispersion: env.map_or(0.0, |e| e.dispersion),
-                smooth_nearest: s.smooth_nearest as u32,
+                smooth_nearest: s.smooth_nearest as u32
+                    | ((s.smooth_nearest
+                        || cloud
+                            .optics
+                            .iter()
+                            .flatten()
+                            .any(|o| o.smooth_nearest == Some(true)))
+                        as u32)
+                        << 1,
                 phase,
                 pad4: [0; 2],
             }),

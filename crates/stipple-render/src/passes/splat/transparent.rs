@@ -102,7 +102,8 @@ pub struct TransparentInput<'a> {
     /// Fragments within this depth of the last one blended into their group's image at a
     /// pixel are of its layer and culled.
     pub epsilon: f32,
-    /// Algorithm 3: the nearest layer smoothly interpolated (see the module docs).
+    /// Algorithm 3: the nearest layer smoothly interpolated (see the module docs), where
+    /// the nearest layer's object does not choose for itself (`Optics::smooth_nearest`).
     pub smooth_nearest: bool,
     /// Per point its object, and per object its optics (None: the frame's for all).
     pub optics: Option<(&'a [u8], &'a [crate::material::Optics])>,
@@ -129,6 +130,28 @@ impl TransparentInput<'_> {
                 .map_or_else(|| crate::env::Surface::of_frame(e), |o| o.resolve(e)),
             _ => crate::env::Surface::of_frame(e),
         }
+    }
+
+    /// Whether a pixel whose nearest layer is point `id`'s takes Algorithm 3: its object's
+    /// choice, else the frame's.
+    pub fn smooth_at(&self, id: u32) -> bool {
+        match self.optics {
+            Some((index, optics)) if id != BACKGROUND => index
+                .get(id as usize)
+                .and_then(|&o| optics.get(o as usize))
+                .and_then(|o| o.smooth_nearest)
+                .unwrap_or(self.smooth_nearest),
+            _ => self.smooth_nearest,
+        }
+    }
+
+    /// Whether any pixel may take Algorithm 3: the frame or an object chooses it (the
+    /// groups then also sum their current layer's kernel-weighted colours).
+    pub fn any_smooth(&self) -> bool {
+        self.smooth_nearest
+            || self
+                .optics
+                .is_some_and(|(_, o)| o.iter().any(|o| o.smooth_nearest == Some(true)))
     }
 
     /// A layer's colour: with deferred shading, `albedo` shaded from the normal `n` (a
@@ -651,6 +674,7 @@ impl Drawing<'_> {
         let (v, input, env) = (self.v, self.input, self.env);
         let w = v.width as usize;
         let k_groups = input.groups.max(1);
+        let smooth = input.any_smooth();
         colour
             .par_chunks_mut(w * BAND)
             .zip(depth.par_chunks_mut(w * BAND))
@@ -743,7 +767,7 @@ impl Drawing<'_> {
                                     alpha,
                                     input.epsilon,
                                     facing,
-                                    input.smooth_nearest,
+                                    smooth,
                                     &shade,
                                 );
                                 frags += 1;
@@ -852,7 +876,7 @@ fn finish_layers<'a>(
         }
     }
     let mut out = sum.map(|s| s * inv);
-    if input.smooth_nearest && depth.is_finite() {
+    if depth.is_finite() && input.smooth_at(*id) {
         let near = *depth + input.epsilon;
         let (mut f, mut wsum, mut nsum) = ([0.0f32; 4], 0.0f32, Vec3::ZERO);
         let (mut co, mut to, mut lo) = ([0.0f32; 3], 0.0f32, 0.0f32);
