@@ -40,6 +40,12 @@ pub use passes::splat::{CoverageMethod, SplatMode, SplatSettings};
 #[doc(hidden)]
 pub static SPLAT_NO_BINS: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
+/// For tests: the GPU's transparent splats draw the frame in bands of at most this many
+/// 16-pixel tile rows (0: as many as the device's binding limit allows; see
+/// `passes::splat::sorted_gpu`).
+#[doc(hidden)]
+pub static SPLAT_BAND_TILES: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+
 /// For comparison and tests: transparent splats shade each point on its own (forward) even
 /// where they would shade each layer from its blended normal (deferred, §5.2.4).
 #[doc(hidden)]

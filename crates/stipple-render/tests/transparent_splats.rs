@@ -651,9 +651,11 @@ fn each_object_reflects_and_absorbs_by_its_own_optics() {
 /// The GPU's per-tile lists (sorted_gpu.rs) keep every tile's splats in the sorted order:
 /// frames drawn from them equal, bit for bit, frames whose tiles walk every splat
 /// (`STIPPLE_SPLAT_NO_BINS`), for transparent splats refracting opaque ones (two phases)
-/// and for sorted splats, on a frame whose sides are not multiples of the tile.
+/// and for sorted splats, on a frame whose sides are not multiples of the tile. So do
+/// frames drawn band by band (as where the group images of the whole frame would not fit a
+/// binding: 1024² with four groups on lavapipe), here in bands of two tile rows.
 #[test]
-fn the_gpu_tile_lists_change_no_pixel() {
+fn the_gpu_tile_lists_and_bands_change_no_pixel() {
     use stipple_render::env::{EnvSettings, Environment};
     let Some(mut g) = common::gpu() else {
         eprintln!("skipped: no GPU adapter");
@@ -708,16 +710,21 @@ fn the_gpu_tile_lists_change_no_pixel() {
                 .zip(&b.depth)
                 .all(|(x, y)| x.to_bits() == y.to_bits())
     };
-    for pipe in [&glass, &sorted] {
+    use std::sync::atomic::Ordering;
+    for (pipe, banded) in [(&glass, false), (&sorted, false), (&glass, true)] {
         let (mut binned, mut walked) = (Vec::new(), Vec::new());
         let mut matched = false;
         for _ in 0..4 {
             binned.push(g.render(&c, &cam, pipe).unwrap());
-            // (Not the environment variable: setting one while other threads run is a race.)
-            use std::sync::atomic::Ordering;
-            stipple_render::SPLAT_NO_BINS.store(true, Ordering::Relaxed);
+            // (Not the environment variables: setting one while other threads run is a race.)
+            if banded {
+                stipple_render::SPLAT_BAND_TILES.store(2, Ordering::Relaxed);
+            } else {
+                stipple_render::SPLAT_NO_BINS.store(true, Ordering::Relaxed);
+            }
             let w = g.render(&c, &cam, pipe);
             stipple_render::SPLAT_NO_BINS.store(false, Ordering::Relaxed);
+            stipple_render::SPLAT_BAND_TILES.store(0, Ordering::Relaxed);
             walked.push(w.unwrap());
             if walked.iter().any(|w| binned.iter().any(|b| same(b, w))) {
                 matched = true;
@@ -731,8 +738,8 @@ fn the_gpu_tile_lists_change_no_pixel() {
             || walked.windows(2).any(|p| !same(&p[0], &p[1]));
         assert!(
             varies,
-            "{:?}: the lists changed pixels (four frames with them agree, four without agree, \
-             and the two differ)",
+            "{:?} (bands {banded}): the lists or bands changed pixels (four frames with them \
+             agree, four without agree, and the two differ)",
             pipe.splat
         );
         let agree = common::agreeing(&binned[0].rgba, &walked[0].rgba, 2);

@@ -54,8 +54,10 @@ struct SortedComposite {
     // transparent::Phase: 0 every fragment; with refraction 1 the opaque ones (the surface
     // behind, written to t_acc's behind region), then 2 the translucent ones in front of it.
     phase: u32,
-    pad5: u32,
-    pad6: u32,
+    // transparent_composite: this dispatch's band, its first tile row and how many tile
+    // rows the band's group images hold.
+    band_ty: u32,
+    band_tiles: u32,
 }
 
 @group(0) @binding(11) var<uniform> sc: SortedChunk;
@@ -835,14 +837,19 @@ fn transparent_composite(
     @builtin(local_invocation_index) li: u32,
 ) {
     let px = wg.x * 16u + lid.x;
-    let py = wg.y * 16u + lid.y;
+    let ty = wg.y + scomp.band_ty;
+    let py = ty * 16u + lid.y;
     let inside = px < view.width && py < view.height;
     let npix = view.width * view.height;
+    // The group images hold this band of tile rows only (the frame is drawn band by band
+    // where all of it would not fit a binding); the surface behind, the whole frame.
+    let bnpix = scomp.band_tiles * 16u * view.width;
+    let bpix = (py - scomp.band_ty * 16u) * view.width + px;
     let pix = py * view.width + px;
     let tx0 = f32(wg.x * 16u);
-    let ty0 = f32(wg.y * 16u);
+    let ty0 = f32(ty * 16u);
     if (li == 0u) {
-        let r = bin_range(wg.y * binp.tiles_x + wg.x, scomp.begin, min(s_counts[2u * scomp.n], scomp.end));
+        let r = bin_range(ty * binp.tiles_x + wg.x, scomp.begin, min(s_counts[2u * scomp.n], scomp.end));
         t_lo = r.x;
         t_hi = r.y;
         t_binned = r.z;
@@ -885,7 +892,7 @@ fn transparent_composite(
     }
     if (inside && scomp.first == 0u) {
         for (var g = 0u; g < k_groups; g++) {
-            let b = 5u * (g * npix + pix);
+            let b = 5u * (g * bnpix + bpix);
             st0[g] = t_acc[b];
             st1[g] = t_acc[b + 1u];
             st2[g] = t_acc[b + 2u];
@@ -895,7 +902,7 @@ fn transparent_composite(
     }
     // Refraction: the surface behind (culls the translucent fragments behind it) and the
     // farthest translucent layer (weighted normals, depth).
-    t_bbase = 5u * k_groups * npix;
+    t_bbase = 5u * k_groups * bnpix;
     var behind_z = infinity();
     var far = vec4<f32>(0.0, 0.0, 0.0, infinity());
     if (inside && scomp.phase == 2u) {
@@ -1158,7 +1165,7 @@ fn transparent_composite(
             s_id[pix] = pid;
         } else {
             for (var g = 0u; g < k_groups; g++) {
-                let b = 5u * (g * npix + pix);
+                let b = 5u * (g * bnpix + bpix);
                 t_acc[b] = st0[g];
                 t_acc[b + 1u] = st1[g];
                 t_acc[b + 2u] = st2[g];

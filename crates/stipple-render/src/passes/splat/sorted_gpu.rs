@@ -80,7 +80,11 @@ pub(crate) struct SortedComposite {
     /// `transparent::Phase`: 0 every fragment; with refraction 1 the opaque ones, then 2 the
     /// translucent ones.
     pub phase: u32,
-    pub pad4: [u32; 2],
+    /// Transparent splats: this dispatch's band of tile rows (its first row) and how many
+    /// tile rows the group images hold (the frame is drawn band by band where all of it
+    /// would not fit a binding).
+    pub band_ty: u32,
+    pub band_tiles: u32,
 }
 
 /// sorted.wgsl `BinParams`: the per-tile lists' parameters.
@@ -239,24 +243,40 @@ pub(crate) fn record(
     if cloud.optics.is_none() {
         optics[0] = [0.0, -1.0, 1.0, 0.0];
     }
-    let group_acc = match &masks {
-        Some((_, k)) => {
-            // As sorted.wgsl: K group images, then the surface behind and the farthest
-            // layer, a vec4 each per pixel.
-            let k = (*k as u64).clamp(1, stipple_core::grouping::TRANSPARENT_GROUPS as u64);
-            let per_pixel = 80 * k + if refract { 32 } else { 0 };
-            Some(
-                splat
-                    .group_acc(ctx, per_pixel * f.width as u64 * f.height as u64)?
-                    .clone(),
-            )
-        }
-        None => None,
-    };
     // Per-tile lists of the sorted splats (sorted.wgsl `bin_*`): each tile's composite then
     // walks only the splats that reach it, in order, instead of every splat.
     let (tiles_x, tiles_y) = (f.width.div_ceil(16), f.height.div_ceil(16));
     let tiles = tiles_x as u64 * tiles_y as u64;
+    let (group_acc, band) = match &masks {
+        Some((_, k)) => {
+            // As sorted.wgsl: K group images of a band of tile rows, then the whole frame's
+            // surface behind and farthest layer, a vec4 each per pixel. The frame is drawn
+            // band by band where all its rows' group images would not fit a binding (on
+            // lavapipe, 128 MiB: 1024² with four groups is 320 MiB).
+            let k = (*k as u64).clamp(1, stipple_core::grouping::TRANSPARENT_GROUPS as u64);
+            let behind = if refract { 32 } else { 0 } * f.width as u64 * f.height as u64;
+            let row = 80 * k * 16 * f.width as u64;
+            let limit = ctx.binding_limit();
+            let mut band = (limit.saturating_sub(behind) / row).min(tiles_y as u64);
+            let cap = crate::SPLAT_BAND_TILES.load(std::sync::atomic::Ordering::Relaxed);
+            if cap > 0 && band > 0 {
+                band = band.min(cap as u64);
+            }
+            if band == 0 {
+                return Err(GpuError::TooLarge(format!(
+                    "transparent splats: a row of 16-pixel tiles' group images ({} MiB) and \
+                     the surface behind ({} MiB) exceed the device's binding limit of {} MiB \
+                     (a narrower image, or --splat-c lower for fewer groups)",
+                    row >> 20,
+                    behind >> 20,
+                    limit >> 20
+                )));
+            }
+            let acc = splat.group_acc(ctx, row * band + behind)?.clone();
+            (Some(acc), band as u32)
+        }
+        None => (None, tiles_y),
+    };
     let limit = ctx.binding_limit();
     let capacity = (cloud.len as u64 * BIN_ENTRIES_PER_POINT)
         .max(1 << 16)
@@ -406,11 +426,14 @@ pub(crate) fn record(
     // could need, each drawing no further than those kept.
     let dispatches = (cloud.len as u32).div_ceil(BATCH).max(1);
     let phases: &[u32] = if refract { &[1, 2] } else { &[0] };
-    let mut groups = Vec::with_capacity(dispatches as usize * phases.len());
-    for (phase, k) in phases
-        .iter()
-        .flat_map(|&p| (0..dispatches).map(move |k| (p, k)))
-    {
+    // Per phase, band by band (the group images hold one band), all the batches of a band.
+    let bands: Vec<u32> = (0..tiles_y).step_by(band.max(1) as usize).collect();
+    let mut groups = Vec::with_capacity(dispatches as usize * phases.len() * bands.len());
+    for (phase, band_ty, k) in phases.iter().flat_map(|&p| {
+        bands
+            .iter()
+            .flat_map(move |&b| (0..dispatches).map(move |k| (p, b, k)))
+    }) {
         let comp = uniform(
             "sorted composite",
             bytemuck::bytes_of(&SortedComposite {
@@ -438,7 +461,8 @@ pub(crate) fn record(
                         as u32)
                         << 1,
                 phase,
-                pad4: [0; 2],
+                band_ty,
+                band_tiles: band,
             }),
         );
         let mut res = vec![
@@ -483,14 +507,14 @@ pub(crate) fn record(
             res.extend([Res::Skip; 5]);
         }
         res.extend([Res::Buf(&bin_cnt), Res::Buf(&bin_pairs), Res::Buf(&binp)]);
-        groups.push(composite_pass.bind(d, &res));
+        groups.push((composite_pass.bind(d, &res), band.min(tiles_y - band_ty)));
     }
     {
         let mut c = rec.timed_pass(q);
         c.set_pipeline(&composite_pass.pipeline);
-        for g in &groups {
+        for (g, rows) in &groups {
             c.set_bind_group(0, g, &[]);
-            c.dispatch_workgroups(f.width.div_ceil(16), f.height.div_ceil(16), 1);
+            c.dispatch_workgroups(tiles_x, *rows, 1);
         }
     }
     rec.end(PassId::Splat, 1, vec![], q)
