@@ -170,9 +170,11 @@ pub struct CameraArgs {
     pub up: Option<DVec3>,
     /// The side the default framing looks from: three-quarter (front, a little from the
     /// right and above; LiDAR from the south, raised), three-quarter-back, front, back,
-    /// left, right, top (a plan: for LiDAR a map, north up) or bottom. Front is +Z for
-    /// scanned objects (Y up), south for LiDAR (Z up). A model that faces −Z, like the
-    /// Stanford Lucy, shows its front with `--view three-quarter-back`.
+    /// left, right, top (a plan: for LiDAR a map, north up) or bottom. Front is south for
+    /// LiDAR (Z up) and +Z for scanned objects (Y up), except that with no --view, --eye,
+    /// --target or --up an object that shows more of its samples from −Z than from +Z (by
+    /// over 5%: a scan is densest, a simplified mesh most detailed, at its front) is taken
+    /// to face −Z and framed three-quarter-back, as the Stanford Lucy and Armadillo are.
     #[arg(long, value_enum, conflicts_with = "eye")]
     pub view: Option<stipple_core::camera::View>,
     /// Vertical field of view in degrees [default: 45, or a scene's].
@@ -294,6 +296,19 @@ impl CameraArgs {
                 cam.validate().map_err(|e| anyhow!("camera: {e}"))?;
                 cam.fit_clip(lo, hi);
                 return Ok(cam);
+            }
+        }
+        // A scanned object (Y up) that faces −Z is framed from that side (see
+        // stipple_core::camera::faces_negative_z) unless the user named a side or a pose.
+        if let (None, None, None, None) = (self.view, self.eye, self.up, self.target) {
+            if !Camera::frames_z_up(lo, hi, cloud.z_up)
+                && stipple_core::camera::faces_negative_z(&cloud.positions)
+            {
+                let back = CameraArgs {
+                    view: Some(stipple_core::camera::View::ThreeQuarterBack),
+                    ..self.clone()
+                };
+                return back.build_framed(lo, hi, false);
             }
         }
         self.build_framed(lo, hi, cloud.z_up)

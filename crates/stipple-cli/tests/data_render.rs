@@ -155,3 +155,52 @@ fn lidar_colours_by_return_number() {
         "first {first}, later {later}"
     );
 }
+
+/// The default framing looks at a scanned object's front: the Stanford Lucy and Armadillo
+/// face −Z (the eye comes out on −Z of the target), the bunny, the Dragon and the Happy
+/// Buddha face +Z; `--view` still names the side.
+#[test]
+fn the_default_framing_finds_the_front() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if !data.exists() {
+        eprintln!("skipping: {} is absent", data.display());
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("stipple-front-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let side = |name: &str, extra: &[&str]| {
+        let cam = dir.join("c.json");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .args(["render", data.join(name).to_str().unwrap()])
+            .args(["--size", "48", "--backend", "cpu", "--pipeline", "dobrev"])
+            .args(["--camera-out", cam.to_str().unwrap()])
+            .arg("-o")
+            .arg(dir.join("x.png"))
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
+        let z = |k: &str| v[k][2].as_f64().unwrap();
+        (z("eye") - z("target")).signum()
+    };
+    for (name, want) in [
+        ("stanford/lucy/Lucy100k.ply", -1.0),
+        ("stanford/armadillo/Armadillo_38k_normals.ply", -1.0),
+        ("stanford/bunny/bun_zipper.ply", 1.0),
+        ("stanford/dragon/dragon_vrip_res2.ply.gz", 1.0),
+        ("stanford/buddha/happy_rawscan_78k.xyz", 1.0),
+    ] {
+        assert_eq!(side(name, &[]), want, "{name}");
+    }
+    assert_eq!(
+        side("stanford/lucy/Lucy100k.ply", &["--view", "three-quarter"]),
+        1.0
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -32,7 +32,8 @@ pub struct Camera {
 
 /// Orthonormal camera basis: `forward` points from the eye towards the target.
 /// Where the default framing looks from, relative to the cloud's up axis: +Y up (scanned
-/// objects, whose front conventionally faces +Z) or +Z up (LiDAR, with north along +Y).
+/// objects, whose front conventionally faces +Z; the command line frames one that faces −Z
+/// from behind, see [`faces_negative_z`]) or +Z up (LiDAR, with north along +Y).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
@@ -180,6 +181,13 @@ impl Camera {
         Camera::framing_view(lo, hi, width, height, fov_deg, z_up, View::default())
     }
 
+    /// Whether the default framing takes +Z as up for bounds `lo`..`hi`: the source says so
+    /// (`z_up`: LAS/LAZ/COPC), or the bounds are flat in Z (a LiDAR tile in another format).
+    pub fn frames_z_up(lo: DVec3, hi: DVec3, z_up: bool) -> bool {
+        let e = hi - lo;
+        z_up || e.z < 0.35 * e.x.min(e.y)
+    }
+
     /// [`Camera::framing_up`] from a named direction ([`View`]).
     pub fn framing_view(
         lo: DVec3,
@@ -192,7 +200,7 @@ impl Camera {
     ) -> Camera {
         let c = (lo + hi) * 0.5;
         let e = hi - lo;
-        let z_up = z_up || e.z < 0.35 * e.x.min(e.y);
+        let z_up = Camera::frames_z_up(lo, hi, z_up);
         let (up, dir) = view.direction(z_up);
         let r = (e.length() * 0.5).max(1e-6);
         let aspect = width as f64 / height.max(1) as f64;
@@ -395,6 +403,57 @@ impl Camera {
     }
 }
 
+/// Whether a scanned object (Y up) faces −Z rather than +Z, the convention the default
+/// framing assumes: the side from which more of its samples are in view is its front. A
+/// scan is densest where the scanner looked most, and a simplified mesh keeps most vertices
+/// where the detail is (a face, hands, folds), so the front shows more samples than the
+/// back, whose silhouette is the same. The samples (up to 200 000, evenly strided) are
+/// binned on a grid over X–Y of about 1.5 samples a cell; from +Z a sample is in view when
+/// it lies within two cells of the largest z in its cell, from −Z of the smallest. −Z wins
+/// only by more than 5%: the Stanford Lucy 9.8% and Armadillo 10.7% (both face −Z), the
+/// bunny −4%, the Dragon −0.9%, the Happy Buddha 0% (all three face +Z); a symmetric
+/// object keeps +Z.
+pub fn faces_negative_z(positions: &[glam::Vec3]) -> bool {
+    let n = positions.len();
+    if n < 16 {
+        return false;
+    }
+    let step = n / 200_000 + 1;
+    let pts = || positions.iter().step_by(step).filter(|p| p.is_finite());
+    let (mut lo, mut hi) = (glam::Vec3::splat(f32::MAX), glam::Vec3::splat(f32::MIN));
+    let mut m = 0usize;
+    for p in pts() {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+        m += 1;
+    }
+    let e = (hi.x - lo.x).max(hi.y - lo.y);
+    if m < 16 || e <= 0.0 || !e.is_finite() {
+        return false;
+    }
+    let res = ((m as f64 / 1.5).sqrt() as usize).clamp(32, 512);
+    let cell = e / res as f32;
+    let at = |p: &glam::Vec3| {
+        let i = (((p.x - lo.x) / cell) as usize).min(res - 1);
+        let j = (((p.y - lo.y) / cell) as usize).min(res - 1);
+        j * res + i
+    };
+    let mut top = vec![f32::MIN; res * res];
+    let mut bottom = vec![f32::MAX; res * res];
+    for p in pts() {
+        let k = at(p);
+        top[k] = top[k].max(p.z);
+        bottom[k] = bottom[k].min(p.z);
+    }
+    let (mut plus, mut minus) = (0usize, 0usize);
+    for p in pts() {
+        let k = at(p);
+        plus += (p.z >= top[k] - 2.0 * cell) as usize;
+        minus += (p.z <= bottom[k] + 2.0 * cell) as usize;
+    }
+    minus as f64 > 1.05 * plus as f64
+}
+
 impl Camera {
     /// Reads the camera JSON that [`Camera::to_json`] writes (`stipple render --camera-out`):
     /// eye, target, up, size, `fov` or `ortho_height`, near and far (the matrices are
@@ -457,6 +516,44 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sphere sampled `dense` times as densely on its −Z half as on its +Z half faces −Z
+    /// when `dense` is well above 1; evenly sampled, or denser on +Z, it keeps +Z.
+    #[test]
+    fn the_front_is_the_side_showing_more_samples() {
+        let sphere = |dense: f64, flip: bool| {
+            let mut r = 0x2545_f491_4f6c_dd1du64;
+            let mut u = || {
+                r ^= r << 13;
+                r ^= r >> 7;
+                r ^= r << 17;
+                (r >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let mut p = Vec::new();
+            while p.len() < 60_000 {
+                let z = 2.0 * u() - 1.0;
+                let a = std::f64::consts::TAU * u();
+                // Keep a +Z sample with probability 1/dense.
+                if z > 0.0 && u() * dense > 1.0 {
+                    continue;
+                }
+                let s = (1.0 - z * z).sqrt();
+                let z = if flip { -z } else { z };
+                p.push(glam::Vec3::new(
+                    (s * a.cos()) as f32,
+                    (s * a.sin()) as f32,
+                    z as f32,
+                ));
+            }
+            p
+        };
+        assert!(faces_negative_z(&sphere(1.5, false)));
+        assert!(!faces_negative_z(&sphere(1.5, true)));
+        assert!(!faces_negative_z(&sphere(1.0, false)));
+        assert!(!faces_negative_z(&sphere(1.0, true)));
+        assert!(!faces_negative_z(&[]));
+        assert!(!faces_negative_z(&[glam::Vec3::ONE; 100]));
+    }
 
     #[test]
     fn json_round_trips_and_bad_json_is_refused() {
