@@ -575,8 +575,9 @@ fn parse_kernel(s: &str) -> std::result::Result<u32, String> {
 #[derive(clap::Args, Clone)]
 #[command(next_help_heading = "Raw clouds (Pintus et al. §4-6; --raw, and .stlod trees)")]
 pub struct RawArgs {
-    /// Pipeline: auto (splat where points land more than 1 px apart on screen, else dobrev;
-    /// normals are estimated for clouds without them; raw for .stlod trees), dobrev
+    /// Pipeline: auto (splat where points land more than half a pixel apart on screen or a
+    /// --splat mode other than blend is given, else dobrev; normals are estimated for clouds
+    /// without them; raw for .stlod trees), dobrev
     /// (image-space filters and Phong lighting), splat (surface splats, Zhang & Pajarola), or
     /// raw (screen-space visibility, anisotropic filling and shape depiction from depth alone,
     /// Pintus et al.; no normals needed).
@@ -891,6 +892,14 @@ impl PipelineArgs {
             // Single points asked for: Dobrev's pipeline without its passes. Depth peeling
             // (--layers N) is Dobrev's too: splats have no layers yet.
             PipelineChoice::Auto if self.points_only || peeled => PipelineChoice::Dobrev,
+            // A splat mode other than the default (or Algorithm 3) asked for: splats at any
+            // spacing (else `--splat transparent` on a dense view drew opaque points).
+            PipelineChoice::Auto
+                if self.splat.splat_mode != stipple_render::SplatMode::Blend
+                    || self.splat.smooth_nearest =>
+            {
+                PipelineChoice::Splat
+            }
             PipelineChoice::Auto => {
                 let px = cloud.screen_spacing(camera);
                 if px.is_finite() && px <= SPLAT_ABOVE_PX {

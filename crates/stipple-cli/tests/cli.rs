@@ -1510,3 +1510,38 @@ fn an_environment_shows_behind_transparent_splats() {
     }
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// A splat mode asked for is drawn at any spacing: `--splat transparent` on a view where the
+/// points land well under a pixel apart (where the automatic choice draws single points)
+/// draws transparent splats, not the opaque points it drew before.
+#[test]
+fn an_explicit_splat_mode_is_drawn_even_where_points_are_dense() {
+    let dir = tempdir("splat-mode");
+    let base = [
+        "render",
+        "--demo",
+        "sphere",
+        "--points",
+        "200000",
+        "--size",
+        "96",
+        "--opacity",
+        "0.5",
+        "--backend",
+        "cpu",
+    ];
+    let t = common::ok(
+        &dir,
+        &[&base[..], &["--splat", "transparent", "-o", "t.png"]].concat(),
+    );
+    let drew = |t: &str| t.contains("transparent splats: ") && t.contains(" groups, ");
+    assert!(drew(&t), "{t}");
+    let d = common::ok(&dir, &[&base[..], &["-o", "d.png"]].concat());
+    assert!(!drew(&d), "{d}");
+    let (a, b) = (
+        std::fs::read(dir.join("t.png")).unwrap(),
+        std::fs::read(dir.join("d.png")).unwrap(),
+    );
+    assert_ne!(a, b, "the transparent splats drew the opaque image");
+    std::fs::remove_dir_all(&dir).ok();
+}
