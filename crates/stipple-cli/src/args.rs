@@ -862,6 +862,10 @@ impl PipelineArgs {
                 self.splat.normal_k,
                 if self.splat.viewpoint.is_some() {
                     "towards the viewpoint"
+                } else if viewpoint.is_some() {
+                    "towards the file's sensor"
+                } else if report.towards_aircraft {
+                    "towards the aircraft, from GPS times and scan angles"
                 } else {
                     "by a spanning tree"
                 },

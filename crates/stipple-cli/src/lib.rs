@@ -104,8 +104,9 @@ pub enum Cmd {
     /// Build a multi-resolution tree (.stlod) from clouds of any size, for `render` and
     /// `bench` to draw under a point budget (Pintus et al. 2011, §7).
     BuildLod(cmd::build_lod::BuildLodArgs),
-    /// Estimate normals (PCA over k neighbours, oriented by a spanning tree) and splat radii,
-    /// or re-orient given normals whose signs disagree, and write a PLY with nx ny nz radius.
+    /// Estimate normals (PCA over k neighbours, oriented towards the sensor where the file
+    /// says where it was, else by a spanning tree) and splat radii, or re-orient given
+    /// normals whose signs disagree, and write a PLY with nx ny nz radius.
     Normals(NormalsArgs),
     /// Render a mesh's vertices as a raw cloud and compare the depth with the mesh's own
     /// (Pintus Fig. 4): error image and the share of pixels off by more than 0.5%.

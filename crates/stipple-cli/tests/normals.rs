@@ -285,3 +285,29 @@ fn render_saves_estimated_normals_on_request() {
     assert!(!text(&o).contains("estimated normals"), "{}", text(&o));
     std::fs::remove_dir_all(dir).ok();
 }
+
+/// Airborne LiDAR with GPS times and scan angles (Autzen's trimmed tile): `stipple normals`
+/// orients towards the aircraft, and hardly any normal faces down (the aircraft above
+/// cannot have seen a surface that faces down; the spanning tree turned 93% of them down).
+#[test]
+fn airborne_lidar_normals_face_the_aircraft() {
+    let las = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/lidar/autzen_trim.las");
+    if !las.exists() {
+        eprintln!("skipping: {} is absent", las.display());
+        return;
+    }
+    let dir = tempdir("airborne");
+    let o = stipple(&dir, &["normals", las.to_str().unwrap(), "-o", "out.ply"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(text(&o).contains("towards the aircraft"), "{}", text(&o));
+    let c = stipple_io::read_cloud(&dir.join("out.ply")).unwrap();
+    let n = c.normals.as_ref().expect("normals written");
+    let down = n.iter().filter(|n| n.z < -0.2).count();
+    assert!(
+        down * 200 < n.len(),
+        "{down} of {} normals face down",
+        n.len()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -156,6 +156,18 @@ pub struct PointCloud {
     /// so renders keep them as they are instead of checking their consistency over a
     /// neighbour graph (which can turn whole nested surfaces round where they touch).
     pub normals_trusted: bool,
+    /// Per point, the direction from the point towards the sensor that measured it, a unit
+    /// vector times 127 (`[0, 0, 0]`: not known); estimated normals face it. Airborne LiDAR
+    /// with GPS times and scan angles gives it (see stipple_io's LAS reader).
+    pub sensor_dirs: Option<Vec<[i8; 3]>>,
+}
+
+/// A unit direction quantised for [`PointCloud::sensor_dirs`] (zero or non-finite: unknown).
+pub fn quantise_dir(d: DVec3) -> [i8; 3] {
+    match d.try_normalize() {
+        Some(u) => [u.x, u.y, u.z].map(|c| (c * 127.0).round() as i8),
+        None => [0; 3],
+    }
 }
 
 /// Scalar fields a cloud keeps from its file (further ones are skipped): a file with
@@ -288,6 +300,7 @@ impl PointCloud {
         check("return_number", self.return_number.as_ref().map(Vec::len))?;
         check("opacity", self.opacity.as_ref().map(Vec::len))?;
         check("radius", self.radius.as_ref().map(Vec::len))?;
+        check("sensor_dirs", self.sensor_dirs.as_ref().map(Vec::len))?;
         for f in &self.fields {
             check("a scalar field", Some(f.values.len()))?;
         }
@@ -326,6 +339,9 @@ impl PointCloud {
         }
         if self.radius.is_some() {
             a.push("radius");
+        }
+        if self.sensor_dirs.is_some() {
+            a.push("sensor direction");
         }
         let mut a: Vec<String> = a.into_iter().map(String::from).collect();
         a.extend(self.fields.iter().map(|f| f.name.clone()));
@@ -383,6 +399,9 @@ impl PointCloud {
         if let Some(c) = self.radius.as_mut() {
             retain(c, keep);
         }
+        if let Some(c) = self.sensor_dirs.as_mut() {
+            retain(c, keep);
+        }
         for f in &mut self.fields {
             retain(&mut f.values, keep);
         }
@@ -432,6 +451,7 @@ impl PointCloud {
         merge(&mut self.classification, &other.classification, n0, n1, 0);
         merge(&mut self.return_number, &other.return_number, n0, n1, 1);
         merge(&mut self.opacity, &other.opacity, n0, n1, 1.0);
+        merge(&mut self.sensor_dirs, &other.sensor_dirs, n0, n1, [0; 3]);
         // Radii are only meaningful where every point has one.
         match (self.radius.as_mut(), &other.radius) {
             (Some(a), Some(b)) => a.extend_from_slice(b),

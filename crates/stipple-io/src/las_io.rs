@@ -297,6 +297,15 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         ..Default::default()
     };
     let mut rgb16: Option<Vec<[u16; 3]>> = fmt.has_color.then(|| Vec::with_capacity(cap));
+    // What places each pulse's sensor (airborne: GPS time, scan angle, flight line), kept
+    // while reading to give each point the direction towards the aircraft.
+    let mut pulses: Option<(Vec<f64>, Vec<f32>, Vec<u16>)> = fmt.has_gps_time.then(|| {
+        (
+            Vec::with_capacity(cap),
+            Vec::with_capacity(cap),
+            Vec::with_capacity(cap),
+        )
+    });
     let extra = extra_fields(&header, fmt.extra_bytes as usize);
     cloud.fields = extra
         .iter()
@@ -336,6 +345,11 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         if let (Some(dst), Some(src)) = (rgb16.as_mut(), pd.rgb()) {
             dst.extend(src.map(|(r, g, b)| [r, g, b]));
         }
+        if let (Some((t, a, s)), Some(gps)) = (pulses.as_mut(), pd.gps_time()) {
+            t.extend(gps);
+            a.extend(pd.scan_angle_degrees());
+            s.extend(pd.point_source_id());
+        }
         if !extra.is_empty() {
             let rec = pd.record_len();
             let start = rec - fmt.extra_bytes as usize;
@@ -360,6 +374,10 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
         if f.offset.is_nan() {
             f.offset = 0.0;
         }
+    }
+    if let Some((t, a, s)) = pulses {
+        cloud.sensor_dirs =
+            stipple_core::normals::airborne_sensor_dirs(&cloud.positions, &t, &a, &s);
     }
     Ok(cloud)
 }

@@ -459,13 +459,26 @@ impl PreparedCloud {
             (Some(given), true) => {
                 stipple_core::normals::estimate_trusted(&c.positions, given, k, 1.0)?
             }
-            _ => stipple_core::normals::estimate_from(
-                &c.positions,
-                c.normals.as_deref(),
-                k,
-                1.0,
-                vp,
-            )?,
+            _ => {
+                // The sensor: the viewpoint given, else the directions the file gives per
+                // point (airborne LiDAR), else not known.
+                use stipple_core::normals::Towards;
+                let towards = match (vp, c.sensor_dirs.as_deref()) {
+                    (Some(v), _) => Towards::Point(v),
+                    (None, Some(d)) => {
+                        report.towards_aircraft = true;
+                        Towards::Each(d)
+                    }
+                    (None, None) => Towards::Unknown,
+                };
+                stipple_core::normals::estimate_from(
+                    &c.positions,
+                    c.normals.as_deref(),
+                    k,
+                    1.0,
+                    towards,
+                )?
+            }
         };
         if need_normals {
             c.normals = Some(e.normals);
@@ -628,6 +641,9 @@ pub struct SurfaceReport {
     pub seconds: f64,
     /// Nothing was done: this repeats the report of an earlier call on the same cloud.
     pub repeated: bool,
+    /// The normals were turned to face the sensor in the direction the file gives for each
+    /// point (`PointCloud::sensor_dirs`: airborne LiDAR) instead of by a spanning tree.
+    pub towards_aircraft: bool,
 }
 
 #[cfg(test)]

@@ -666,6 +666,18 @@ fn place(
             *v = (r * v.as_dvec3()).normalize_or_zero().as_vec3();
         }
     }
+    // Where the sensor was turns with the cloud.
+    if let Some(d) = &mut c.sensor_dirs {
+        for v in d.iter_mut().filter(|v| **v != [0; 3]) {
+            let u = r * DVec3::new(v[0] as f64, v[1] as f64, v[2] as f64);
+            *v = stipple_core::cloud::quantise_dir(u);
+        }
+    }
+    if let Some(s) = &mut c.sensor {
+        s.position = t.transform_point3(s.position);
+        s.forward = (r * s.forward).normalize_or(s.forward);
+        s.up = (r * s.up).normalize_or(s.up);
+    }
     if let Some(col) = colour {
         c.colors = Some(vec![col; c.len()]);
     } else if c.colors.is_none() {

@@ -25,6 +25,9 @@ pub struct NormalsArgs {
     pub reestimate: bool,
     /// Where the sensor stood (x,y,z in the file's coordinates), for a single scan: normals
     /// face it instead of taking the orientation propagated over the neighbour graph.
+    /// Without it, a PCD's VIEWPOINT is used, and airborne LiDAR (LAS/LAZ with GPS times
+    /// and scan angles spanning 5° or more) faces each point's normal towards the aircraft
+    /// where it measured the point (its flight line's track, from the pulses nearest nadir).
     #[arg(long, value_parser = args::parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
     pub viewpoint: Option<glam::DVec3>,
     /// Overwrite OUT.ply if it exists (never the input).
@@ -55,8 +58,10 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
     let n = c.len();
     let mut p = PreparedCloud::with_spacing(c, 0.0);
     let t0 = Instant::now();
+    // The viewpoint given, else the file's sensor (a PCD's VIEWPOINT).
+    let viewpoint = a.viewpoint.or(p.cloud.sensor.map(|s| s.position));
     let r = p
-        .prepare_surface_from(a.k as usize, true, a.viewpoint)
+        .prepare_surface_from(a.k as usize, true, viewpoint)
         .with_context(|| a.input.display().to_string())?;
     let s = t0.elapsed().as_secs_f64();
     if had {
@@ -68,8 +73,16 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
         );
     } else {
         println!(
-            "estimated normals for {n} points (k = {}) in {s:.2} s ({:.2} M points/s)",
+            "estimated normals for {n} points (k = {}, oriented {}) in {s:.2} s ({:.2} M \
+             points/s)",
             a.k,
+            if viewpoint.is_some() {
+                "towards the sensor"
+            } else if r.towards_aircraft {
+                "towards the aircraft, from GPS times and scan angles"
+            } else {
+                "by a spanning tree"
+            },
             n as f64 / s.max(1e-9) / 1e6
         );
     }

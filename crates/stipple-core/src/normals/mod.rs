@@ -1503,7 +1503,7 @@ pub fn estimate(
     k: usize,
     radius_scale: f32,
 ) -> Result<Estimated, NormalError> {
-    estimate_from(positions, given, k, radius_scale, None)
+    estimate_from(positions, given, k, radius_scale, Towards::Unknown)
 }
 
 /// Turns every normal to face `viewpoint` (the sensor's position): returns how many turned.
@@ -1521,20 +1521,271 @@ pub fn orient_towards(positions: &[Vec3], normals: &mut [Vec3], viewpoint: Vec3)
         .sum()
 }
 
+/// Scan angles (degrees from nadir) within this of a flight line's smallest are taken as
+/// under the aircraft ([`airborne_sensor_dirs`]).
+pub const NADIR_DEG: f32 = 1.5;
+
+/// A flight line whose scan angles span less than this (degrees) is not taken as airborne
+/// (a terrestrial scan written as LAS keeps its angles at 0).
+pub const MIN_SWATH_DEG: f32 = 5.0;
+
+/// Pulses further apart in time than this (seconds) from the track's nearest sample have no
+/// known sensor.
+pub const MAX_TRACK_GAP_S: f64 = 2.0;
+
+/// Per point of an airborne LiDAR cloud, the direction towards the aircraft when it
+/// measured the point (for [`Towards::Each`]), from what LAS records for every pulse: its
+/// GPS time, its scan angle θ from nadir and its flight line (point source id). Per flight
+/// line, the points whose |θ| is within [`NADIR_DEG`] of the line's smallest lie under the
+/// aircraft: in GPS time order they are its track over the ground. A point's sensor is then
+/// above the track's position at the point's time (interpolated between the two nearest
+/// samples), so the direction tilts from +Z by |θ| towards it: cos θ · ẑ + sin θ · ĥ, with ĥ
+/// the horizontal unit vector from the point to the track. Points of a line whose angles
+/// span less than [`MIN_SWATH_DEG`], or more than [`MAX_TRACK_GAP_S`] from the track's
+/// samples, get `[0, 0, 0]` (not known). None when no point has a known direction.
+/// `positions` are any frame whose +Z is up (LAS: elevation).
+pub fn airborne_sensor_dirs(
+    positions: &[Vec3],
+    gps_time: &[f64],
+    scan_angle_deg: &[f32],
+    source: &[u16],
+) -> Option<Vec<[i8; 3]>> {
+    let n = positions.len();
+    if gps_time.len() != n || scan_angle_deg.len() != n || source.len() != n || n == 0 {
+        return None;
+    }
+    // Per flight line: the smallest and largest |θ|.
+    let mut range: std::collections::HashMap<u16, (f32, f32)> = Default::default();
+    for (&s, &a) in source.iter().zip(scan_angle_deg) {
+        if a.is_finite() {
+            let e = range.entry(s).or_insert((f32::MAX, f32::MIN));
+            e.0 = e.0.min(a.abs());
+            e.1 = e.1.max(a.abs());
+        }
+    }
+    // Per flight line: its track, (time, x, y) of the points under the aircraft.
+    let mut tracks: std::collections::HashMap<u16, Vec<(f64, f32, f32)>> = Default::default();
+    for i in 0..n {
+        let (s, a, t) = (source[i], scan_angle_deg[i], gps_time[i]);
+        let Some(&(lo, hi)) = range.get(&s) else {
+            continue;
+        };
+        if hi - lo >= MIN_SWATH_DEG && a.abs() <= lo + NADIR_DEG && t.is_finite() {
+            tracks
+                .entry(s)
+                .or_default()
+                .push((t, positions[i].x, positions[i].y));
+        }
+    }
+    for t in tracks.values_mut() {
+        t.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    // Per track, a straight flight fitted by least squares (position = a + v·(t − t̄)), for
+    // the times the track's samples do not cover (the aircraft's nadir outside the tile).
+    let fits: std::collections::HashMap<u16, Flight> = tracks
+        .iter()
+        .filter_map(|(&s, t)| Flight::fit(t).map(|f| (s, f)))
+        .collect();
+    // Per point, the horizontal direction to where the track puts the aircraft at its time.
+    let to_track: Vec<Option<glam::Vec2>> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (t, a, p) = (gps_time[i], scan_angle_deg[i], positions[i]);
+            if !t.is_finite() || !a.is_finite() || !p.is_finite() {
+                return None;
+            }
+            let (track, fit) = (tracks.get(&source[i]), fits.get(&source[i]));
+            let near = track.filter(|t| t.len() >= 2).and_then(|track| {
+                let j = track.partition_point(|s| s.0 < t).clamp(1, track.len() - 1);
+                let (s0, s1) = (track[j - 1], track[j]);
+                if (t - s0.0).abs().min((t - s1.0).abs()) > MAX_TRACK_GAP_S {
+                    return None;
+                }
+                let f = if s1.0 > s0.0 {
+                    ((t - s0.0) / (s1.0 - s0.0)).clamp(0.0, 1.0) as f32
+                } else {
+                    0.5
+                };
+                Some((s0.1 + (s1.1 - s0.1) * f, s0.2 + (s1.2 - s0.2) * f))
+            });
+            let (tx, ty) = near.or_else(|| fit.and_then(|f| f.at(t)))?;
+            Some(glam::Vec2::new(tx - p.x, ty - p.y).normalize_or_zero())
+        })
+        .collect();
+    // Which side of the flight a scan angle's sign means: LAS puts negative angles on the
+    // left of the direction of flight, so their sensor is to their right. Each line's
+    // points well off its track (4° beyond the track's angles, where the direction to it is
+    // certain) vote, so a writer with the opposite convention is followed too. Near the
+    // track (a tile off to one side, whose "track" is its own nearest pulses) the side then
+    // comes from the sign and the flight's direction instead of the track's position.
+    let mut votes: std::collections::HashMap<u16, i64> = Default::default();
+    for i in 0..n {
+        let (s, a) = (source[i], scan_angle_deg[i]);
+        let (Some(h), Some(f), Some(&(lo, _))) = (to_track[i], fits.get(&s), range.get(&s)) else {
+            continue;
+        };
+        if a.abs() >= lo + 4.0 {
+            let side = f.right() * -a.signum();
+            *votes.entry(s).or_default() += if h.dot(side) >= 0.0 { 1 } else { -1 };
+        }
+    }
+    let dirs: Vec<[i8; 3]> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let (s, a) = (source[i], scan_angle_deg[i]);
+            let convention = votes
+                .get(&s)
+                .filter(|v| **v != 0)
+                .map(|v| v.signum() as f32);
+            let h = match (fits.get(&s), convention) {
+                (Some(f), Some(c)) if to_track[i].is_some() && a != 0.0 => {
+                    Some(f.right() * (-a.signum() * c))
+                }
+                _ => to_track[i],
+            };
+            let Some(h) = h else {
+                return [0; 3];
+            };
+            let theta = a.abs().to_radians();
+            let d = if h == glam::Vec2::ZERO {
+                Vec3::Z
+            } else {
+                Vec3::new(h.x * theta.sin(), h.y * theta.sin(), theta.cos())
+            };
+            crate::cloud::quantise_dir(d.as_dvec3())
+        })
+        .collect();
+    dirs.iter().any(|d| *d != [0; 3]).then_some(dirs)
+}
+
+/// A flight line's straight fit over its track samples ([`airborne_sensor_dirs`]).
+#[derive(Clone, Copy, Debug)]
+struct Flight {
+    t_mean: f64,
+    t_lo: f64,
+    t_hi: f64,
+    at_mean: (f64, f64),
+    velocity: (f64, f64),
+}
+
+/// How far (seconds) beyond its samples a flight's straight fit is trusted.
+const FLIGHT_REACH_S: f64 = 60.0;
+
+impl Flight {
+    /// The least-squares straight line through samples (time, x, y) sorted by time: None
+    /// with fewer than 8 samples or under a quarter of a second of them.
+    fn fit(track: &[(f64, f32, f32)]) -> Option<Flight> {
+        let (t_lo, t_hi) = (track.first()?.0, track.last()?.0);
+        if track.len() < 8 || t_hi - t_lo < 0.25 {
+            return None;
+        }
+        let n = track.len() as f64;
+        let t_mean = track.iter().map(|s| s.0).sum::<f64>() / n;
+        let mx = track.iter().map(|s| s.1 as f64).sum::<f64>() / n;
+        let my = track.iter().map(|s| s.2 as f64).sum::<f64>() / n;
+        let (mut stt, mut stx, mut sty) = (0.0, 0.0, 0.0);
+        for s in track {
+            let dt = s.0 - t_mean;
+            stt += dt * dt;
+            stx += dt * (s.1 as f64 - mx);
+            sty += dt * (s.2 as f64 - my);
+        }
+        (stt > 0.0).then(|| Flight {
+            t_mean,
+            t_lo,
+            t_hi,
+            at_mean: (mx, my),
+            velocity: (stx / stt, sty / stt),
+        })
+    }
+
+    /// The horizontal unit vector to the right of the direction of flight (+Z up).
+    fn right(&self) -> glam::Vec2 {
+        glam::Vec2::new(self.velocity.1 as f32, -self.velocity.0 as f32).normalize_or_zero()
+    }
+
+    /// Where the aircraft was over the ground at time `t` (None beyond [`FLIGHT_REACH_S`]
+    /// of the samples).
+    fn at(&self, t: f64) -> Option<(f32, f32)> {
+        if t < self.t_lo - FLIGHT_REACH_S || t > self.t_hi + FLIGHT_REACH_S {
+            return None;
+        }
+        let dt = t - self.t_mean;
+        Some((
+            (self.at_mean.0 + self.velocity.0 * dt) as f32,
+            (self.at_mean.1 + self.velocity.1 * dt) as f32,
+        ))
+    }
+}
+
+/// Where the sensor that measured a cloud was, as far as the file says.
+#[derive(Clone, Copy, Debug, Default)]
+pub enum Towards<'a> {
+    /// Not known: orientation propagates over the neighbour graph.
+    #[default]
+    Unknown,
+    /// One position for every point (a single scan from a known place).
+    Point(Vec3),
+    /// Per point, the direction towards its sensor, a unit vector × 127 (`[0, 0, 0]`: not
+    /// known for that point; see [`crate::cloud::PointCloud::sensor_dirs`]).
+    Each(&'a [[i8; 3]]),
+}
+
+impl Towards<'_> {
+    /// Whether it says anything (a finite position, or a direction for some point).
+    fn known(&self, n: usize) -> bool {
+        match self {
+            Towards::Unknown => false,
+            Towards::Point(v) => v.is_finite(),
+            Towards::Each(d) => d.len() == n && d.iter().any(|d| *d != [0; 3]),
+        }
+    }
+
+    /// Whether it gives a direction for every point.
+    fn complete(&self, n: usize) -> bool {
+        match self {
+            Towards::Each(d) => d.len() == n && !d.contains(&[0; 3]),
+            other => other.known(n),
+        }
+    }
+
+    /// Turns every normal that has a known sensor to face it: returns how many turned.
+    fn orient(&self, positions: &[Vec3], normals: &mut [Vec3]) -> usize {
+        match *self {
+            Towards::Unknown => 0,
+            Towards::Point(vp) => orient_towards(positions, normals, vp),
+            Towards::Each(d) => normals
+                .par_iter_mut()
+                .zip(d.par_iter())
+                .map(|(n, d)| {
+                    let v = Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32);
+                    let turn = n.dot(v) < 0.0;
+                    if turn {
+                        *n = -*n;
+                    }
+                    turn as usize
+                })
+                .sum(),
+        }
+    }
+}
+
 /// [`estimate`], with the sensor's position when it is known (a single scan from a known
-/// place): every normal then faces it instead of taking the orientation propagated over
-/// the neighbour graph, and given normals are turned to face it too.
+/// place) or its direction from each point (airborne LiDAR, [`airborne_sensor_dirs`]):
+/// every normal then faces it instead of taking the orientation propagated over the
+/// neighbour graph, and given normals are turned to face it too. Points whose sensor is
+/// not known take the propagated orientation.
 pub fn estimate_from(
     positions: &[Vec3],
     given: Option<&[Vec3]>,
     k: usize,
     radius_scale: f32,
-    viewpoint: Option<Vec3>,
+    towards: Towards<'_>,
 ) -> Result<Estimated, NormalError> {
     let nb = neighbours(positions, k)?;
     go_on()?;
     let radii = splat_radii(&nb, radius_scale);
-    if let Some(vp) = viewpoint.filter(|v| v.is_finite()) {
+    if towards.known(positions.len()) {
         let mut normals: Vec<Vec3> = match given {
             Some(g) => g
                 .iter()
@@ -1543,12 +1794,21 @@ pub fn estimate_from(
             None => pca_normals(positions, &nb),
         };
         go_on()?;
-        let flipped = orient_towards(positions, &mut normals, vp);
+        if !towards.complete(positions.len()) {
+            // Some points' sensor is not known: the propagated orientation for those.
+            orient(positions, &mut normals, &nb);
+            go_on()?;
+        }
+        let flipped = towards.orient(positions, &mut normals);
         go_on()?;
         let shapes = if given.is_some() {
             shapes(positions, &normals, &radii, &nb)
         } else {
             robust_normals(positions, &mut normals, &nb);
+            // The robust re-fit may take a neighbour's plane (a crease, foliage): its sign
+            // follows the point's own, which can leave a normal nearly across the ray
+            // facing away; the sensor decides again.
+            towards.orient(positions, &mut normals);
             refine_and_shape(positions, &mut normals, &radii, &nb)
         };
         return Ok(Estimated {
@@ -1973,15 +2233,146 @@ mod tests {
         let up = estimate(&pts, None, 16, 1.0).unwrap();
         assert!(up.normals.iter().all(|n| n.z > 0.0));
         let vp = Vec3::new(1.0, 1.0, -5.0);
-        let down = estimate_from(&pts, None, 16, 1.0, Some(vp)).unwrap();
+        let down = estimate_from(&pts, None, 16, 1.0, Towards::Point(vp)).unwrap();
         for (n, p) in down.normals.iter().zip(&pts) {
             assert!(n.dot(vp - *p) > 0.0);
         }
         // Given normals facing away are turned round.
         let g = vec![Vec3::Z; pts.len()];
-        let e = estimate_from(&pts, Some(&g), 16, 1.0, Some(vp)).unwrap();
+        let e = estimate_from(&pts, Some(&g), 16, 1.0, Towards::Point(vp)).unwrap();
         assert_eq!(e.flipped, pts.len());
         assert!(e.normals.iter().all(|n| n.z < 0.0));
+    }
+
+    /// A synthetic flight line: the aircraft flies along +X at y = 0, 1000 m up, 60 m/s;
+    /// each ground point (z = 0) and wall point is measured when the aircraft is abreast of
+    /// it, at scan angle −atan(y / height) rounded to a degree, as LAS records it (negative
+    /// on the left of the direction of flight).
+    fn flight(points: &[Vec3]) -> (Vec<f64>, Vec<f32>, Vec<u16>) {
+        let t = points.iter().map(|p| 1000.0 + p.x as f64 / 60.0).collect();
+        let a = points
+            .iter()
+            .map(|p| -(p.y / (1000.0 - p.z)).atan().to_degrees().round())
+            .collect();
+        (t, a, vec![7; points.len()])
+    }
+
+    fn dir(d: [i8; 3]) -> Vec3 {
+        Vec3::new(d[0] as f32, d[1] as f32, d[2] as f32).normalize()
+    }
+
+    /// The direction towards the aircraft comes out within a few degrees of the true one:
+    /// with the nadir under the tile, and on a tile off to one side (no pulse within 2.8° of
+    /// nadir; the track is taken at the tile's smallest angles); a tile whose pulses were
+    /// measured after the track's samples uses the straight flight fitted to them. A cloud
+    /// whose angles are all 0 (a terrestrial scan) gives none.
+    #[test]
+    fn airborne_directions_point_at_the_aircraft() {
+        let grid = |y0: f32, y1: f32| {
+            let mut p = Vec::new();
+            for i in 0..120 {
+                for j in 0..120 {
+                    let y = y0 + (y1 - y0) * j as f32 / 119.0;
+                    p.push(Vec3::new(i as f32 * 5.0, y, 0.0));
+                }
+            }
+            p
+        };
+        let error = |p: &[Vec3], d: &[[i8; 3]]| -> Vec<f32> {
+            p.iter()
+                .zip(d)
+                .map(|(p, d)| {
+                    let truth = (Vec3::new(p.x, 0.0, 1000.0) - *p).normalize();
+                    dir(*d).dot(truth).clamp(-1.0, 1.0).acos().to_degrees()
+                })
+                .collect()
+        };
+        // (The last: a writer whose angles have the opposite sign.)
+        for (y0, y1, within, sign) in [
+            (-300.0, 300.0, 3.0, 1.0),
+            (-300.0, -50.0, 3.0, 1.0),
+            (-300.0, -50.0, 3.0, -1.0f32),
+        ] {
+            let p = grid(y0, y1);
+            let (t, mut a, s) = flight(&p);
+            a.iter_mut().for_each(|a| *a *= sign);
+            let d = airborne_sensor_dirs(&p, &t, &a, &s).expect("directions");
+            let e = error(&p, &d);
+            let mut sorted = e.clone();
+            sorted.sort_by(f32::total_cmp);
+            let p95 = sorted[sorted.len() * 95 / 100];
+            assert!(p95 < 2.0, "tile {y0}..{y1}: 95% within {p95}°");
+            assert!(
+                sorted[sorted.len() - 1] < within,
+                "tile {y0}..{y1}: {:?}",
+                sorted.last()
+            );
+        }
+        // The tile's nadir pulses all come from its first 2 s; the rest are placed by the
+        // straight flight through them.
+        let p = grid(-300.0, 300.0);
+        let (t, mut a, s) = flight(&p);
+        for (k, q) in p.iter().enumerate() {
+            if q.x > 120.0 && a[k].abs() < 2.0 {
+                a[k] = 2.0f32.copysign(a[k] + 0.1);
+            }
+        }
+        let d = airborne_sensor_dirs(&p, &t, &a, &s).expect("directions");
+        let e = error(&p, &d);
+        let far: Vec<f32> = p
+            .iter()
+            .zip(&e)
+            .filter(|(q, _)| q.x > 400.0 && q.y.abs() > 100.0)
+            .map(|(_, &e)| e)
+            .collect();
+        assert!(!far.is_empty() && far.iter().all(|&e| e < 3.0), "{far:?}");
+        // A terrestrial scan written as LAS: no swath, no directions.
+        let (t, _, s) = flight(&p);
+        assert!(airborne_sensor_dirs(&p, &t, &vec![0.0; p.len()], &s).is_none());
+    }
+
+    /// Normals of ground and of a wall facing the flight line all face the aircraft when
+    /// oriented by its directions, and no point's normal faces away from it.
+    #[test]
+    fn airborne_directions_orient_ground_and_walls() {
+        let mut p = Vec::new();
+        for i in 0..100 {
+            for j in 0..100 {
+                p.push(Vec3::new(i as f32 * 2.0, -300.0 + j as f32 * 2.0, 0.0));
+            }
+        }
+        let ground = p.len();
+        // A wall in the plane y = −150, 20 m high, its face towards +y (the aircraft).
+        for i in 0..100 {
+            for k in 1..10 {
+                p.push(Vec3::new(i as f32 * 2.0, -150.0, k as f32 * 2.0));
+            }
+        }
+        let (t, a, s) = flight(&p);
+        let d = airborne_sensor_dirs(&p, &t, &a, &s).expect("directions");
+        let e = estimate_from(&p, None, 16, 1.0, Towards::Each(&d)).unwrap();
+        let up = e.normals[..ground].iter().filter(|n| n.z > 0.9).count();
+        assert!(
+            up as f32 >= 0.99 * ground as f32,
+            "{up} of {ground} face up"
+        );
+        // Wall points away from its top and bottom rows (where the wall meets the ground,
+        // the neighbourhoods mix both).
+        let wall: Vec<Vec3> = e.normals[ground..]
+            .iter()
+            .zip(&p[ground..])
+            .filter(|(_, q)| q.z > 5.0 && q.z < 15.0 && q.x > 5.0 && q.x < 193.0)
+            .map(|(n, _)| *n)
+            .collect();
+        let facing = wall.iter().filter(|n| n.y > 0.9).count();
+        assert!(
+            facing == wall.len(),
+            "{facing} of {} wall normals face +y",
+            wall.len()
+        );
+        for (n, d) in e.normals.iter().zip(&d) {
+            assert!(n.dot(dir(*d)) >= 0.0);
+        }
     }
 
     #[test]
