@@ -311,3 +311,39 @@ fn airborne_lidar_normals_face_the_aircraft() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A Z-up source without per-point sensor directions (the same tile with them dropped) is
+/// oriented as seen from above: each connected component turned so that most of its
+/// horizontal surfaces face up. By its highest point alone (a tree top) the tile's one big
+/// component came out with most of its normals down.
+#[test]
+fn lidar_without_sensor_directions_is_oriented_from_above() {
+    use stipple_core::normals::{estimate_from, Towards};
+    let las = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/lidar/autzen_trim.las");
+    if !las.exists() {
+        eprintln!("skipping: {} is absent", las.display());
+        return;
+    }
+    let c = stipple_io::read_cloud(&las).unwrap();
+    assert!(c.z_up);
+    let down = |t: Towards| {
+        let e = estimate_from(&c.positions, None, 16, 1.0, t).unwrap();
+        e.normals.iter().filter(|n| n.z < -0.2).count() as f64 / c.len() as f64
+    };
+    let (above, tree) = (down(Towards::Above), down(Towards::Unknown));
+    assert!(above < 0.1, "from above: {above} face down");
+    assert!(
+        tree > 0.5,
+        "by the highest point: {tree} face down (the test's premise)"
+    );
+    // Through the renderer: a Z-up cloud without directions takes Towards::Above.
+    let mut p = stipple_render::PreparedCloud::new(stipple_core::PointCloud {
+        sensor_dirs: None,
+        ..c
+    });
+    p.prepare_surface(16, true).unwrap();
+    let n = p.cloud.normals.as_ref().unwrap();
+    let share = n.iter().filter(|n| n.z < -0.2).count() as f64 / n.len() as f64;
+    assert!(share < 0.1, "rendered: {share} face down");
+}

@@ -469,6 +469,8 @@ impl PreparedCloud {
                         report.towards_aircraft = true;
                         Towards::Each(d)
                     }
+                    // A Z-up source (LiDAR) was seen from above.
+                    (None, None) if c.z_up => Towards::Above,
                     (None, None) => Towards::Unknown,
                 };
                 stipple_core::normals::estimate_from(
