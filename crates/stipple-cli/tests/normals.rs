@@ -286,17 +286,26 @@ fn render_saves_estimated_normals_on_request() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// Autzen's trimmed tile (airborne LiDAR with GPS times and scan angles), or None with the
+/// reason printed when the data folder is absent.
+fn autzen_trim() -> Option<std::path::PathBuf> {
+    let las = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/data/lidar/autzen_trim.las");
+    if !las.exists() {
+        eprintln!("skipping: {} is absent", las.display());
+        return None;
+    }
+    Some(las)
+}
+
 /// Airborne LiDAR with GPS times and scan angles (Autzen's trimmed tile): `stipple normals`
 /// orients towards the aircraft, and hardly any normal faces down (the aircraft above
 /// cannot have seen a surface that faces down; the spanning tree turned 93% of them down).
 #[test]
 fn airborne_lidar_normals_face_the_aircraft() {
-    let las = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/lidar/autzen_trim.las");
-    if !las.exists() {
-        eprintln!("skipping: {} is absent", las.display());
+    let Some(las) = autzen_trim() else {
         return;
-    }
+    };
     let dir = tempdir("airborne");
     let o = stipple(&dir, &["normals", las.to_str().unwrap(), "-o", "out.ply"]);
     assert!(o.status.success(), "{}", text(&o));
@@ -319,12 +328,9 @@ fn airborne_lidar_normals_face_the_aircraft() {
 #[test]
 fn lidar_without_sensor_directions_is_oriented_from_above() {
     use stipple_core::normals::{estimate_from, Towards};
-    let las = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/data/lidar/autzen_trim.las");
-    if !las.exists() {
-        eprintln!("skipping: {} is absent", las.display());
+    let Some(las) = autzen_trim() else {
         return;
-    }
+    };
     let c = stipple_io::read_cloud(&las).unwrap();
     assert!(c.z_up);
     let down = |t: Towards| {
