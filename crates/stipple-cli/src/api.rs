@@ -118,7 +118,10 @@ pub fn prepare_progressively(
         note(&line);
     }
     let peeled = crate::look::layers(&a.look, scene) > 1;
-    let (mut pipe, notes) = a.pipeline.choose(cloud, camera, tree, peeled)?;
+    let see_through = !peeled && crate::look::see_through(&a.look, scene, cloud);
+    let (mut pipe, notes) = a
+        .pipeline
+        .choose(cloud, camera, tree, peeled, see_through)?;
     for n in &notes {
         note(n);
     }

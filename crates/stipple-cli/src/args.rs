@@ -782,13 +782,17 @@ impl PipelineArgs {
     /// Chooses the pipeline for a cloud seen by `camera` (see `--pipeline`) and prepares the
     /// cloud for it: estimates normals where a lit pipeline needs them, re-orients given
     /// normals of inconsistent sign, computes splat radii. `tree`: a cut of a .stlod tree
-    /// (auto keeps the raw pipeline there). Returns the pipeline and lines to tell the user.
+    /// (auto keeps the raw pipeline there). `see_through`: the frame asks for transparency
+    /// without peeling (translucent points, an environment or an index of refraction), which
+    /// only splats draw, so auto takes splats at any spacing. Returns the pipeline and lines
+    /// to tell the user.
     pub fn choose(
         &self,
         cloud: &mut PreparedCloud,
         camera: &stipple_core::Camera,
         tree: bool,
         peeled: bool,
+        see_through: bool,
     ) -> Result<(Pipeline, Vec<String>)> {
         let choice = self.raw.choice();
         let mut notes = Vec::new();
@@ -900,7 +904,8 @@ impl PipelineArgs {
             // spacing (else `--splat transparent` on a dense view drew opaque points).
             PipelineChoice::Auto
                 if self.splat.splat_mode != stipple_render::SplatMode::Blend
-                    || self.splat.smooth_nearest =>
+                    || self.splat.smooth_nearest
+                    || see_through =>
             {
                 PipelineChoice::Splat
             }

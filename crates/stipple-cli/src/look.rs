@@ -28,6 +28,19 @@ pub fn scene_camera(args: &CameraArgs, s: &LoadedScene) -> CameraArgs {
     a
 }
 
+/// Whether the frame asks for transparency that only splats draw: translucent points
+/// (`--opacity` below 1, or the file's or scene's alphas), an environment or an index of
+/// refraction; not where a scene asks for peeling (`[render] transparency = "peel"`).
+pub fn see_through(look: &LookArgs, scene: Option<&LoadedScene>, cloud: &PreparedCloud) -> bool {
+    let peel = scene
+        .is_some_and(|s| s.render.transparency == Some(stipple_scene::file::Transparency::Peel));
+    !peel
+        && (look.opacity.is_some_and(|o| o < 1.0)
+            || look.env.is_some()
+            || look.ior.is_some()
+            || cloud.mean_alpha < 1.0)
+}
+
 /// Area lights given without a facing direction face the cloud's centre.
 pub fn aim_area_lights(lights: &mut [Light], cloud: &PreparedCloud) {
     let (lo, hi) = cloud.cloud.world_bounds();
@@ -251,6 +264,13 @@ pub fn apply_progressively(
         }
     }
     pipe.environment = environment(look, scene, cloud)?;
+    if let (Some(_), 1, Some(s)) = (&pipe.environment, pipe.layers, &mut pipe.splat) {
+        // An environment (or an index of refraction) around opaque points drawn with
+        // blending splats: transparent splats show it behind and reflected.
+        if s.mode == stipple_render::SplatMode::Blend {
+            s.mode = stipple_render::SplatMode::Transparent;
+        }
+    }
     if pipe.environment.is_some()
         && !pipe
             .splat

@@ -1513,7 +1513,10 @@ fn an_environment_shows_behind_transparent_splats() {
 
 /// A splat mode asked for is drawn at any spacing: `--splat transparent` on a view where the
 /// points land well under a pixel apart (where the automatic choice draws single points)
-/// draws transparent splats, not the opaque points it drew before.
+/// draws transparent splats, not the opaque points it drew before; so do translucent points
+/// (`--opacity`) and an environment (`--env`, `--ior`) without any other flag, which before
+/// drew opaque points with a note, or stopped with an error, telling the user which flags to
+/// add. Asking for Dobrev's pipeline keeps it.
 #[test]
 fn an_explicit_splat_mode_is_drawn_even_where_points_are_dense() {
     let dir = tempdir("splat-mode");
@@ -1525,23 +1528,27 @@ fn an_explicit_splat_mode_is_drawn_even_where_points_are_dense() {
         "200000",
         "--size",
         "96",
-        "--opacity",
-        "0.5",
         "--backend",
         "cpu",
     ];
-    let t = common::ok(
-        &dir,
-        &[&base[..], &["--splat", "transparent", "-o", "t.png"]].concat(),
-    );
     let drew = |t: &str| t.contains("transparent splats: ") && t.contains(" groups, ");
+    let run = |extra: &[&str], out: &str| {
+        let t = common::ok(&dir, &[&base[..], extra, &["-o", out]].concat());
+        (t, std::fs::read(dir.join(out)).unwrap())
+    };
+    let (t, asked) = run(&["--opacity", "0.5", "--splat", "transparent"], "t.png");
     assert!(drew(&t), "{t}");
-    let d = common::ok(&dir, &[&base[..], &["-o", "d.png"]].concat());
+    let (t, translucent) = run(&["--opacity", "0.5"], "o.png");
+    assert!(drew(&t), "{t}");
+    let (t, env) = run(&["--env", "sky", "--ior", "1.5"], "e.png");
+    assert!(drew(&t), "{t}");
+    let (d, opaque) = run(&["--opacity", "0.5", "--pipeline", "dobrev"], "d.png");
     assert!(!drew(&d), "{d}");
-    let (a, b) = (
-        std::fs::read(dir.join("t.png")).unwrap(),
-        std::fs::read(dir.join("d.png")).unwrap(),
+    assert_ne!(
+        asked, opaque,
+        "the transparent splats drew the opaque image"
     );
-    assert_ne!(a, b, "the transparent splats drew the opaque image");
+    assert_ne!(translucent, opaque, "--opacity alone drew the opaque image");
+    assert_ne!(env, opaque);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -155,7 +155,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
         return zhang(&a, cloud, &label, &mut r);
     }
     let peeled = crate::look::layers(&a.look, scene.as_ref()) > 1;
-    let (mut pipe, notes) = a.pipeline.choose(&mut cloud, &camera, false, peeled)?;
+    let see_through = !peeled && crate::look::see_through(&a.look, scene.as_ref(), &cloud);
+    let (mut pipe, notes) = a
+        .pipeline
+        .choose(&mut cloud, &camera, false, peeled, see_through)?;
     for n in &notes {
         println!("  {n}");
     }
