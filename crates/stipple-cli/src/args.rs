@@ -864,15 +864,7 @@ impl PipelineArgs {
             notes.push(format!(
                 "estimated normals for {n} points (k = {}, oriented {}) in {:.2} s",
                 self.splat.normal_k,
-                if self.splat.viewpoint.is_some() {
-                    "towards the viewpoint"
-                } else if viewpoint.is_some() {
-                    "towards the file's sensor"
-                } else if report.towards_aircraft {
-                    "towards the aircraft, from GPS times and scan angles"
-                } else {
-                    "by a spanning tree"
-                },
+                report.oriented.describe(),
                 report.seconds
             ));
         }

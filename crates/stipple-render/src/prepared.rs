@@ -465,13 +465,16 @@ impl PreparedCloud {
                 use stipple_core::normals::Towards;
                 let towards = match (vp, c.sensor_dirs.as_deref()) {
                     (Some(v), _) => Towards::Point(v),
-                    (None, Some(d)) => {
-                        report.towards_aircraft = true;
-                        Towards::Each(d)
-                    }
+                    (None, Some(d)) => Towards::Each(d),
                     // A Z-up source (LiDAR) was seen from above.
                     (None, None) if c.z_up => Towards::Above,
                     (None, None) => Towards::Unknown,
+                };
+                report.oriented = match towards {
+                    Towards::Point(_) => Oriented::Viewpoint,
+                    Towards::Each(_) => Oriented::Aircraft,
+                    Towards::Above => Oriented::FromAbove,
+                    Towards::Unknown => Oriented::SpanningTree,
                 };
                 stipple_core::normals::estimate_from(
                     &c.positions,
@@ -643,9 +646,35 @@ pub struct SurfaceReport {
     pub seconds: f64,
     /// Nothing was done: this repeats the report of an earlier call on the same cloud.
     pub repeated: bool,
-    /// The normals were turned to face the sensor in the direction the file gives for each
-    /// point (`PointCloud::sensor_dirs`: airborne LiDAR) instead of by a spanning tree.
-    pub towards_aircraft: bool,
+    /// How the normals' signs were chosen.
+    pub oriented: Oriented,
+}
+
+/// How [`PreparedCloud::prepare_surface_from`] chose the normals' signs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Oriented {
+    /// Propagated over a spanning tree of the neighbour graph.
+    #[default]
+    SpanningTree,
+    /// The spanning tree's, each component turned by its horizontal surfaces (Z-up).
+    FromAbove,
+    /// Facing the sensor's position (a viewpoint given, or the file's).
+    Viewpoint,
+    /// Facing the aircraft, in the direction the file gives for each point
+    /// (`PointCloud::sensor_dirs`: airborne LiDAR).
+    Aircraft,
+}
+
+impl Oriented {
+    /// For messages: "estimated normals … (oriented {this})".
+    pub fn describe(self) -> &'static str {
+        match self {
+            Oriented::SpanningTree => "by a spanning tree",
+            Oriented::FromAbove => "by a spanning tree, each part turned to face up",
+            Oriented::Viewpoint => "towards the sensor's position",
+            Oriented::Aircraft => "towards the aircraft, from GPS times and scan angles",
+        }
+    }
 }
 
 #[cfg(test)]

@@ -76,13 +76,7 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
             "estimated normals for {n} points (k = {}, oriented {}) in {s:.2} s ({:.2} M \
              points/s)",
             a.k,
-            if viewpoint.is_some() {
-                "towards the sensor"
-            } else if r.towards_aircraft {
-                "towards the aircraft, from GPS times and scan angles"
-            } else {
-                "by a spanning tree"
-            },
+            r.oriented.describe(),
             n as f64 / s.max(1e-9) / 1e6
         );
     }

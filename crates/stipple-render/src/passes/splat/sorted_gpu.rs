@@ -426,6 +426,10 @@ pub(crate) fn record(
     // could need, each drawing no further than those kept.
     let dispatches = (cloud.len as u32).div_ceil(BATCH).max(1);
     let phases: &[u32] = if refract { &[1, 2] } else { &[0] };
+    // sorted.wgsl: bit 0 the frame's Algorithm 3, bit 1 some object's or the frame's.
+    let smooth_nearest = s.smooth_nearest as u32
+        | (super::transparent::smooth_anywhere(s.smooth_nearest, cloud.optics.as_deref()) as u32)
+            << 1;
     // Per phase, band by band (the group images hold one band), all the batches of a band.
     let bands: Vec<u32> = (0..tiles_y).step_by(band.max(1) as usize).collect();
     let mut groups = Vec::with_capacity(dispatches as usize * phases.len() * bands.len());
@@ -451,15 +455,7 @@ pub(crate) fn record(
                 ior: env.and_then(|e| e.ior).unwrap_or(0.0),
                 env_up: env.map_or([0.0; 3], |e| e.up.to_array()),
                 dispersion: env.map_or(0.0, |e| e.dispersion),
-                smooth_nearest: s.smooth_nearest as u32
-                    | ((s.smooth_nearest
-                        || cloud
-                            .optics
-                            .iter()
-                            .flatten()
-                            .any(|o| o.smooth_nearest == Some(true)))
-                        as u32)
-                        << 1,
+                smooth_nearest,
                 phase,
                 band_ty,
                 band_tiles: band,

@@ -121,37 +121,29 @@ pub struct Deferred<'a> {
 }
 
 impl TransparentInput<'_> {
+    /// The optics of point `id`'s object (None: the background, or no objects).
+    fn optics_of(&self, id: u32) -> Option<&crate::material::Optics> {
+        let (index, optics) = self.optics.filter(|_| id != BACKGROUND)?;
+        optics.get(*index.get(id as usize)? as usize)
+    }
+
     /// The optics of point `id`'s object in a frame with environment settings `e`.
     pub fn surface(&self, id: u32, e: &crate::env::EnvSettings) -> crate::env::Surface {
-        match self.optics {
-            Some((index, optics)) if id != BACKGROUND => index
-                .get(id as usize)
-                .and_then(|&o| optics.get(o as usize))
-                .map_or_else(|| crate::env::Surface::of_frame(e), |o| o.resolve(e)),
-            _ => crate::env::Surface::of_frame(e),
-        }
+        self.optics_of(id)
+            .map_or_else(|| crate::env::Surface::of_frame(e), |o| o.resolve(e))
     }
 
     /// Whether a pixel whose nearest layer is point `id`'s takes Algorithm 3: its object's
     /// choice, else the frame's.
     pub fn smooth_at(&self, id: u32) -> bool {
-        match self.optics {
-            Some((index, optics)) if id != BACKGROUND => index
-                .get(id as usize)
-                .and_then(|&o| optics.get(o as usize))
-                .and_then(|o| o.smooth_nearest)
-                .unwrap_or(self.smooth_nearest),
-            _ => self.smooth_nearest,
-        }
+        self.optics_of(id)
+            .and_then(|o| o.smooth_nearest)
+            .unwrap_or(self.smooth_nearest)
     }
 
-    /// Whether any pixel may take Algorithm 3: the frame or an object chooses it (the
-    /// groups then also sum their current layer's kernel-weighted colours).
+    /// Whether any pixel may take Algorithm 3 ([`smooth_anywhere`]).
     pub fn any_smooth(&self) -> bool {
-        self.smooth_nearest
-            || self
-                .optics
-                .is_some_and(|(_, o)| o.iter().any(|o| o.smooth_nearest == Some(true)))
+        smooth_anywhere(self.smooth_nearest, self.optics.map(|(_, o)| o))
     }
 
     /// A layer's colour: with deferred shading, `albedo` shaded from the normal `n` (a
@@ -185,6 +177,13 @@ impl TransparentInput<'_> {
             object,
         )
     }
+}
+
+/// Whether any pixel of a frame may take Algorithm 3 (both backends): the frame chooses it
+/// (`frame_smooth`) or an object's optics do (the groups then also sum their current
+/// layer's kernel-weighted colours).
+pub fn smooth_anywhere(frame_smooth: bool, optics: Option<&[crate::material::Optics]>) -> bool {
+    frame_smooth || optics.is_some_and(|o| o.iter().any(|o| o.smooth_nearest == Some(true)))
 }
 
 /// Whether points of these 8-bit opacities (None: all opaque) include opaque ones.
