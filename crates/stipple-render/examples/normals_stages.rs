@@ -1,0 +1,76 @@
+//! Times each stage of normal estimation on any cloud stipple reads:
+//! `cargo run --release -p stipple-render --example normals_stages -- CLOUD [k [knn|orient]]`
+//! (the third argument stops after that stage).
+//! (The criterion bench `normals` does the same on the Dragon, with statistics.)
+
+use std::time::Instant;
+use stipple_core::normals;
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    let Some(path) = args.get(1) else {
+        eprintln!("usage: normals_stages CLOUD [k [knn|orient]]");
+        std::process::exit(2);
+    };
+    let k: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(16);
+    // Optional third argument: stop after "knn" or after "orient".
+    let upto = args.get(3).map_or("", String::as_str);
+    let t = Instant::now();
+    let cloud = match stipple_io::read_cloud(std::path::Path::new(path)) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("{path}: {e}");
+            std::process::exit(1);
+        }
+    };
+    let pts = &cloud.positions;
+    let n = pts.len() as f64;
+    println!(
+        "{path}: {} points, read in {:.2} s",
+        pts.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let stage = |name: &str, t: Instant| {
+        let s = t.elapsed().as_secs_f64();
+        println!(
+            "  {name:<10} {:8.1} ms  {:6.2} M points/s",
+            s * 1e3,
+            n / s / 1e6
+        );
+        s
+    };
+    let t = Instant::now();
+    let nb = normals::neighbours(pts, k).expect("neighbours");
+    let a = stage("k-nearest", t);
+    if upto == "knn" {
+        return;
+    }
+    let t = Instant::now();
+    let mut nm = normals::pca_normals(pts, &nb);
+    let b = stage("pca", t);
+    let t = Instant::now();
+    normals::orient(pts, &mut nm, &nb);
+    let c = stage("orient", t);
+    if upto == "orient" {
+        return;
+    }
+    let t = Instant::now();
+    let mut above = normals::pca_normals(pts, &nb);
+    normals::orient_above(pts, &mut above, &nb);
+    stage("pca+above", t);
+    let t = Instant::now();
+    normals::robust_normals(pts, &mut nm, &nb);
+    stage("robust", t);
+    let radii = normals::splat_radii(&nb, 1.0);
+    let t = Instant::now();
+    normals::refine_and_shape(pts, &mut nm, &radii, &nb);
+    stage("refine+shp", t);
+    println!(
+        "  estimation proper (k-nearest, pca, orient): {:.1} ms, {:.2} M points/s",
+        (a + b + c) * 1e3,
+        n / (a + b + c) / 1e6
+    );
+    let t = Instant::now();
+    normals::estimate(pts, None, k, 1.0).expect("estimate");
+    stage("estimate", t);
+}
