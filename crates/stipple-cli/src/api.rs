@@ -18,7 +18,7 @@ pub struct Loaded {
     pub camera: Camera,
     /// The scene file's settings, when the input is one.
     pub scene: Option<LoadedScene>,
-    /// The cloud is a cut of a `.stlod` tree chosen for `camera`.
+    /// The cloud is a cut of a `.stlod` tree or of a COPC file chosen for `camera`.
     pub tree: bool,
 }
 
@@ -36,6 +36,17 @@ pub fn load(a: &RenderArgs) -> Result<Loaded> {
             scene: None,
             tree: true,
         });
+    }
+    if let Some(p) = input.filter(|p| stipple_io::copc::is_copc(p)) {
+        if let Some((cloud, label, camera)) = crate::lod::load_copc_cut(p, &a.camera, &a.lod)? {
+            return Ok(Loaded {
+                cloud,
+                label,
+                camera,
+                scene: None,
+                tree: true,
+            });
+        }
     }
     if let Some(p) = input.filter(|p| stipple_scene::is_scene(p)) {
         let (cloud, s, camera) = crate::look::load_scene(p, &a.camera)?;

@@ -3,6 +3,7 @@
 use crate::args::{CameraArgs, PipelineArgs};
 use crate::Result;
 use anyhow::{anyhow, Context};
+use glam::DVec3;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -15,10 +16,11 @@ use stipple_render::{PreparedCloud, Renderer};
 /// Options for drawing a tree, shared by `render` and `bench`.
 #[derive(clap::Args, Clone)]
 pub struct LodArgs {
-    /// For a .stlod tree: the most points drawn in a frame (e.g. 5M).
+    /// For a .stlod tree or a COPC file: the most points drawn in a frame (e.g. 5M).
     #[arg(long, default_value = "5M", value_parser = parse_count, value_name = "N")]
     pub point_budget: u64,
-    /// For a .stlod tree: refine until samples are at most this many pixels apart on screen.
+    /// For a .stlod tree or a COPC file: refine until samples are at most this many pixels
+    /// apart on screen.
     #[arg(long, default_value_t = 1.0, value_name = "PX", value_parser = crate::args::finite_f32)]
     pub lod_error: f32,
     /// For a .stlod tree: memory for cached node payloads (default: 4 × the point budget's
@@ -405,4 +407,89 @@ pub fn bench(
         st.evictions
     );
     Ok(())
+}
+
+/// How much detail a node of `spacing` (world units) within the sphere (`centre`, `radius`)
+/// adds to `camera`'s view: its spacing in pixels at the sphere's nearest depth, or −1 when
+/// the sphere lies outside the view, or when the node's parent (twice the spacing) was
+/// already at most `max_px` apart on screen.
+pub fn node_detail(camera: &Camera, centre: DVec3, radius: f64, spacing: f64, max_px: f64) -> f64 {
+    let b = camera.basis();
+    let v = centre - camera.eye;
+    let (x, y, z) = (v.dot(b.right), v.dot(b.up), v.dot(b.forward));
+    let (sx, sy) = camera.ndc_scale();
+    let half_h = 0.5 * camera.height as f64;
+    let px = match camera.projection {
+        stipple_core::Projection::Perspective { .. } => {
+            if z + radius < camera.near {
+                return -1.0;
+            }
+            // Outside a side plane (through the eye, where ndc = ±1) by more than the radius.
+            let out = |a: f64, s: f64| (a.abs() - z / s) / (1.0 + 1.0 / (s * s)).sqrt() > radius;
+            if out(x, sx) || out(y, sy) {
+                return -1.0;
+            }
+            spacing * sy * half_h / (z - radius).max(camera.near)
+        }
+        stipple_core::Projection::Orthographic { .. } => {
+            if x.abs() - radius > 1.0 / sx || y.abs() - radius > 1.0 / sy {
+                return -1.0;
+            }
+            spacing * sy * half_h
+        }
+    };
+    if 2.0 * px <= max_px {
+        -1.0
+    } else {
+        px
+    }
+}
+
+/// A COPC file larger than the point budget, as `render` draws it: the nodes the camera
+/// needs (coarse levels first, finer ones where they are close, until `--point-budget`
+/// points or `--lod-error` pixels between samples), decoded alone instead of the whole
+/// file. None when the file holds no more points than the budget (it is then read whole).
+pub fn load_copc_cut(
+    p: &Path,
+    camera: &CameraArgs,
+    lod: &LodArgs,
+) -> Result<Option<(PreparedCloud, String, Camera)>> {
+    let copc = stipple_io::copc::Copc::open(p)?;
+    if copc.point_count <= lod.point_budget {
+        return Ok(None);
+    }
+    if !(lod.lod_error > 0.0 && lod.lod_error.is_finite()) {
+        return Err(anyhow!(
+            "--lod-error {}: must be a positive number of pixels",
+            lod.lod_error
+        ));
+    }
+    let cam = camera
+        .build_framed(copc.min, copc.max, true)
+        .with_context(|| p.display().to_string())?;
+    let max_px = lod.lod_error as f64;
+    let sel = stipple_io::copc::select_nodes(&copc, lod.point_budget, |lo, hi, s| {
+        node_detail(&cam, (lo + hi) * 0.5, (hi - lo).length() * 0.5, s, max_px)
+    });
+    let points: u64 = sel.iter().map(|&i| copc.nodes[i].point_count).sum();
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.enable_steady_tick(Duration::from_millis(120));
+    bar.set_message(format!(
+        "decoding {} of {} COPC nodes ({points} points)",
+        sel.len(),
+        copc.nodes.len()
+    ));
+    let origin = ((copc.min + copc.max) * 0.5).round();
+    let cloud = copc.read_nodes(&sel, origin);
+    bar.finish_and_clear();
+    let cloud = cloud?;
+    let label = format!(
+        "{} (COPC: {} of {} nodes, {points} of {} points, for this view within --point-budget {})",
+        p.display(),
+        sel.len(),
+        copc.nodes.len(),
+        copc.point_count,
+        lod.point_budget
+    );
+    Ok(Some((PreparedCloud::new(cloud), label, cam)))
 }

@@ -273,3 +273,81 @@ fn bad_trees_and_bad_options_are_clear_errors() {
     assert!(std::fs::read(dir.join("s.las")).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `build-lod -o x.copc.laz` writes a COPC file that `info` checks and that `render` draws
+/// from the nodes its view needs when the file holds more than the point budget.
+#[test]
+fn a_copc_file_is_written_and_drawn_from_a_cut() {
+    let dir = tempdir("copc");
+    ok(
+        &dir,
+        &["gen", "plane-objects", "-o", "p.las", "--points", "400000"],
+    );
+    let out = ok(&dir, &["build-lod", "p.las", "-o", "p.copc.laz"]);
+    assert!(
+        out.contains("400000 points") && out.contains("COPC:"),
+        "{out}"
+    );
+    let info = ok(&dir, &["info", "p.copc.laz"]);
+    assert!(
+        info.contains("points      400000") && info.contains("COPC ") && info.contains("checked"),
+        "{info}"
+    );
+    let size = ["--size", "320x240", "--backend", "cpu", "--raw"];
+    let mut a = vec!["render", "p.las", "-o", "cloud.png"];
+    a.extend(size);
+    ok(&dir, &a);
+    // Within the default budget: read whole, as any LAZ.
+    let mut a = vec!["render", "p.copc.laz", "-o", "whole.png"];
+    a.extend(size);
+    let out = ok(&dir, &a);
+    assert!(!out.contains("COPC:"), "{out}");
+    // Beyond a budget of 150 000: a cut of the nodes, at most that many points.
+    let mut a = vec![
+        "render",
+        "p.copc.laz",
+        "-o",
+        "cut.png",
+        "--point-budget",
+        "150000",
+    ];
+    a.extend(size);
+    let out = ok(&dir, &a);
+    let drawn: u64 = out
+        .split("nodes, ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no point count in: {out}"));
+    assert!(
+        out.contains("COPC:") && drawn <= 150_000 && drawn > 10_000,
+        "{out}"
+    );
+    // The cut covers about what the whole cloud covers.
+    let (c, w, t) = (
+        covered(&dir.join("cloud.png")),
+        covered(&dir.join("whole.png")),
+        covered(&dir.join("cut.png")),
+    );
+    assert_eq!(c, w);
+    assert!(t * 10 > c * 7, "cloud {c} px, cut {t} px");
+    // Not over an existing file without --force; a tree is no input for COPC.
+    let err = |args: &[&str], want: &str| {
+        let o = stipple(&dir, args);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        let t = text(&o);
+        assert!(t.contains(want), "{args:?}: expected `{want}` in: {t}");
+        assert!(!t.contains("panicked"), "{t}");
+    };
+    err(
+        &["build-lod", "p.las", "-o", "p.copc.laz"],
+        "already exists",
+    );
+    ok(&dir, &["build-lod", "p.las", "-o", "p.stlod"]);
+    err(
+        &["build-lod", "p.stlod", "-o", "q.copc.laz"],
+        "no input for a COPC file",
+    );
+    assert!(!dir.join("q.copc.laz").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -6,6 +6,7 @@
 //! names the file and the problem. No allocation is sized from a header count before the
 //! count was checked against the bytes that are actually there.
 
+pub mod copc;
 pub mod e57_io;
 pub mod hdr;
 pub mod image;

@@ -26,7 +26,9 @@ pub struct BuildLodArgs {
     /// memory; PLY and XYZ are read whole.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
-    /// The tree to write (.stlod). Written under a temporary name and renamed when complete.
+    /// The tree to write: .stlod (stipple's tree), or .copc.laz (a COPC file, the octree
+    /// Potree, QGIS, PDAL and CloudCompare read; built in memory). Written under a temporary
+    /// name and renamed when complete.
     #[arg(short, long)]
     output: PathBuf,
     /// M: a node with fewer points is a leaf; an inner node holds at most M samples filtered
@@ -60,9 +62,10 @@ pub fn build_lod_with(
 ) -> Result<()> {
     let inputs: Vec<&Path> = a.inputs.iter().map(PathBuf::as_path).collect();
     crate::output::check_output(&a.output, &inputs)?;
-    if stipple_io::extension(&a.output) != "stlod" {
+    let copc = is_copc_name(&a.output);
+    if stipple_io::extension(&a.output) != "stlod" && !copc {
         return Err(anyhow!(
-            "{}: the tree's name must end in .stlod",
+            "{}: the tree's name must end in .stlod (stipple's tree) or .copc.laz (COPC)",
             a.output.display()
         ));
     }
@@ -71,6 +74,9 @@ pub fn build_lod_with(
             "{}: already exists; pass --force to replace it",
             a.output.display()
         ));
+    }
+    if copc {
+        return build_copc(&a, cancel);
     }
     if a.threads == Some(0) {
         return Err(anyhow!("--threads must be at least 1"));
@@ -152,3 +158,92 @@ pub fn build_lod_with(
     );
     Ok(())
 }
+
+/// Whether an output name asks for COPC (`*.copc.laz`, any case).
+fn is_copc_name(p: &Path) -> bool {
+    p.file_name()
+        .map(|n| n.to_string_lossy().to_lowercase().ends_with(".copc.laz"))
+        .unwrap_or(false)
+}
+
+/// `build-lod … -o out.copc.laz`: the inputs read whole and merged, then written as COPC
+/// (`stipple_io::copc::write_copc`).
+fn build_copc(a: &BuildLodArgs, cancel: Option<Arc<std::sync::atomic::AtomicBool>>) -> Result<()> {
+    let stopped = || {
+        cancel
+            .as_ref()
+            .is_some_and(|c| c.load(std::sync::atomic::Ordering::Relaxed))
+    };
+    if let Some(m) = a.memory {
+        crate::memory::set_budget(m);
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(a.threads.unwrap_or(0))
+        .build()?;
+    let t0 = Instant::now();
+    let mut cloud: Option<stipple_core::PointCloud> = None;
+    for p in &a.inputs {
+        if crate::lod::is_tree(p) {
+            return Err(anyhow!(
+                "{}: a .stlod tree is no input for a COPC file; give the clouds it was built from",
+                p.display()
+            ));
+        }
+        let c = pool.install(|| crate::args::read_with_progress(p))?;
+        if stopped() {
+            return Err(anyhow!("interrupted: the build stopped and left no file"));
+        }
+        match cloud.as_mut() {
+            None => cloud = Some(c),
+            Some(all) => {
+                crate::memory::check_points(
+                    &format!("merging {} into the COPC file", p.display()),
+                    (all.len() + c.len()) as u64,
+                    BYTES_PER_COPC_POINT,
+                )?;
+                all.append(&c)
+            }
+        }
+    }
+    let cloud = cloud.expect("clap requires an input");
+    crate::memory::check_points(
+        &format!("writing {} as COPC", a.output.display()),
+        cloud.len() as u64,
+        BYTES_PER_COPC_POINT,
+    )?;
+    let read_s = t0.elapsed().as_secs_f64();
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_message(format!("building and writing {}", a.output.display()));
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    let r = pool.install(|| stipple_io::copc::write_copc(&a.output, &cloud));
+    bar.finish_and_clear();
+    let r = r?;
+    let s = t0.elapsed().as_secs_f64();
+    println!(
+        "wrote {}: {} points from {} file{} in {s:.1} s ({:.2} M points/s)",
+        a.output.display(),
+        r.points,
+        a.inputs.len(),
+        if a.inputs.len() == 1 { "" } else { "s" },
+        r.points as f64 / s / 1e6
+    );
+    println!(
+        "  COPC: {} nodes on {} levels (at most {} points a node), {} MiB",
+        r.nodes,
+        r.levels,
+        stipple_io::copc::MAX_NODE_POINTS,
+        r.bytes >> 20
+    );
+    let peak = stipple_lod::mem::peak_rss()
+        .map(|p| format!("; peak memory {} MiB", p >> 20))
+        .unwrap_or_default();
+    println!(
+        "  reading {read_s:.1} s, building and writing {:.1} s (in memory{peak})",
+        s - read_s
+    );
+    Ok(())
+}
+
+/// Memory per point while a COPC file is built: the cloud (position, colour, attributes),
+/// the octree's indices and sort keys, and the node records before compression.
+const BYTES_PER_COPC_POINT: u64 = 80;

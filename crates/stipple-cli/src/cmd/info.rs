@@ -16,6 +16,19 @@ pub fn info(files: &[PathBuf], verify: bool) -> Result<()> {
             }
             continue;
         }
+        // A COPC file's hierarchy is checked before its points are read.
+        let copc = if stipple_io::copc::is_copc(f) {
+            match stipple_io::copc::Copc::open(f) {
+                Ok(c) => Some(c),
+                Err(e) => {
+                    eprintln!("stipple: error: {e}");
+                    failed += 1;
+                    continue;
+                }
+            }
+        } else {
+            None
+        };
         match args::read_with_progress(f) {
             Ok(c) => {
                 let p = PreparedCloud::new(c);
@@ -30,6 +43,16 @@ pub fn info(files: &[PathBuf], verify: bool) -> Result<()> {
                 println!("  attributes  {}", c.attributes().join(", "));
                 if !c.faces.is_empty() {
                     println!("  faces       {} triangles", c.faces.len());
+                }
+                if let Some(copc) = &copc {
+                    let levels = copc.nodes.iter().map(|n| n.key.level).max().unwrap_or(0) + 1;
+                    println!(
+                        "  COPC        {} nodes on {levels} levels, {} hierarchy page{}, root spacing {:.6}, checked",
+                        copc.nodes.len(),
+                        copc.pages,
+                        if copc.pages == 1 { "" } else { "s" },
+                        copc.info.spacing
+                    );
                 }
                 println!(
                     "  spacing     {:.6} (median nearest-neighbour distance)",
