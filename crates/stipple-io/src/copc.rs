@@ -423,6 +423,25 @@ impl Copc {
         let path = &self.path;
         let rec = self.record_len;
         let colour = self.format >= 7;
+        // LAZ can hold hundreds of identical points in a byte, so a node's count is checked
+        // against the memory its points need (records, then the cloud's columns), not
+        // against its bytes.
+        let points: u64 = which.iter().map(|&w| self.nodes[w].point_count).sum();
+        let need = points.saturating_mul(rec as u64 + 22);
+        if let Some(avail) = stipple_core::sys::available_memory() {
+            if need > avail {
+                return Err(IoError::invalid(
+                    path,
+                    format!(
+                        "{} nodes claim {points} points, which need {} MiB: more than the {} MiB \
+                         of memory available (a smaller --point-budget reads fewer)",
+                        which.len(),
+                        need >> 20,
+                        avail >> 20
+                    ),
+                ));
+            }
+        }
         let parts: Vec<Part> = which
             .par_iter()
             .map(|&w| {
@@ -431,6 +450,19 @@ impl Copc {
                 self.file
                     .read_exact_at(&mut bytes, n.offset)
                     .map_err(|e| IoError::io(path, e))?;
+                if let Some(layers) = crate::las_io::laz_layers(&self.laz) {
+                    if let Some(p) =
+                        crate::las_io::layered_chunk_problem(&bytes, n.byte_size, rec, layers)
+                    {
+                        return Err(IoError::invalid(
+                            path,
+                            format!(
+                                "node {}-{}-{}-{}: {p}",
+                                n.key.level, n.key.x, n.key.y, n.key.z
+                            ),
+                        ));
+                    }
+                }
                 let mut raw = Vec::new();
                 stipple_core::sys::try_reserve(
                     &mut raw,
@@ -1182,6 +1214,63 @@ mod tests {
             b[HEADER_SIZE + 2..HEADER_SIZE + 6].copy_from_slice(b"xxxx");
         });
         assert!(e.contains("not a COPC file"), "{e}");
+    }
+
+    /// A node claiming 2³¹ − 1 points (with a header that agrees) opens, but reading it is
+    /// refused before anything that size is allocated.
+    #[test]
+    fn a_node_claiming_billions_of_points_is_refused_before_allocating() {
+        let d = dir("claims");
+        let path = d.join("c.copc.laz");
+        write_copc(&path, &cloud(30_000)).unwrap();
+        let mut b = std::fs::read(&path).unwrap();
+        let page = le_u64(&b, HEADER_SIZE + VLR_HEADER + 40) as usize;
+        b[page + 28..page + 32].copy_from_slice(&i32::MAX.to_le_bytes());
+        b[247..255].copy_from_slice(&(i32::MAX as u64).to_le_bytes());
+        std::fs::write(&path, &b).unwrap();
+        let copc = Copc::open(&path).unwrap();
+        let e = copc
+            .read_nodes(&[0], DVec3::ZERO)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("memory available") && e.contains("c.copc.laz"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&d);
+    }
+
+    /// A chunk whose layer table claims gigabytes (the `laz` crate would allocate them) is an
+    /// error, whether the file is read as COPC or as plain LAZ (found by fuzzing).
+    #[test]
+    fn a_chunk_whose_layers_claim_gigabytes_is_refused() {
+        let d = dir("layers");
+        let path = d.join("l.copc.laz");
+        write_copc(&path, &cloud(3_000)).unwrap();
+        let mut b = std::fs::read(&path).unwrap();
+        let copc = Copc::open(&path).unwrap();
+        let chunk = copc.nodes[0].offset as usize;
+        // After the first point (36 bytes) and the count: the first layer's size.
+        let at = chunk + copc.record_len + 4;
+        b[at..at + 4].copy_from_slice(&0xF000_0000u32.to_le_bytes());
+        std::fs::write(&path, &b).unwrap();
+        let copc = Copc::open(&path).unwrap();
+        let e = copc
+            .read_nodes(&[0], DVec3::ZERO)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            e.contains("layers claim") && e.contains("l.copc.laz"),
+            "{e}"
+        );
+        let e = crate::read_cloud(&path).err().unwrap().to_string();
+        assert!(
+            e.contains("layers claim") && e.contains("l.copc.laz"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&d);
     }
 
     #[test]

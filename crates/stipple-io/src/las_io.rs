@@ -235,6 +235,144 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
             }
         }
     }
+    if head[104] & 0x80 != 0 {
+        return laz_problem(&file, file_len, header_size, nvlr, point_offset, record_len);
+    }
+    None
+}
+
+/// Layers per chunk of a LAS 1.4 ("layered") LAZ record, from its items; None for point-wise
+/// compression (LAS 1.0–1.3 formats), whose chunks carry no layer table.
+pub(crate) fn laz_layers(vlr: &laz::LazVlr) -> Option<usize> {
+    use laz::LazItemType as T;
+    let mut layers = None;
+    for it in vlr.items() {
+        let n = match it.item_type() {
+            T::Point14 => 9,
+            T::RGB14 | T::WavePacket14 => 1,
+            T::RGBNIR14 => 2,
+            T::Byte14(n) => n as usize,
+            _ => continue,
+        };
+        layers = Some(layers.unwrap_or(0) + n);
+    }
+    layers
+}
+
+/// What is wrong with a layered LAZ chunk of `chunk_bytes` bytes that starts with `head`
+/// (its first point, point count and layer sizes; at least `record_len + 4 + 4 × layers`
+/// bytes where the chunk has them): its layers must fit in it. The `laz` crate allocates
+/// each layer at the size the chunk gives before reading it (found by fuzzing: a chunk of
+/// a few hundred bytes asked for 3.9 GB).
+pub(crate) fn layered_chunk_problem(
+    head: &[u8],
+    chunk_bytes: u64,
+    record_len: usize,
+    layers: usize,
+) -> Option<String> {
+    let table = record_len + 4 + 4 * layers;
+    if chunk_bytes < table as u64 || head.len() < table {
+        return Some(format!(
+            "a compressed chunk of {chunk_bytes} bytes is shorter than its own layer table \
+             ({table} bytes)"
+        ));
+    }
+    let sizes: u64 = head[record_len + 4..table]
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes(b.try_into().unwrap()) as u64)
+        .sum();
+    (sizes > chunk_bytes - table as u64).then(|| {
+        format!(
+            "a compressed chunk's layers claim {sizes} bytes, more than the chunk's {} bytes \
+             hold",
+            chunk_bytes - table as u64
+        )
+    })
+}
+
+/// A LAZ file's chunk table and chunks checked before the `las` crate reads them (it sizes
+/// allocations from them): the table inside the file and its chunk count within the bytes
+/// the chunks take; for layered (LAS 1.4) compression, every chunk's layers within the chunk.
+fn laz_problem(
+    file: &std::fs::File,
+    file_len: u64,
+    header_size: u64,
+    nvlr: u64,
+    point_offset: u64,
+    record_len: u64,
+) -> Option<String> {
+    use std::os::unix::fs::FileExt;
+    let read = |at: u64, n: usize| -> Option<Vec<u8>> {
+        let mut b = vec![0u8; n];
+        file.read_exact_at(&mut b, at).ok().map(|_| b)
+    };
+    // The LAZ VLR (the `las` crate reports a missing or broken one itself).
+    let mut at = header_size;
+    let mut vlr = None;
+    for _ in 0..nvlr {
+        let h = read(at, 54)?;
+        let len = u16::from_le_bytes([h[20], h[21]]) as u64;
+        let uid = &h[2..18];
+        let uid = &uid[..uid.iter().position(|&c| c == 0).unwrap_or(16)];
+        if uid == b"laszip encoded" && u16::from_le_bytes([h[18], h[19]]) == 22204 {
+            vlr = laz::LazVlr::from_buffer(read(at + 54, len as usize)?).ok();
+            break;
+        }
+        at = at.saturating_add(54 + len);
+        if at > point_offset {
+            return None;
+        }
+    }
+    let vlr = vlr?;
+    let table_at = i64::from_le_bytes(read(point_offset, 8)?.try_into().unwrap());
+    if table_at == -1 {
+        // Written without a table (streamed): read sequentially by the `las` crate.
+        return None;
+    }
+    let data_end = table_at as u64;
+    if table_at < 0 || data_end < point_offset + 8 || data_end.saturating_add(8) > file_len {
+        return Some(format!(
+            "the LAZ chunk table's offset {table_at} lies outside the file's {file_len} bytes \
+             of point data: it is truncated or corrupt"
+        ));
+    }
+    let th = read(data_end, 8)?;
+    let chunks = u32::from_le_bytes(th[4..8].try_into().unwrap()) as u64;
+    // A chunk starts with its first point uncompressed.
+    let room = data_end - point_offset - 8;
+    if chunks > room / record_len.max(1) {
+        return Some(format!(
+            "the LAZ chunk table lists {chunks} chunks, more than the {room} bytes of \
+             compressed points can hold: the file is corrupt"
+        ));
+    }
+    let layers = laz_layers(&vlr)?;
+    let mut f = file;
+    use std::io::{Seek, SeekFrom};
+    f.seek(SeekFrom::Start(point_offset)).ok()?;
+    let table = match laz::laszip::ChunkTable::read_from(f, &vlr) {
+        Ok(t) => t,
+        Err(e) => return Some(format!("the LAZ chunk table cannot be read: {e}")),
+    };
+    let mut at = point_offset + 8;
+    let want = record_len as usize + 4 + 4 * layers;
+    for (k, e) in table.as_ref().iter().enumerate() {
+        if e.byte_count == 0 {
+            continue;
+        }
+        if at.saturating_add(e.byte_count) > data_end {
+            return Some(format!(
+                "LAZ chunk {k} ({} bytes at {at}) runs past the chunk table: the file is corrupt",
+                e.byte_count
+            ));
+        }
+        let n = (want as u64).min(e.byte_count) as usize;
+        let head = read(at, n)?;
+        if let Some(p) = layered_chunk_problem(&head, e.byte_count, record_len as usize, layers) {
+            return Some(format!("LAZ chunk {k}: {p}"));
+        }
+        at += e.byte_count;
+    }
     None
 }
 

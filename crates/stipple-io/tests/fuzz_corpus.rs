@@ -1,4 +1,4 @@
-//! Replays the fuzzing corpora (`fuzz/corpus/{ply,xyz,cloud_file,mesh}`, minimised by
+//! Replays the fuzzing corpora (`fuzz/corpus/{ply,xyz,cloud_file,mesh,copc}`, minimised by
 //! `fuzz/run.sh`) and the inputs that once failed (`fuzz/regressions/<target>/`) through the
 //! same entry points as the fuzz targets: every input must come back as a value or an error,
 //! never a panic. CI runs this on stable; the fuzzing itself needs nightly (fuzz/run.sh).
@@ -75,4 +75,25 @@ fn mesh_corpus_replays_without_panics() {
         let _ = stipple_io::volume_io::parse_nifti(&data);
         let _ = stipple_io::volume_io::parse_raw("v_4x4x4_uint16.raw", &data);
     }
+}
+
+/// As `fuzz/fuzz_targets/copc.rs`: opened, and decoded when it opens with a modest count.
+#[test]
+fn copc_corpus_replays_without_panics() {
+    let files = inputs("copc");
+    assert!(!files.is_empty(), "no copc corpus under fuzz/");
+    let dir = std::env::temp_dir().join(format!("stipple-copc-replay-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (k, f) in files.iter().enumerate() {
+        let path = dir.join(format!("{k}.copc.laz"));
+        std::fs::write(&path, std::fs::read(f).unwrap()).unwrap();
+        if let Ok(c) = stipple_io::copc::Copc::open(&path) {
+            if c.point_count <= 1 << 16 {
+                let all: Vec<usize> = (0..c.nodes.len()).collect();
+                let _ = c.read_nodes(&all, Default::default());
+            }
+        }
+        let _ = std::fs::remove_file(&path);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
