@@ -475,7 +475,14 @@ impl Copc {
                     point_count: n.point_count,
                     byte_count: n.byte_size,
                 };
-                laz::par_decompress(&bytes, &mut raw, &self.laz, &[entry]).map_err(|e| {
+                // A corrupt chunk is an error; the decoder is also kept from taking the
+                // process down should hostile bytes make it panic.
+                let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    laz::par_decompress(&bytes, &mut raw, &self.laz, &[entry])
+                        .map_err(|e| e.to_string())
+                }))
+                .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()));
+                decoded.map_err(|e| {
                     IoError::invalid(
                         path,
                         format!(

@@ -84,17 +84,21 @@ impl LasBatches {
         if read >= count {
             return Ok(0);
         }
-        let got = self
-            .reader
-            .fill_points(n.max(1).min(count - read), &mut self.data)
-            .map_err(|e| {
-                IoError::invalid(
-                    &self.path,
-                    format!(
-                        "point data is corrupt or truncated after {read} of {count} points: {e}"
-                    ),
-                )
-            })?;
+        // The LAZ decoder can panic on corrupt chunks (an index out of bounds; found by
+        // fuzzing): that is an error like any other corruption.
+        let (reader, data) = (&mut self.reader, &mut self.data);
+        let got = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            reader
+                .fill_points(n.max(1).min(count - read), data)
+                .map_err(|e| e.to_string())
+        }))
+        .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()))
+        .map_err(|e| {
+            IoError::invalid(
+                &self.path,
+                format!("point data is corrupt or truncated after {read} of {count} points: {e}"),
+            )
+        })?;
         if got == 0 {
             return Err(IoError::invalid(
                 &self.path,
@@ -378,21 +382,23 @@ fn laz_problem(
 
 /// Reads a LAS/LAZ file.
 pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
+    let batches = LasBatches::open(path)?;
+    if let Some(chunks) = chunks_of(path, &batches)? {
+        return read_las_parallel(path, &batches.header, batches.count, &chunks);
+    }
+    read_las_batches(path, batches)
+}
+
+/// [`read_las`] batch by batch through the `las` crate: for files [`chunks_of`] cannot split
+/// (extra bytes, a LAZ file without a chunk table).
+pub fn read_las_batches(path: &Path, mut batches: LasBatches) -> Result<PointCloud, IoError> {
     let file_len = std::fs::metadata(path)
         .map_err(|e| IoError::io(path, e))?
         .len();
-    let mut batches = LasBatches::open(path)?;
     let header = batches.header.clone();
     let count = batches.count;
     let fmt = header.point_format();
-    let b = header.bounds();
-    let (hlo, hhi) = (
-        DVec3::new(b.min.x, b.min.y, b.min.z),
-        DVec3::new(b.max.x, b.max.y, b.max.z),
-    );
-    // The origin of the f32 offsets: the header's centre when the header's bounds hold the
-    // first batch of points, else (inverted, far-off or missing bounds, which would quantise
-    // the offsets to metres) the first batch's own centre.
+    // The origin of the f32 offsets (see `choose_origin`), from the first batch.
     batches.next_batch(BATCH)?;
     let (flo, fhi) = {
         let pd = &batches.data;
@@ -406,21 +412,7 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
                 |(lo, hi), p| (lo.min(p), hi.max(p)),
             )
     };
-    let slack = (hhi - hlo).abs().max_element() * 0.01 + 1.0;
-    let header_holds = hlo.is_finite()
-        && hhi.is_finite()
-        && hlo.cmple(hhi).all()
-        && flo.cmpge(hlo - slack).all()
-        && fhi.cmple(hhi + slack).all();
-    let mut origin = if header_holds {
-        (hlo + hhi) * 0.5
-    } else {
-        (flo + fhi) * 0.5
-    }
-    .round();
-    if !origin.is_finite() || origin.abs().max_element() > 1e12 {
-        origin = DVec3::ZERO;
-    }
+    let origin = choose_origin(&header, flo, fhi);
     let cap = count.min(file_len) as usize;
     let mut positions = Vec::new();
     stipple_core::sys::try_reserve(&mut positions, cap, "the points' positions")
@@ -518,6 +510,361 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
             stipple_core::normals::airborne_sensor_dirs(&cloud.positions, &t, &a, &s);
     }
     Ok(cloud)
+}
+
+/// A run of points that decodes on its own: a LAZ chunk or a block of LAS records.
+#[derive(Clone, Copy, Debug)]
+pub struct Chunk {
+    /// Where its bytes start in the file, and how many.
+    pub offset: u64,
+    pub bytes: u64,
+    /// Its points, and the index of its first.
+    pub points: u64,
+    pub first: u64,
+}
+
+/// A file's runs of points, and the LAZ VLR that decodes them (None: uncompressed LAS).
+type Chunks = (Vec<Chunk>, Option<laz::LazVlr>);
+
+/// Points per block of an uncompressed LAS file read in parallel.
+const LAS_BLOCK: u64 = 1 << 16;
+
+/// How a file's points split into independent runs for [`read_las_parallel`]: LAZ chunks
+/// from the chunk table, or blocks of LAS records. None where the file cannot be read that
+/// way (extra bytes, whose fields [`read_las_batches`] handles; a LAZ file written without
+/// a chunk table; chunk counts that do not add up to the header's, which the batch reader
+/// reports precisely).
+fn chunks_of(path: &Path, b: &LasBatches) -> Result<Option<Chunks>, IoError> {
+    use std::os::unix::fs::FileExt;
+    let fmt = b.header.point_format();
+    if fmt.extra_bytes > 0 {
+        return Ok(None);
+    }
+    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let mut raw = [0u8; 4];
+    file.read_exact_at(&mut raw, 96)
+        .map_err(|e| IoError::io(path, e))?;
+    let point_offset = u32::from_le_bytes(raw) as u64;
+    let rec = fmt.len() as u64;
+    let count = b.count;
+    if !fmt.is_compressed {
+        let chunks = (0..count.div_ceil(LAS_BLOCK))
+            .map(|k| {
+                let first = k * LAS_BLOCK;
+                let points = LAS_BLOCK.min(count - first);
+                Chunk {
+                    offset: point_offset + first * rec,
+                    bytes: points * rec,
+                    points,
+                    first,
+                }
+            })
+            .collect();
+        return Ok(Some((chunks, None)));
+    }
+    let Some(vlr) = b
+        .header
+        .vlrs()
+        .iter()
+        .find(|v| v.user_id.trim_end_matches('\0') == "laszip encoded" && v.record_id == 22204)
+        .and_then(|v| laz::LazVlr::from_buffer(&v.data).ok())
+    else {
+        return Ok(None);
+    };
+    let mut t = [0u8; 8];
+    file.read_exact_at(&mut t, point_offset)
+        .map_err(|e| IoError::io(path, e))?;
+    if i64::from_le_bytes(t) < 0 {
+        return Ok(None);
+    }
+    // (The table's offset and count were checked against the file when it was opened.)
+    let mut f = &file;
+    use std::io::{Seek, SeekFrom};
+    f.seek(SeekFrom::Start(point_offset))
+        .map_err(|e| IoError::io(path, e))?;
+    let Ok(table) = laz::laszip::ChunkTable::read_from(f, &vlr) else {
+        return Ok(None);
+    };
+    let mut chunks = Vec::with_capacity(table.len());
+    let (mut at, mut first) = (point_offset + 8, 0u64);
+    for e in table.as_ref() {
+        // Fixed-size tables give every chunk the full size: the last holds what is left.
+        let points = e.point_count.min(count.saturating_sub(first));
+        if points == 0 {
+            break;
+        }
+        chunks.push(Chunk {
+            offset: at,
+            bytes: e.byte_count,
+            points,
+            first,
+        });
+        at += e.byte_count;
+        first += points;
+    }
+    Ok((first == count).then_some((chunks, Some(vlr))))
+}
+
+/// The columns a chunk's points go to (its share of the cloud's arrays).
+struct ChunkOut<'a> {
+    pos: &'a mut [glam::Vec3],
+    intensity: &'a mut [u16],
+    class: &'a mut [u8],
+    ret: &'a mut [u8],
+    rgb: &'a mut [[u16; 3]],
+    gps: &'a mut [f64],
+    angle: &'a mut [f32],
+    source: &'a mut [u16],
+}
+
+/// Splits `v` into consecutive slices of `lens` (empty slices where `v` is empty: a column
+/// the file does not have).
+fn split_by<'a, T>(mut v: &'a mut [T], lens: &[usize]) -> Vec<&'a mut [T]> {
+    lens.iter()
+        .map(|&n| {
+            let n = n.min(v.len());
+            let (a, b) = std::mem::take(&mut v).split_at_mut(n);
+            v = b;
+            a
+        })
+        .collect()
+}
+
+/// Where a record keeps its fields (LAS 1.4 table 7 onwards; extended formats 6–10).
+#[derive(Clone, Copy)]
+struct Layout {
+    rec: usize,
+    extended: bool,
+    angle: usize,
+    source: usize,
+    gps: Option<usize>,
+    rgb: Option<usize>,
+}
+
+impl Layout {
+    fn of(f: &las::point::Format) -> Layout {
+        if f.is_extended {
+            Layout {
+                rec: f.len() as usize,
+                extended: true,
+                angle: 18,
+                source: 20,
+                gps: Some(22),
+                rgb: f.has_color.then_some(30),
+            }
+        } else {
+            Layout {
+                rec: f.len() as usize,
+                extended: false,
+                angle: 16,
+                source: 18,
+                gps: f.has_gps_time.then_some(20),
+                rgb: f.has_color.then_some(20 + 8 * f.has_gps_time as usize),
+            }
+        }
+    }
+}
+
+/// [`read_las`] with every chunk decoded and converted on its own, in parallel, straight
+/// into the cloud's columns: the same cloud as [`read_las_batches`] (test
+/// `parallel_and_batch_reads_agree`).
+fn read_las_parallel(
+    path: &Path,
+    header: &las::Header,
+    count: u64,
+    (chunks, vlr): &Chunks,
+) -> Result<PointCloud, IoError> {
+    use rayon::prelude::*;
+    use std::os::unix::fs::FileExt;
+    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let fmt = header.point_format();
+    let lay = Layout::of(fmt);
+    let t = header.transforms();
+    let (scale, offset) = (
+        DVec3::new(t.x.scale, t.y.scale, t.z.scale),
+        DVec3::new(t.x.offset, t.y.offset, t.z.offset),
+    );
+    let world = |r: &[u8]| {
+        let i = |o: usize| i32::from_le_bytes(r[o..o + 4].try_into().unwrap()) as f64;
+        DVec3::new(i(0), i(4), i(8)) * scale + offset
+    };
+    // A chunk's records: read (LAS) or read and decompressed (LAZ).
+    let records = |c: &Chunk, raw: &mut Vec<u8>| -> Result<(), IoError> {
+        let n = c.points as usize * lay.rec;
+        raw.clear();
+        stipple_core::sys::try_reserve(raw, n, "a chunk of points")
+            .map_err(|m| IoError::invalid(path, m))?;
+        raw.resize(n, 0);
+        let corrupt = |e: String| {
+            IoError::invalid(
+                path,
+                format!(
+                    "point data is corrupt or truncated in the chunk of points {} to {}: {e}",
+                    c.first,
+                    c.first + c.points
+                ),
+            )
+        };
+        match vlr {
+            None => file
+                .read_exact_at(raw, c.offset)
+                .map_err(|e| corrupt(e.to_string())),
+            Some(vlr) => {
+                let mut bytes = vec![0u8; c.bytes as usize];
+                file.read_exact_at(&mut bytes, c.offset)
+                    .map_err(|e| corrupt(e.to_string()))?;
+                let entry = laz::laszip::ChunkTableEntry {
+                    point_count: c.points,
+                    byte_count: c.bytes,
+                };
+                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                    laz::par_decompress(&bytes, raw, vlr, &[entry]).map_err(|e| e.to_string())
+                }))
+                .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()))
+                .map_err(corrupt)
+            }
+        }
+    };
+    // The origin, as the batch reader chooses it: the header's centre when the header's
+    // bounds hold the first chunk's points, else that chunk's centre.
+    let mut raw = Vec::new();
+    records(&chunks[0], &mut raw)?;
+    let (flo, fhi) = raw
+        .chunks_exact(lay.rec)
+        .map(world)
+        .filter(|p| p.is_finite())
+        .fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(p), hi.max(p)),
+        );
+    let origin = choose_origin(header, flo, fhi);
+    let n = count as usize;
+    let mut positions = Vec::new();
+    stipple_core::sys::try_reserve(&mut positions, n, "the points' positions")
+        .map_err(|m| IoError::invalid(path, m))?;
+    positions.resize(n, glam::Vec3::ZERO);
+    let mut intensity = vec![0u16; n];
+    let mut class = vec![0u8; n];
+    let mut ret = vec![0u8; n];
+    let mut rgb = vec![[0u16; 3]; if lay.rgb.is_some() { n } else { 0 }];
+    let pulses = lay.gps.is_some() && fmt.has_gps_time;
+    let m = if pulses { n } else { 0 };
+    let (mut gps, mut angle, mut source) = (vec![0f64; m], vec![0f32; m], vec![0u16; m]);
+    let lens: Vec<usize> = chunks.iter().map(|c| c.points as usize).collect();
+    let outs: Vec<ChunkOut> = split_by(&mut positions, &lens)
+        .into_iter()
+        .zip(split_by(&mut intensity, &lens))
+        .zip(split_by(&mut class, &lens))
+        .zip(split_by(&mut ret, &lens))
+        .zip(split_by(&mut rgb, &lens))
+        .zip(split_by(&mut gps, &lens))
+        .zip(split_by(&mut angle, &lens))
+        .zip(split_by(&mut source, &lens))
+        .map(
+            |(((((((pos, intensity), class), ret), rgb), gps), angle), source)| ChunkOut {
+                pos,
+                intensity,
+                class,
+                ret,
+                rgb,
+                gps,
+                angle,
+                source,
+            },
+        )
+        .collect();
+    outs.into_par_iter()
+        .zip(chunks.par_iter())
+        .try_for_each_init(Vec::new, |raw, (o, c)| {
+            records(c, raw)?;
+            for (k, r) in raw.chunks_exact(lay.rec).enumerate() {
+                let p = world(r);
+                if let Some(problem) = stipple_core::cloud::coordinate_problem(p) {
+                    return Err(IoError::invalid(
+                        path,
+                        format!("point {} has {problem}", c.first + k as u64),
+                    ));
+                }
+                o.pos[k] = (p - origin).as_vec3();
+                o.intensity[k] = u16::from_le_bytes([r[12], r[13]]);
+                if lay.extended {
+                    o.ret[k] = r[14] & 15;
+                    o.class[k] = r[16];
+                } else {
+                    o.ret[k] = r[14] & 7;
+                    o.class[k] = r[15] & 0x1f;
+                }
+                if let Some(at) = lay.rgb {
+                    let v = |o: usize| u16::from_le_bytes([r[at + o], r[at + o + 1]]);
+                    o.rgb[k] = [v(0), v(2), v(4)];
+                }
+                if let (true, Some(at)) = (pulses, lay.gps) {
+                    o.gps[k] = f64::from_le_bytes(r[at..at + 8].try_into().unwrap());
+                    o.angle[k] = if lay.extended {
+                        i16::from_le_bytes([r[lay.angle], r[lay.angle + 1]]) as f32 * 0.006
+                    } else {
+                        r[lay.angle] as i8 as f32
+                    };
+                    o.source[k] = u16::from_le_bytes([r[lay.source], r[lay.source + 1]]);
+                }
+            }
+            Ok(())
+        })?;
+    let mut cloud = PointCloud {
+        origin,
+        positions,
+        intensity: Some(intensity),
+        classification: Some(class),
+        return_number: Some(ret),
+        z_up: true,
+        ..Default::default()
+    };
+    if lay.rgb.is_some() {
+        let max = rgb
+            .par_iter()
+            .map(|c| c[0].max(c[1]).max(c[2]))
+            .max()
+            .unwrap_or(0);
+        let shift = if max > 255 { 8 } else { 0 };
+        cloud.colors = Some(
+            rgb.par_iter()
+                .map(|c| c.map(|v| (v >> shift) as u8))
+                .collect(),
+        );
+    }
+    if pulses {
+        cloud.sensor_dirs =
+            stipple_core::normals::airborne_sensor_dirs(&cloud.positions, &gps, &angle, &source);
+    }
+    Ok(cloud)
+}
+
+/// The origin of a LAS file's f32 offsets: the header's centre when the header's bounds
+/// hold the first points read (`flo`..`fhi`), else (inverted, far-off or missing bounds,
+/// which would quantise the offsets to metres) those points' own centre; rounded.
+fn choose_origin(header: &las::Header, flo: DVec3, fhi: DVec3) -> DVec3 {
+    let b = header.bounds();
+    let (hlo, hhi) = (
+        DVec3::new(b.min.x, b.min.y, b.min.z),
+        DVec3::new(b.max.x, b.max.y, b.max.z),
+    );
+    let slack = (hhi - hlo).abs().max_element() * 0.01 + 1.0;
+    let header_holds = hlo.is_finite()
+        && hhi.is_finite()
+        && hlo.cmple(hhi).all()
+        && flo.cmpge(hlo - slack).all()
+        && fhi.cmple(hhi + slack).all();
+    let origin = if header_holds {
+        (hlo + hhi) * 0.5
+    } else {
+        (flo + fhi) * 0.5
+    }
+    .round();
+    if !origin.is_finite() || origin.abs().max_element() > 1e12 {
+        DVec3::ZERO
+    } else {
+        origin
+    }
 }
 
 /// One extra-bytes value of a record: its name, where it starts in the extra bytes, its

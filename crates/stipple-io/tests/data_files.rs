@@ -168,3 +168,41 @@ fn the_lion_copc_reads_node_by_node_and_writes_back() {
     );
     assert_eq!(key(&back), key(&flat));
 }
+
+/// The parallel reader (chunks decoded and converted on their own, straight into the
+/// columns) gives the very cloud the batch reader gives, for LAS, LAZ (point-wise and
+/// layered) and COPC files.
+#[test]
+fn parallel_and_batch_reads_agree() {
+    use stipple_io::las_io::{read_las, read_las_batches, LasBatches};
+    let Some(dir) = data_dir() else { return };
+    // Point format 2 (colours without GPS times), as stipple writes LAS and LAZ.
+    let lion = stipple_io::read_cloud(&dir.join("colored/lion_takanawa.copc.laz")).unwrap();
+    let tmp = std::env::temp_dir().join(format!("stipple-par-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let (las2, laz2) = (tmp.join("lion.las"), tmp.join("lion.laz"));
+    stipple_io::las_io::write_las(&las2, &lion, false).unwrap();
+    stipple_io::las_io::write_las(&laz2, &lion, true).unwrap();
+    for p in [
+        las2.clone(),
+        laz2.clone(),
+        dir.join("lidar/autzen_trim.las"),
+        dir.join("lidar/autzen_trim.laz"),
+        dir.join("lidar/lone-star.laz"),
+        dir.join("colored/lion_takanawa.copc.laz"),
+    ] {
+        let f = p.display().to_string();
+        let a = read_las(&p).unwrap();
+        let b = read_las_batches(&p, LasBatches::open(&p).unwrap()).unwrap();
+        assert_eq!(a.origin, b.origin, "{f}");
+        assert_eq!(a.positions, b.positions, "{f}");
+        assert_eq!(a.intensity, b.intensity, "{f}");
+        assert_eq!(a.classification, b.classification, "{f}");
+        assert_eq!(a.return_number, b.return_number, "{f}");
+        assert_eq!(a.colors, b.colors, "{f}");
+        assert_eq!(a.sensor_dirs, b.sensor_dirs, "{f}");
+        assert_eq!(a.fields.len(), b.fields.len(), "{f}");
+        assert!(a.colors.is_some() || !f.contains("lion"), "{f}");
+    }
+    let _ = std::fs::remove_dir_all(&tmp);
+}
