@@ -240,7 +240,15 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
         }
     }
     if head[104] & 0x80 != 0 {
-        return laz_problem(&file, file_len, header_size, nvlr, point_offset, record_len);
+        return laz_problem(
+            &file,
+            file_len,
+            header_size,
+            head[25],
+            nvlr,
+            point_offset,
+            record_len,
+        );
     }
     None
 }
@@ -301,6 +309,7 @@ fn laz_problem(
     file: &std::fs::File,
     file_len: u64,
     header_size: u64,
+    version_minor: u8,
     nvlr: u64,
     point_offset: u64,
     record_len: u64,
@@ -310,24 +319,6 @@ fn laz_problem(
         let mut b = vec![0u8; n];
         file.read_exact_at(&mut b, at).ok().map(|_| b)
     };
-    // The LAZ VLR (the `las` crate reports a missing or broken one itself).
-    let mut at = header_size;
-    let mut vlr = None;
-    for _ in 0..nvlr {
-        let h = read(at, 54)?;
-        let len = u16::from_le_bytes([h[20], h[21]]) as u64;
-        let uid = &h[2..18];
-        let uid = &uid[..uid.iter().position(|&c| c == 0).unwrap_or(16)];
-        if uid == b"laszip encoded" && u16::from_le_bytes([h[18], h[19]]) == 22204 {
-            vlr = laz::LazVlr::from_buffer(read(at + 54, len as usize)?).ok();
-            break;
-        }
-        at = at.saturating_add(54 + len);
-        if at > point_offset {
-            return None;
-        }
-    }
-    let vlr = vlr?;
     let table_at = i64::from_le_bytes(read(point_offset, 8)?.try_into().unwrap());
     if table_at == -1 {
         // Written without a table (streamed): read sequentially by the `las` crate.
@@ -350,6 +341,32 @@ fn laz_problem(
              compressed points can hold: the file is corrupt"
         ));
     }
+    // The LAZ VLR (the `las` crate reports a missing or broken one itself). The `las` crate
+    // reads a LAS 1.4 header whole whatever size the header gives, so the VLRs are looked
+    // for both where the header says and after the version's own header size.
+    let own = match version_minor {
+        4.. => 375,
+        3 => 235,
+        _ => 227,
+    };
+    let find = |start: u64| -> Option<laz::LazVlr> {
+        let mut at = start;
+        for _ in 0..nvlr {
+            let h = read(at, 54)?;
+            let len = u16::from_le_bytes([h[20], h[21]]) as u64;
+            let uid = &h[2..18];
+            let uid = &uid[..uid.iter().position(|&c| c == 0).unwrap_or(16)];
+            if uid == b"laszip encoded" && u16::from_le_bytes([h[18], h[19]]) == 22204 {
+                return laz::LazVlr::from_buffer(read(at + 54, len as usize)?).ok();
+            }
+            at = at.saturating_add(54 + len);
+            if at > point_offset {
+                return None;
+            }
+        }
+        None
+    };
+    let vlr = find(header_size).or_else(|| find(own))?;
     let layers = laz_layers(&vlr)?;
     let mut f = file;
     use std::io::{Seek, SeekFrom};
