@@ -367,7 +367,6 @@ fn laz_problem(
         None
     };
     let vlr = find(header_size).or_else(|| find(own))?;
-    let layers = laz_layers(&vlr)?;
     let mut f = file;
     use std::io::{Seek, SeekFrom};
     f.seek(SeekFrom::Start(point_offset)).ok()?;
@@ -375,6 +374,19 @@ fn laz_problem(
         Ok(t) => t,
         Err(e) => return Some(format!("the LAZ chunk table cannot be read: {e}")),
     };
+    // The `laz` crate allocates the largest chunk's point count in bytes before decoding
+    // (a fixed chunk size of 4 × 10⁹ asked for 4 GB; found by fuzzing). LAZ packs at most a
+    // few hundred identical points into a byte: 1 024 a byte bounds any real chunk.
+    let most = file_len.saturating_mul(1024).max(1 << 22);
+    if let Some(big) = table.as_ref().iter().map(|e| e.point_count).max() {
+        if big > most {
+            return Some(format!(
+                "a LAZ chunk claims {big} points, more than the file's {file_len} bytes can \
+                 hold: the file is corrupt"
+            ));
+        }
+    }
+    let layers = laz_layers(&vlr)?;
     let mut at = point_offset + 8;
     let want = record_len as usize + 4 + 4 * layers;
     for (k, e) in table.as_ref().iter().enumerate() {
