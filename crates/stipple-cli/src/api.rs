@@ -27,8 +27,13 @@ pub struct Loaded {
 /// render` does.
 pub fn load(a: &RenderArgs) -> Result<Loaded> {
     let input = a.source.input.as_deref();
-    if let Some(p) = input.filter(|p| crate::lod::is_tree(p)) {
-        let (cloud, label, camera) = crate::lod::load_cut(p, &a.camera, &a.lod)?;
+    // A tree, or a COPC file beyond the point budget: the cut the camera needs.
+    let cut = match input {
+        Some(p) if crate::lod::is_tree(p) => Some(crate::lod::load_cut(p, &a.camera, &a.lod)?),
+        Some(p) if stipple_io::copc::is_copc(p) => crate::lod::load_copc_cut(p, &a.camera, &a.lod)?,
+        _ => None,
+    };
+    if let Some((cloud, label, camera)) = cut {
         return Ok(Loaded {
             cloud,
             label,
@@ -36,17 +41,6 @@ pub fn load(a: &RenderArgs) -> Result<Loaded> {
             scene: None,
             tree: true,
         });
-    }
-    if let Some(p) = input.filter(|p| stipple_io::copc::is_copc(p)) {
-        if let Some((cloud, label, camera)) = crate::lod::load_copc_cut(p, &a.camera, &a.lod)? {
-            return Ok(Loaded {
-                cloud,
-                label,
-                camera,
-                scene: None,
-                tree: true,
-            });
-        }
     }
     if let Some(p) = input.filter(|p| stipple_scene::is_scene(p)) {
         let (cloud, s, camera) = crate::look::load_scene(p, &a.camera)?;

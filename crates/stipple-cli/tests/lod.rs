@@ -9,6 +9,15 @@ fn tempdir(tag: &str) -> PathBuf {
     common::tempdir(&format!("lod-{tag}"))
 }
 
+/// Runs stipple in `dir`, expecting it to fail with `want` in its output and no panic.
+fn fails_with(dir: &Path, args: &[&str], want: &str) {
+    let o = stipple(dir, args);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    let t = text(&o);
+    assert!(t.contains(want), "{args:?}: expected `{want}` in: {t}");
+    assert!(!t.contains("panicked"), "{t}");
+}
+
 fn covered(png: &Path) -> usize {
     let (_, _, rgba) = stipple_io::image::read_png(png).unwrap();
     let bg = [24u8, 26, 31, 255];
@@ -228,13 +237,7 @@ fn bad_trees_and_bad_options_are_clear_errors() {
             "2048",
         ],
     );
-    let err = |args: &[&str], want: &str| {
-        let o = stipple(&dir, args);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        let t = text(&o);
-        assert!(t.contains(want), "{args:?}: expected `{want}` in: {t}");
-        assert!(!t.contains("panicked"), "{t}");
-    };
+    let err = |args: &[&str], want: &str| fails_with(&dir, args, want);
     err(&["build-lod", "s.las", "-o", "s.stlod"], "--force");
     err(
         &["build-lod", "s.las", "-o", "s.las"],
@@ -332,13 +335,7 @@ fn a_copc_file_is_written_and_drawn_from_a_cut() {
     assert_eq!(c, w);
     assert!(t * 10 > c * 7, "cloud {c} px, cut {t} px");
     // Not over an existing file without --force; a tree is no input for COPC.
-    let err = |args: &[&str], want: &str| {
-        let o = stipple(&dir, args);
-        assert!(!o.status.success(), "{args:?} succeeded");
-        let t = text(&o);
-        assert!(t.contains(want), "{args:?}: expected `{want}` in: {t}");
-        assert!(!t.contains("panicked"), "{t}");
-    };
+    let err = |args: &[&str], want: &str| fails_with(&dir, args, want);
     err(
         &["build-lod", "p.las", "-o", "p.copc.laz"],
         "already exists",

@@ -1151,24 +1151,34 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
     }
 
-    /// Writes a small COPC file, changes it with `edit` (bytes, root page offset, page
-    /// size), and returns the error opening it gives.
-    fn broken(name: &str, edit: impl Fn(&mut Vec<u8>, usize, usize)) -> String {
-        let d = dir(name);
-        let path = d.join("b.copc.laz");
-        write_copc(&path, &cloud(30_000)).unwrap();
+    /// Writes a COPC file of `n` points as `name` in a fresh folder, then changes its bytes
+    /// with `edit` (bytes, root page offset, page size). Returns the folder and the file.
+    fn patched(
+        name: &str,
+        n: usize,
+        edit: impl Fn(&mut Vec<u8>, usize, usize),
+    ) -> (PathBuf, PathBuf) {
+        let d = dir(name.trim_end_matches(".copc.laz"));
+        let path = d.join(name);
+        write_copc(&path, &cloud(n)).unwrap();
         let mut b = std::fs::read(&path).unwrap();
         let info = HEADER_SIZE + VLR_HEADER;
         let page = le_u64(&b, info + 40) as usize;
         let size = le_u64(&b, info + 48) as usize;
         edit(&mut b, page, size);
         std::fs::write(&path, &b).unwrap();
+        (d, path)
+    }
+
+    /// The error opening a small COPC file changed by `edit` (see `patched`) gives.
+    fn broken(name: &str, edit: impl Fn(&mut Vec<u8>, usize, usize)) -> String {
+        let (d, path) = patched(&format!("{name}-b.copc.laz"), 30_000, edit);
         let e = Copc::open(&path)
             .err()
             .expect("opened a broken file")
             .to_string();
         let _ = std::fs::remove_dir_all(&d);
-        assert!(e.contains("b.copc.laz"), "{e}");
+        assert!(e.contains("-b.copc.laz"), "{e}");
         e
     }
 
@@ -1227,20 +1237,12 @@ mod tests {
     /// refused before anything that size is allocated.
     #[test]
     fn a_node_claiming_billions_of_points_is_refused_before_allocating() {
-        let d = dir("claims");
-        let path = d.join("c.copc.laz");
-        write_copc(&path, &cloud(30_000)).unwrap();
-        let mut b = std::fs::read(&path).unwrap();
-        let page = le_u64(&b, HEADER_SIZE + VLR_HEADER + 40) as usize;
-        b[page + 28..page + 32].copy_from_slice(&i32::MAX.to_le_bytes());
-        b[247..255].copy_from_slice(&(i32::MAX as u64).to_le_bytes());
-        std::fs::write(&path, &b).unwrap();
-        let copc = Copc::open(&path).unwrap();
-        let e = copc
-            .read_nodes(&[0], DVec3::ZERO)
-            .err()
-            .unwrap()
-            .to_string();
+        let (d, path) = patched("c.copc.laz", 30_000, |b, page, _| {
+            b[page + 28..page + 32].copy_from_slice(&i32::MAX.to_le_bytes());
+            b[247..255].copy_from_slice(&(i32::MAX as u64).to_le_bytes());
+        });
+        let e = Copc::open(&path).unwrap().read_nodes(&[0], DVec3::ZERO);
+        let e = e.err().unwrap().to_string();
         assert!(
             e.contains("memory available") && e.contains("c.copc.laz"),
             "{e}"
@@ -1252,22 +1254,15 @@ mod tests {
     /// error, whether the file is read as COPC or as plain LAZ (found by fuzzing).
     #[test]
     fn a_chunk_whose_layers_claim_gigabytes_is_refused() {
-        let d = dir("layers");
-        let path = d.join("l.copc.laz");
-        write_copc(&path, &cloud(3_000)).unwrap();
-        let mut b = std::fs::read(&path).unwrap();
-        let copc = Copc::open(&path).unwrap();
-        let chunk = copc.nodes[0].offset as usize;
-        // After the first point (36 bytes) and the count: the first layer's size.
-        let at = chunk + copc.record_len + 4;
-        b[at..at + 4].copy_from_slice(&0xF000_0000u32.to_le_bytes());
-        std::fs::write(&path, &b).unwrap();
-        let copc = Copc::open(&path).unwrap();
-        let e = copc
-            .read_nodes(&[0], DVec3::ZERO)
-            .err()
-            .unwrap()
-            .to_string();
+        // The root chunk follows the chunk-table offset; its first layer's size follows its
+        // first point (36 bytes) and its point count.
+        let (d, path) = patched("l.copc.laz", 3_000, |b, _, _| {
+            let chunk = le_u32(b, 96) as usize + 8;
+            let at = chunk + 36 + 4;
+            b[at..at + 4].copy_from_slice(&0xF000_0000u32.to_le_bytes());
+        });
+        let e = Copc::open(&path).unwrap().read_nodes(&[0], DVec3::ZERO);
+        let e = e.err().unwrap().to_string();
         assert!(
             e.contains("layers claim") && e.contains("l.copc.laz"),
             "{e}"

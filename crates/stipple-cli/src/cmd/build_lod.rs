@@ -121,14 +121,7 @@ pub fn build_lod_with(
     bar.finish_and_clear();
     let r = r?;
     let s = t0.elapsed().as_secs_f64();
-    println!(
-        "wrote {}: {} points from {} file{} in {s:.1} s ({:.2} M points/s)",
-        a.output.display(),
-        r.points,
-        a.inputs.len(),
-        if a.inputs.len() == 1 { "" } else { "s" },
-        r.points as f64 / s / 1e6
-    );
+    print_wrote(&a, r.points, s);
     println!(
         "  {} nodes ({} leaves, depth {}), M = {}, {} MiB",
         r.nodes,
@@ -219,14 +212,7 @@ fn build_copc(a: &BuildLodArgs, cancel: Option<Arc<std::sync::atomic::AtomicBool
     bar.finish_and_clear();
     let r = r?;
     let s = t0.elapsed().as_secs_f64();
-    println!(
-        "wrote {}: {} points from {} file{} in {s:.1} s ({:.2} M points/s)",
-        a.output.display(),
-        r.points,
-        a.inputs.len(),
-        if a.inputs.len() == 1 { "" } else { "s" },
-        r.points as f64 / s / 1e6
-    );
+    print_wrote(a, r.points, s);
     println!(
         "  COPC: {} nodes on {} levels (at most {} points a node), {} MiB",
         r.nodes,
@@ -247,3 +233,14 @@ fn build_copc(a: &BuildLodArgs, cancel: Option<Arc<std::sync::atomic::AtomicBool
 /// Memory per point while a COPC file is built: the cloud (position, colour, attributes),
 /// the octree's indices and sort keys, and the node records before compression.
 const BYTES_PER_COPC_POINT: u64 = 80;
+
+/// The first line of a build's report: what was written, from how many files, how fast.
+fn print_wrote(a: &BuildLodArgs, points: u64, seconds: f64) {
+    println!(
+        "wrote {}: {points} points from {} file{} in {seconds:.1} s ({:.2} M points/s)",
+        a.output.display(),
+        a.inputs.len(),
+        if a.inputs.len() == 1 { "" } else { "s" },
+        points as f64 / seconds / 1e6
+    );
+}
