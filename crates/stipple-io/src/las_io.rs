@@ -418,8 +418,8 @@ pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
     read_las_batches(path, batches)
 }
 
-/// [`read_las`] batch by batch through the `las` crate: for files the parallel reader cannot split
-/// (extra bytes, a LAZ file without a chunk table).
+/// [`read_las`] batch by batch through the `las` crate: for files the parallel reader cannot
+/// split (extra bytes, a LAZ file without a chunk table).
 pub fn read_las_batches(path: &Path, mut batches: LasBatches) -> Result<PointCloud, IoError> {
     let file_len = std::fs::metadata(path)
         .map_err(|e| IoError::io(path, e))?
