@@ -570,6 +570,7 @@ fn chunks_of(path: &Path, b: &LasBatches) -> Result<Option<Chunks>, IoError> {
         return Ok(None);
     }
     let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+    let file_len = file.metadata().map_err(|e| IoError::io(path, e))?.len();
     let mut raw = [0u8; 4];
     file.read_exact_at(&mut raw, 96)
         .map_err(|e| IoError::io(path, e))?;
@@ -621,6 +622,10 @@ fn chunks_of(path: &Path, b: &LasBatches) -> Result<Option<Chunks>, IoError> {
         let points = e.point_count.min(count.saturating_sub(first));
         if points == 0 {
             break;
+        }
+        // A chunk beyond the file: the batch reader says where the data ends.
+        if at.saturating_add(e.byte_count) > file_len {
+            return Ok(None);
         }
         chunks.push(Chunk {
             offset: at,
