@@ -445,15 +445,15 @@ pub fn node_detail(camera: &Camera, centre: DVec3, radius: f64, spacing: f64, ma
     }
 }
 
-/// A COPC file larger than the point budget, as `render` draws it: the nodes the camera
-/// needs (coarse levels first, finer ones where they are close, until `--point-budget`
-/// points or `--lod-error` pixels between samples), decoded alone instead of the whole
-/// file. None when the file holds no more points than the budget (it is then read whole).
-pub fn load_copc_cut(
+/// A COPC file that holds more points than `--point-budget`, opened and checked, with the
+/// camera the arguments give for it (framing its header's bounds, Z up); None for a file
+/// within the budget, which is read whole. Such a file is drawn as a tree is, a cut per
+/// camera (the Python package renders it so).
+pub fn open_copc_cut(
     p: &Path,
     camera: &CameraArgs,
     lod: &LodArgs,
-) -> Result<Option<(PreparedCloud, String, Camera)>> {
+) -> Result<Option<(stipple_io::copc::Copc, Camera)>> {
     let copc = stipple_io::copc::Copc::open(p)?;
     if copc.point_count <= lod.point_budget {
         return Ok(None);
@@ -467,6 +467,21 @@ pub fn load_copc_cut(
     let cam = camera
         .build_framed(copc.min, copc.max, true)
         .with_context(|| p.display().to_string())?;
+    Ok(Some((copc, cam)))
+}
+
+/// A COPC file larger than the point budget, as `render` draws it: the nodes the camera
+/// needs (coarse levels first, finer ones where they are close, until `--point-budget`
+/// points or `--lod-error` pixels between samples), decoded alone instead of the whole
+/// file. None when the file holds no more points than the budget (it is then read whole).
+pub fn load_copc_cut(
+    p: &Path,
+    camera: &CameraArgs,
+    lod: &LodArgs,
+) -> Result<Option<(PreparedCloud, String, Camera)>> {
+    let Some((copc, cam)) = open_copc_cut(p, camera, lod)? else {
+        return Ok(None);
+    };
     let max_px = lod.lod_error as f64;
     let sel = stipple_io::copc::select_nodes(&copc, lod.point_budget, |lo, hi, s| {
         node_detail(&cam, (lo + hi) * 0.5, (hi - lo).length() * 0.5, s, max_px)

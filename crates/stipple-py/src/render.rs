@@ -25,8 +25,8 @@ enum Source {
         /// The camera when none is given: the scene's, else the framing.
         default_camera: CoreCamera,
     },
-    /// A `.stlod` tree: each render loads the cut its camera needs; the camera when none is
-    /// given frames the tree's bounds.
+    /// A `.stlod` tree, or a COPC file beyond the point budget: each render loads the cut its
+    /// camera needs; the camera when none is given frames the tree's (the file's) bounds.
     Tree(PathBuf, CoreCamera),
 }
 
@@ -103,6 +103,14 @@ fn source_of(
         let a = crate::options::parse(args)?;
         let (_, camera) = stipple_cli::lod::open_with_camera(&path, &a.camera).map_err(to_py)?;
         return Ok((Source::Tree(path, camera), String::new()));
+    }
+    if stipple_io::copc::is_copc(&path) {
+        let a = crate::options::parse(args)?;
+        if let Some((_, camera)) =
+            stipple_cli::lod::open_copc_cut(&path, &a.camera, &a.lod).map_err(to_py)?
+        {
+            return Ok((Source::Tree(path, camera), String::new()));
+        }
     }
     let mut full = vec![path.to_string_lossy().into_owned()];
     full.extend_from_slice(args);
