@@ -142,6 +142,27 @@ impl CellCache {
     }
 }
 
+/// Where [`Grid::knn`] starts.
+#[derive(Clone, Copy)]
+enum Start<'a> {
+    /// From nothing: shells of cells outwards from the query's.
+    Empty,
+    /// From the k nearest of the 3 × 3 × 3 cells around the query's (sorted keys, as
+    /// [`Grid::knn_nearby`] found them): only shells 2 and beyond are searched.
+    Nearest(&'a [u64]),
+}
+
+/// What [`Grid::knn_nearby`] found.
+enum Nearest {
+    /// The k nearest (in `out`).
+    Found(usize),
+    /// The k nearest of the 27 cells, in `Nearby::keys[..k]`, but a nearer point may lie
+    /// beyond them.
+    Within27,
+    /// Not enough to say.
+    Unknown,
+}
+
 #[inline]
 fn key_of(c: [i64; 3]) -> u64 {
     ((c[0] as u64) << 42) | ((c[1] as u64) << 21) | (c[2] as u64)
@@ -315,9 +336,18 @@ impl Grid {
         k: usize,
         out: &mut Vec<(f32, u32)>,
         cache: &mut CellCache,
+        start: Start<'_>,
     ) -> usize {
         let mut best = [u64::MAX; 65];
         let mut len = 0usize;
+        let first_ring = match start {
+            Start::Empty => 0,
+            Start::Nearest(keys) => {
+                best[..keys.len()].copy_from_slice(keys);
+                len = keys.len();
+                2
+            }
+        };
         let c = self.cell_of(q);
         if cache.cell != c {
             cache.cell = c;
@@ -341,7 +371,7 @@ impl Grid {
             }
             .max(0.0)
         };
-        for r in 0..=MAX_RINGS {
+        for r in first_ring..=MAX_RINGS {
             for dz in -r..=r {
                 let gz = gap(dz, local.z);
                 for dy in -r..=r {
@@ -439,7 +469,7 @@ impl Grid {
         out: &mut Vec<(f32, u32)>,
         cache: &mut CellCache,
         near: &mut Nearby,
-    ) -> Option<usize> {
+    ) -> Nearest {
         let q = self.pts[t];
         let c = self.cell_of(q);
         if near.cell != Some(c) {
@@ -467,7 +497,7 @@ impl Grid {
         }
         let m = near.id.len();
         if m <= k {
-            return None;
+            return Nearest::Unknown;
         }
         near.d2.resize(m, 0.0);
         for (((d, &x), &y), &z) in near.d2.iter_mut().zip(&near.x).zip(&near.y).zip(&near.z) {
@@ -504,7 +534,7 @@ impl Grid {
         }
         if kept < k {
             near.last = None;
-            return None;
+            return Nearest::Unknown;
         }
         let keys = &mut near.keys[..kept];
         if kept > 64 {
@@ -516,9 +546,13 @@ impl Grid {
         }
         let keys = &keys[..k];
         let kth2 = f32::from_bits((keys[k - 1] >> 32) as u32);
-        if kth2.is_nan() || kth2 > reach * reach {
+        if kth2.is_nan() {
             near.last = None;
-            return None;
+            return Nearest::Unknown;
+        }
+        if kth2 > reach * reach {
+            near.last = None;
+            return Nearest::Within27;
         }
         near.last = Some((q, kth2.sqrt()));
         out.clear();
@@ -526,7 +560,7 @@ impl Grid {
             keys.iter()
                 .map(|&e| (f32::from_bits((e >> 32) as u32), e as u32)),
         );
-        Some(k)
+        Nearest::Found(k)
     }
 }
 
@@ -575,7 +609,7 @@ pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalErro
     let mut pilot: Vec<f32> = (0..sample.len())
         .step_by(step)
         .filter_map(|i| {
-            let m = pilot_grid.knn(sample[i], i as u32, kk, &mut buf, &mut cache);
+            let m = pilot_grid.knn(sample[i], i as u32, kk, &mut buf, &mut cache, Start::Empty);
             (m == kk).then(|| buf[kk - 1].0.sqrt())
         })
         .collect();
@@ -621,10 +655,17 @@ pub fn neighbours(positions: &[Vec3], k: usize) -> Result<Neighbours, NormalErro
             let mut near = Nearby::default();
             for (r, t) in (b * BLOCK..b * BLOCK + kd.len()).enumerate() {
                 let i = grid.ids[t];
-                let m = match grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near) {
-                    Some(m) => m,
-                    None => {
-                        let m = grid.knn(grid.pts[t], i, k, &mut buf, &mut cache);
+                let found = grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near);
+                let m = match found {
+                    Nearest::Found(m) => m,
+                    _ => {
+                        // Beyond the 27 cells: the shells further out, starting from the
+                        // nearest of those cells where they are known.
+                        let start = match found {
+                            Nearest::Within27 => Start::Nearest(&near.keys[..k]),
+                            _ => Start::Empty,
+                        };
+                        let m = grid.knn(grid.pts[t], i, k, &mut buf, &mut cache, start);
                         near.last = (m == k).then(|| (grid.pts[t], buf[k - 1].0.sqrt()));
                         m
                     }
