@@ -450,19 +450,6 @@ impl Copc {
                 self.file
                     .read_exact_at(&mut bytes, n.offset)
                     .map_err(|e| IoError::io(path, e))?;
-                if let Some(layers) = crate::las_io::laz_layers(&self.laz) {
-                    if let Some(p) =
-                        crate::las_io::layered_chunk_problem(&bytes, n.byte_size, rec, layers)
-                    {
-                        return Err(IoError::invalid(
-                            path,
-                            format!(
-                                "node {}-{}-{}-{}: {p}",
-                                n.key.level, n.key.x, n.key.y, n.key.z
-                            ),
-                        ));
-                    }
-                }
                 let mut raw = Vec::new();
                 stipple_core::sys::try_reserve(
                     &mut raw,
@@ -471,26 +458,17 @@ impl Copc {
                 )
                 .map_err(|m| IoError::invalid(path, m))?;
                 raw.resize(n.point_count as usize * rec, 0);
-                let entry = laz::laszip::ChunkTableEntry {
-                    point_count: n.point_count,
-                    byte_count: n.byte_size,
-                };
-                // A corrupt chunk is an error; the decoder is also kept from taking the
-                // process down should hostile bytes make it panic.
-                let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    laz::par_decompress(&bytes, &mut raw, &self.laz, &[entry])
-                        .map_err(|e| e.to_string())
-                }))
-                .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()));
-                decoded.map_err(|e| {
-                    IoError::invalid(
-                        path,
-                        format!(
-                            "the points of node {}-{}-{}-{} are corrupt: {e}",
-                            n.key.level, n.key.x, n.key.y, n.key.z
-                        ),
-                    )
-                })?;
+                crate::las_io::decode_chunk(&bytes, &mut raw, &self.laz, n.point_count).map_err(
+                    |e| {
+                        IoError::invalid(
+                            path,
+                            format!(
+                                "the points of node {}-{}-{}-{} are corrupt: {e}",
+                                n.key.level, n.key.x, n.key.y, n.key.z
+                            ),
+                        )
+                    },
+                )?;
                 let mut p = Part::default();
                 for r in raw.chunks_exact(rec) {
                     let q = DVec3::new(

@@ -87,12 +87,11 @@ impl LasBatches {
         // The LAZ decoder can panic on corrupt chunks (an index out of bounds; found by
         // fuzzing): that is an error like any other corruption.
         let (reader, data) = (&mut self.reader, &mut self.data);
-        let got = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        let got = guarded(|| {
             reader
                 .fill_points(n.max(1).min(count - read), data)
                 .map_err(|e| e.to_string())
-        }))
-        .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()))
+        })
         .map_err(|e| {
             IoError::invalid(
                 &self.path,
@@ -251,6 +250,35 @@ fn header_problem(path: &Path, file_len: u64) -> Option<String> {
         );
     }
     None
+}
+
+/// Runs the LAZ decoder with its panics on corrupt data (an index out of bounds; found by
+/// fuzzing) turned into errors like any other corruption.
+fn guarded<T>(decode: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(decode))
+        .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()))
+}
+
+/// Decodes one LAZ chunk (`bytes`) of `points` records into `raw`: a layered chunk's layer
+/// table is checked against its size first ([`layered_chunk_problem`]), and the decoder is
+/// [`guarded`]. Used by the parallel LAS reader and by COPC nodes.
+pub(crate) fn decode_chunk(
+    bytes: &[u8],
+    raw: &mut [u8],
+    vlr: &laz::LazVlr,
+    points: u64,
+) -> Result<(), String> {
+    if let Some(layers) = laz_layers(vlr) {
+        let rec = vlr.items_size() as usize;
+        if let Some(p) = layered_chunk_problem(bytes, bytes.len() as u64, rec, layers) {
+            return Err(p);
+        }
+    }
+    let entry = laz::laszip::ChunkTableEntry {
+        point_count: points,
+        byte_count: bytes.len() as u64,
+    };
+    guarded(|| laz::par_decompress(bytes, raw, vlr, &[entry]).map_err(|e| e.to_string()))
 }
 
 /// Layers per chunk of a LAS 1.4 ("layered") LAZ record, from its items; None for point-wise
@@ -747,15 +775,7 @@ fn read_las_parallel(
                 let mut bytes = vec![0u8; c.bytes as usize];
                 file.read_exact_at(&mut bytes, c.offset)
                     .map_err(|e| corrupt(e.to_string()))?;
-                let entry = laz::laszip::ChunkTableEntry {
-                    point_count: c.points,
-                    byte_count: c.bytes,
-                };
-                std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                    laz::par_decompress(&bytes, raw, vlr, &[entry]).map_err(|e| e.to_string())
-                }))
-                .unwrap_or_else(|_| Err("the LAZ decoder failed on it".into()))
-                .map_err(corrupt)
+                decode_chunk(&bytes, raw, vlr, c.points).map_err(corrupt)
             }
         }
     };
