@@ -11,6 +11,7 @@ use glam::DVec3;
 use stipple_core::{Camera, PointCloud, Projection};
 use stipple_render::{gpu::GpuOptions, Backend, Pipeline, PreparedCloud, Renderer};
 
+#[allow(dead_code)] // shared with the tests; each example uses part of it
 #[path = "../tests/common/rims.rs"]
 mod rims;
 

@@ -601,6 +601,81 @@ fn peeled_layers_stay_closed_where_rays_graze_a_transparent_torus() {
     }
 }
 
+/// `examples/nested-tori.toml`'s geometry, unlit: three tori sharing a centre line (tubes 0.2
+/// opaque, 0.3 at opacity 0.5, 0.4 at 0.3) seen obliquely through six peeled layers. Each
+/// pixel's analytic composite blends the tori its centre ray crosses, front to back; pixels
+/// within 2 px of a change of that sequence are left out. Where a tube is seen at a grazing
+/// angle its layer's depth changes by more than d̃ a pixel: an occluded fill that compared
+/// depths alone replaced such a layer's own points by a nearer surface's (grew the inner tori
+/// by 2–4 px over the outer one's back and let the lost points come back a layer late, the
+/// dark blotches of the middle torus): 5.3% of the pixels off by more than 12 levels at 512²,
+/// mean error 1.2 levels. Both backends.
+#[test]
+fn nested_transparent_tori_composite_as_the_analytic_layers() {
+    let tubes = [0.2f32, 0.3, 0.4];
+    let colours = [[120u8, 72, 40], [60, 170, 70], [60, 100, 210]];
+    let alphas = [1.0f32, 0.5, 0.3];
+    let background = [250u8, 250, 250];
+    let mut parts = Vec::new();
+    for (k, count) in [400_000, 600_000, 800_000].into_iter().enumerate() {
+        let mut rng = Rng::new(k as u64 + 1);
+        let (mut p, mut n) = (Vec::new(), Vec::new());
+        for _ in 0..count {
+            let (q, m) = stipple_core::demo::torus_point(&mut rng, 1.0, tubes[k]);
+            p.push(q);
+            n.push(m);
+        }
+        parts.push((p, n, colours[k], alphas[k]));
+    }
+    let c = PreparedCloud::new(cloud(&parts));
+    let sdfs: Vec<_> = tubes
+        .iter()
+        .map(|&t| common::rims::torus_sdf(1.0, t as f64))
+        .collect();
+    let surfaces: Vec<common::rims::Surface> = (0..3)
+        .map(|k| (&sdfs[k] as &dyn Fn(DVec3) -> f64, colours[k], alphas[k]))
+        .collect();
+    let pipe = Pipeline {
+        layers: 6,
+        lighting: false,
+        background,
+        ..Pipeline::default()
+    };
+    for size in [512u32, 768] {
+        let cam = Camera {
+            eye: DVec3::new(0.0, 2.2, 3.0),
+            target: DVec3::ZERO,
+            up: DVec3::Y,
+            projection: Projection::Perspective { fov_deg: 40.0 },
+            width: size,
+            height: size,
+            near: 0.5,
+            far: 10.0,
+        };
+        let (seq, want) = common::rims::composite(&cam, &surfaces, background);
+        for mut r in common::backends() {
+            let f = r.render(&c, &cam, &pipe).unwrap();
+            let sc = common::rims::score_composite(&f.rgba, size as usize, &seq, &want);
+            let (err, bad) = (sc.error, sc.bad);
+            eprintln!(
+                "{}: nested tori at {size}²: error {err:.2} levels, {:.2}% of pixels off by > 12",
+                r.describe(),
+                100.0 * bad
+            );
+            if err > 0.5 || bad > 0.015 {
+                common::dump(&format!("peel-nested-{size}"), &f);
+            }
+            assert!(
+                err <= 0.5 && bad <= 0.015,
+                "{}: nested tori at {size}²: mean error {err:.2} levels, {:.2}% of pixels off \
+                 by more than 12 levels",
+                r.describe(),
+                100.0 * bad
+            );
+        }
+    }
+}
+
 /// Inverse-square falloff (Gunjee §4.1): a plane lit straight from above by a point light at
 /// height h receives k_d (d₀ / h)² under the light; moving the light to 2h quarters it; with
 /// no falloff the height does not matter.

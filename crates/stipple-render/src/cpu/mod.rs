@@ -6,7 +6,7 @@ use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
 use crate::passes::{
     blend_layers::cpu as blend_layers, project::cpu as project, shade::cpu as shade,
-    shadow_texture::cpu as shadow_texture,
+    shadow_texture::cpu as shadow_texture, Surfaces,
 };
 use crate::pipeline::{ColourPass, GeometryPass, Pipeline};
 use crate::stats::{PassId, PassStat};
@@ -409,8 +409,13 @@ impl crate::schedule::PassExec for CpuExec<'_> {
         let v = self.v;
         let (ga, gb) = self.r.g.as_mut().expect("made by project");
         let kernel = pass.kernel();
+        let c = &self.cloud.cloud;
+        let surfaces = c.normals.as_deref().map(|normals| Surfaces {
+            positions: &c.positions,
+            normals,
+        });
         timed(&mut self.stats, kernel.id(), || {
-            let (its, changed) = kernel.cpu(v, ga, gb, gap);
+            let (its, changed) = kernel.cpu(v, ga, gb, gap, surfaces);
             ((), its, changed)
         });
         Ok(())

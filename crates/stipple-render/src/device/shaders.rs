@@ -15,6 +15,7 @@ const PEEL_REFERENCE: &str = include_str!("../passes/project/peel_reference.wgsl
 const FILL: &str = include_str!("../passes/fill/fill.wgsl");
 const FILL_BACKGROUND: &str = include_str!("../passes/fill_background/fill_background.wgsl");
 const FILL_OCCLUDED: &str = include_str!("../passes/fill_occluded/fill_occluded.wgsl");
+const FILL_PLANES: &str = include_str!("../passes/fill_occluded/fill_planes.wgsl");
 const ITERATE: &str = include_str!("iterate.wgsl");
 const GATHER: &str = include_str!("../passes/shade/gather.wgsl");
 const SHADE: &str = include_str!("../passes/shade/shade.wgsl");
@@ -96,6 +97,11 @@ pub const FILL_BACKGROUND_MODULE: ShaderModule = ShaderModule {
 pub const FILL_OCCLUDED_MODULE: ShaderModule = ShaderModule {
     name: "fill_occluded",
     parts: &[FILL, FILL_OCCLUDED],
+    int64: false,
+};
+pub const FILL_PLANES_MODULE: ShaderModule = ShaderModule {
+    name: "fill_planes",
+    parts: &[FILL_PLANES],
     int64: false,
 };
 pub const ITERATE_MODULE: ShaderModule = ShaderModule {
@@ -193,6 +199,7 @@ pub const ALL: &[ShaderModule] = &[
     PEEL_REFERENCE_MODULE,
     FILL_BACKGROUND_MODULE,
     FILL_OCCLUDED_MODULE,
+    FILL_PLANES_MODULE,
     ITERATE_MODULE,
     GATHER_MODULE,
     SHADE_MODULE,

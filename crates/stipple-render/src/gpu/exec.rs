@@ -123,7 +123,7 @@ impl PassExec for GpuExec<'_> {
 
     fn geometry(&mut self, pass: &GeometryPass, gap: f32) -> Result<(), GpuError> {
         pass.kernel()
-            .record(&mut self.rec, self.b, &mut self.cur, gap)
+            .record(&mut self.rec, self.b, &mut self.cur, gap, Some(self.cloud))
     }
 
     fn shade(&mut self) -> Result<(), GpuError> {
@@ -223,7 +223,7 @@ impl PassExec for GpuExec<'_> {
 
     fn light_surface(&mut self) -> Result<(), GpuError> {
         let (rec, b, cur, cloud) = (&mut self.rec, self.b, &self.cur, self.cloud);
-        shade::gpu::record_gather(rec, b, cur, cloud)?;
+        shade::gpu::record_gather(rec, b, cur, cloud, crate::stats::PassId::Shade)?;
         let n4 = 4 * b.f.pixels();
         rec.enc
             .copy_buffer_to_buffer(&b.f.depth[cur.g], 0, &b.f.surface, 0, n4);

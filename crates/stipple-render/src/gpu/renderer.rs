@@ -420,7 +420,8 @@ impl GpuRenderer {
             let mut rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
             let mut cur = Cursor::default();
             let b = Binder::new(&self.ctx, shared, &f);
-            pass.kernel().record(&mut rec, b, &mut cur, default_gap)?;
+            pass.kernel()
+                .record(&mut rec, b, &mut cur, default_gap, None)?;
             let sections = finish(rec, shared)?;
             let stats = stats(&self.ctx, shared, &sections)?;
             Ok((read_g(&self.ctx, &f, cur.g)?, stats[0].clone()))

@@ -30,6 +30,13 @@ use crate::params::ViewParams;
 use crate::pipeline::Iterations;
 use crate::stats::PassId;
 
+/// A cloud's positions and unit normals, indexed by the point ids of a G-buffer.
+#[derive(Clone, Copy)]
+pub(crate) struct Surfaces<'a> {
+    pub positions: &'a [glam::Vec3],
+    pub normals: &'a [glam::Vec3],
+}
+
 /// A geometry pass (between project and shade: it edits the G-buffer of depths and point
 /// ids), as both backends run it. A [`crate::GeometryPass`] variant names its kernel in
 /// [`crate::GeometryPass::kernel`], its one registration line.
@@ -38,7 +45,17 @@ pub(crate) trait GeometryKernel {
     fn id(&self) -> PassId;
     /// The CPU reference on `a` (with `b` as the other ping-pong image; the result ends in
     /// `a`), with the frame's layer gap `gap`: the iterations it ran and the pixels it changed.
-    fn cpu(&self, v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, gap: f32) -> (u32, u64);
+    ///
+    /// `surfaces`: the cloud's positions and normals, where it has normals (the occluded
+    /// fill's slope-aware test reads them).
+    fn cpu(
+        &self,
+        v: &ViewParams,
+        a: &mut GBuffer,
+        b: &mut GBuffer,
+        gap: f32,
+        surfaces: Option<Surfaces<'_>>,
+    ) -> (u32, u64);
     /// Records the pass from the geometry image `cur.g`, moving `cur.g` to its result, and
     /// ends its statistics section.
     fn record(
@@ -47,6 +64,7 @@ pub(crate) trait GeometryKernel {
         b: Binder<'_>,
         cur: &mut Cursor,
         gap: f32,
+        cloud: Option<&crate::device::cloud::GpuCloud>,
     ) -> Result<(), GpuError>;
 }
 

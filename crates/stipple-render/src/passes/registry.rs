@@ -131,7 +131,7 @@ impl GeometryPass {
         let kernel = self.kernel();
         let (mut a, mut b) = (g.clone(), g.clone());
         let t0 = std::time::Instant::now();
-        let (iterations, count) = kernel.cpu(v, &mut a, &mut b, gap);
+        let (iterations, count) = kernel.cpu(v, &mut a, &mut b, gap, None);
         let stat = PassStat {
             pass: kernel.id(),
             ms: t0.elapsed().as_secs_f64() * 1e3,

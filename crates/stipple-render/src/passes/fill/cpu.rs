@@ -8,6 +8,10 @@
 
 use crate::gbuffer::{is_point, GBuffer, BACKGROUND};
 use crate::masks::{window, MAX_RADIUS};
+use crate::params::ViewParams;
+use crate::passes::project::cpu::{dot3, Facing};
+use crate::passes::Surfaces;
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Per row, the first and last column a step changed (`None`: none).
@@ -56,7 +60,13 @@ pub(crate) enum Precheck {
     /// Solid cells are those at least `gap` nearer than the pixel (the occluded fill): no
     /// solid cell when the least depth of the window is farther than that; otherwise the
     /// blocked masks come from the cells' comparisons, a pattern a row (`rows`).
-    Nearer { gap: f32, rows: Option<MaskRows> },
+    /// `exact`: the cells' depths decide solidity alone (a test that also reads the points
+    /// takes the depths' verdict as a necessary condition only).
+    Nearer {
+        gap: f32,
+        rows: Option<MaskRows>,
+        exact: bool,
+    },
     /// Every candidate runs the mask test.
     None,
 }
@@ -189,6 +199,7 @@ pub(crate) fn fill_points(
     radius: u32,
     gap: f32,
     since: Option<&Changed>,
+    slope: Option<(&ViewParams, Surfaces<'_>)>,
 ) -> (u64, Changed) {
     // Only the columns between a row's first and last point hold candidates.
     let spans = within(point_spans(g, 0), since, radius);
@@ -200,10 +211,55 @@ pub(crate) fn fill_points(
         Precheck::Nearer {
             gap,
             rows: MaskRows::new(radius),
+            exact: slope.is_none(),
         },
-        |d, cd, _, _| cd <= d - gap,
+        |d, id| {
+            let plane = slope.and_then(|(v, s)| FillPlane::of(v, s, id));
+            move |cd: f32, _: u32, x: i32, y: i32| {
+                cd <= d - gap && plane.as_ref().is_none_or(|p| p.in_front(x, y, cd, gap))
+            }
+        },
     );
     apply(g, changes)
+}
+
+/// The slope-aware part of the occluded fill's test (see `passes::fill_occluded`): the
+/// tangent plane of a candidate's point, turned to face the eye, against which a cell's
+/// surface is placed at its pixel's centre and depth.
+pub(crate) struct FillPlane {
+    view: ViewParams,
+    /// The normal, facing the eye.
+    n: Vec3,
+    /// `n · x` for the point x.
+    offset: f32,
+}
+
+impl FillPlane {
+    /// The plane of the point `id`, or None where it says nothing: a point seen edge-on (its
+    /// plane holds the ray) or an id out of range.
+    #[inline]
+    pub(crate) fn of(v: &ViewParams, s: Surfaces<'_>, id: u32) -> Option<FillPlane> {
+        let i = id as usize;
+        let (x, n) = (*s.positions.get(i)?, *s.normals.get(i)?);
+        let n = match Facing::of(v, x, n) {
+            Facing::Front => n,
+            Facing::Back => -n,
+            Facing::Edge => return None,
+        };
+        Some(FillPlane {
+            view: *v,
+            n,
+            offset: dot3(n, x),
+        })
+    }
+
+    /// Does the surface at depth `cd` in pixel (x, y) lie more than `gap` in front of the
+    /// plane, along its normal?
+    #[inline]
+    pub(crate) fn in_front(&self, x: i32, y: i32, cd: f32, gap: f32) -> bool {
+        let (o, dir) = self.view.pixel_ray(x as u32, y as u32);
+        dot3(self.n, o + dir * cd) - self.offset > gap
+    }
 }
 
 /// One row's replaced pixels: (column, depth, id).
@@ -242,13 +298,13 @@ pub(crate) fn apply(g: &mut GBuffer, changes: Vec<RowChanges>) -> (u64, Changed)
 /// 2r + 1 table lookups; the occluded fill's least depth over the window comes from a
 /// separable minimum (the window's rows, then its columns: contiguous reads), and a
 /// surface's own pixels, with no point d̃ nearer around them, stop there.
-pub(crate) fn fill_changes(
+pub(crate) fn fill_changes<S: Fn(f32, u32, i32, i32) -> bool>(
     src: &GBuffer,
     radius: u32,
     spans: Option<&[Option<(i32, i32)>]>,
     candidate: impl Fn(f32, u32) -> bool + Sync,
     pre: Precheck,
-    solid: impl Fn(f32, f32, u32, u32) -> bool + Sync,
+    solid: impl Fn(f32, u32) -> S + Sync,
 ) -> Vec<RowChanges> {
     let (w, h) = (src.width as i32, src.height as i32);
     let win = window(radius);
@@ -311,7 +367,7 @@ pub(crate) fn fill_changes(
                             }
                             0xFF
                         }
-                        Precheck::Nearer { gap, rows } => {
+                        Precheck::Nearer { gap, rows, exact } => {
                             // The window's least depth includes the pixel's own, which is
                             // never solid for a positive gap.
                             let t = d - gap;
@@ -324,15 +380,18 @@ pub(crate) fn fill_changes(
                                     if rows.blocked(src, x, y, |cd| cd <= t) != 0xFF {
                                         continue;
                                     }
-                                    0xFF
+                                    if *exact {
+                                        0xFF
+                                    } else {
+                                        0
+                                    }
                                 }
                                 None => 0,
                             }
                         }
                         Precheck::None => 0,
                     };
-                    if let Some((nd, nid)) = test.fill(x, y, known, |cd, cid| solid(d, cd, id, cid))
-                    {
+                    if let Some((nd, nid)) = test.fill(x, y, known, solid(d, id)) {
                         changed.push((x as u32, nd, nid));
                     }
                 }
@@ -361,7 +420,7 @@ impl MaskTest<'_> {
         x: i32,
         y: i32,
         known: u8,
-        solid: impl Fn(f32, u32) -> bool,
+        solid: impl Fn(f32, u32, i32, i32) -> bool,
     ) -> Option<(f32, u32)> {
         let (w, h) = (self.src.width as i32, self.src.height as i32);
         let r = self.win.last().map_or(0, |c| c.1.abs().max(c.0.abs()));
@@ -378,7 +437,7 @@ impl MaskTest<'_> {
         x: i32,
         y: i32,
         known: u8,
-        solid: impl Fn(f32, u32) -> bool,
+        solid: impl Fn(f32, u32, i32, i32) -> bool,
     ) -> Option<(f32, u32)> {
         let (src, win) = (self.src, self.win);
         let (w, h) = (src.width as i32, src.height as i32);
@@ -397,7 +456,7 @@ impl MaskTest<'_> {
             }
             let n = (ny * w + nx) as usize;
             let (nd, nid) = (src.depth[n], src.id[n]);
-            if !solid(nd, nid) {
+            if !solid(nd, nid, nx, ny) {
                 continue;
             }
             blocked |= m;
@@ -458,7 +517,7 @@ mod tests {
                 if !candidate(d, src.id[k]) {
                     continue;
                 }
-                if let Some((nd, nid)) = test.fill(x, y, 0, |cd, cid| solid(d, cd, cid)) {
+                if let Some((nd, nid)) = test.fill(x, y, 0, |cd, cid, _, _| solid(d, cd, cid)) {
                     out.depth[k] = nd;
                     out.id[k] = nid;
                 }
@@ -528,7 +587,8 @@ mod tests {
                     let (mut cur, mut want) = (g.clone(), g.clone());
                     let mut since = None;
                     for step in 0..4 {
-                        let (_, c) = fill_occluded_step(&mut cur, 0.5, radius, since.as_ref());
+                        let (_, c) =
+                            fill_occluded_step(&mut cur, 0.5, radius, since.as_ref(), None);
                         since = Some(c);
                         want = reference(
                             &want,

@@ -1,5 +1,5 @@
 // The hole-filling step shared by fill_background and fill_occluded (Dobrev §3.2–3.3);
-// each of those files supplies `candidate` and `solid`. CPU twin: cpu/fill_background.rs
+// each of those files supplies `candidate`, `own_plane`, `solid` and `carry`. CPU twin: cpu/fill_background.rs
 // (fill_changes, MaskTest).
 //
 // For a candidate pixel, every "solid" cell of the window blocks the half-plane masks it
@@ -14,6 +14,12 @@ struct Fill {
     gap: f32,
     // Counter slot that receives the number of changed pixels.
     slot: u32,
+    // fill_occluded: 1 when `plane` holds each pixel's tangent plane (its slope-aware test).
+    planes: u32,
+    // Which half of `plane` this step reads (it writes the other): the step's index mod 2.
+    parity: u32,
+    pad0: u32,
+    pad1: u32,
 }
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -25,6 +31,9 @@ struct Fill {
 @group(0) @binding(5) var<storage, read_write> dst_depth: array<f32>;
 @group(0) @binding(6) var<storage, read_write> dst_id: array<u32>;
 @group(0) @binding(7) var<storage, read_write> counters: array<atomic<u32>>;
+// fill_occluded's planes, two per pixel (2k + parity: read, 2k + 1 − parity: written; see
+// fill_planes.wgsl). fill_background binds it and never reads it.
+@group(0) @binding(8) var<storage, read_write> plane: array<vec4<f32>>;
 
 @compute @workgroup_size(8, 8)
 fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -43,10 +52,13 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (!candidate(d, id)) {
         return;
     }
+    let own = own_plane(u32(k));
+    carry(u32(k), u32(k));
     var blocked = 0u;
     var best_depth = infinity();
     var best_id = BACKGROUND;
     var best_ring = 0x7fffffff;
+    var best_n = 0;
     for (var c = 0u; c < fp.count; c++) {
         if (c == 8u && blocked == 0xffu && best_ring == 1) {
             break;
@@ -60,7 +72,7 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
         let n = ny * w + nx;
         let nd = src_depth[n];
         let nid = src_id[n];
-        if (!solid(d, nd, nid)) {
+        if (!solid(d, own, nd, nid, nx, ny)) {
             continue;
         }
         blocked |= u32(cell.z);
@@ -70,11 +82,13 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>) {
             best_depth = nd;
             best_id = nid;
             best_ring = ring;
+            best_n = n;
         }
     }
     if (blocked == 0xffu) {
         dst_depth[k] = best_depth;
         dst_id[k] = best_id;
+        carry(u32(k), u32(best_n));
         atomicAdd(&counters[fp.slot], 1u);
     }
 }

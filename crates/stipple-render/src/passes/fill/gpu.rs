@@ -17,6 +17,11 @@ pub(crate) struct FillBlock {
     pub count: u32,
     pub gap: f32,
     pub slot: u32,
+    /// fill_occluded: 1 when the frame's `peel_ref` holds each pixel's plane (fill_planes.wgsl).
+    pub planes: u32,
+    /// The step's index mod 2: which half of the planes it reads.
+    pub parity: u32,
+    pub pad: [u32; 2],
 }
 
 /// The pipeline of a fill pass: fill.wgsl with the pass's `candidate` and `solid`.
@@ -25,7 +30,9 @@ pub(crate) fn new(ctx: &GpuContext, m: &crate::device::shaders::ShaderModule) ->
         &ctx.device,
         m,
         "fill",
-        &[UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE],
+        &[
+            UNIFORM, DYNAMIC, READ, READ, READ, WRITE, WRITE, WRITE, WRITE,
+        ],
     )
 }
 
@@ -62,7 +69,8 @@ impl GpuPass for Cells {
 }
 
 /// Records `its` iterations of the fill pipeline `fill` (the pass `id`) with window
-/// `radius` and layer gap `gap`; "until stable" iterations after the first are dispatched
+/// `radius` and layer gap `gap` (with the planes fill_planes.wgsl left in `peel_ref`, when
+/// `planes`); "until stable" iterations after the first are dispatched
 /// indirectly from the previous one's changed-pixel count (see [`crate::device::iterate`]).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn record(
@@ -74,6 +82,7 @@ pub(crate) fn record(
     its: Iterations,
     radius: u32,
     gap: f32,
+    planes: bool,
 ) -> Result<(), GpuError> {
     let cells = b.pass::<Cells>();
     let (first, count) = *cells
@@ -93,6 +102,9 @@ pub(crate) fn record(
             count,
             gap,
             slot,
+            planes: planes as u32,
+            parity: k % 2,
+            pad: [0; 2],
         })?;
         let it = if stable && k > 0 {
             Some(rec.arena.push(&IterateBlock {
@@ -123,6 +135,7 @@ pub(crate) fn record(
                 Res::Buf(&f.depth[1 - src]),
                 Res::Buf(&f.id[1 - src]),
                 Res::Buf(&s.counters),
+                Res::Buf(&f.peel_ref),
             ],
         )
     });

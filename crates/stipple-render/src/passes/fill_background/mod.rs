@@ -24,7 +24,14 @@ impl GeometryKernel for FillBackground {
         PassId::FillBackground
     }
 
-    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, _b: &mut GBuffer, _gap: f32) -> (u32, u64) {
+    fn cpu(
+        &self,
+        _v: &ViewParams,
+        a: &mut GBuffer,
+        _b: &mut GBuffer,
+        _gap: f32,
+        _surfaces: Option<super::Surfaces<'_>>,
+    ) -> (u32, u64) {
         let mut since = None;
         super::iterate_in_place(a, self.iterations, |g| {
             let (n, changed) = cpu::fill_background_step(g, self.radius, since.as_ref());
@@ -39,9 +46,10 @@ impl GeometryKernel for FillBackground {
         b: Binder<'_>,
         cur: &mut Cursor,
         _gap: f32,
+        _cloud: Option<&crate::device::cloud::GpuCloud>,
     ) -> Result<(), GpuError> {
         let pass = b.pass::<gpu::Gpu>();
         let (id, its) = (self.id(), self.iterations);
-        super::fill::gpu::record(rec, b, cur, &pass.0, id, its, self.radius, 0.0)
+        super::fill::gpu::record(rec, b, cur, &pass.0, id, its, self.radius, 0.0, false)
     }
 }

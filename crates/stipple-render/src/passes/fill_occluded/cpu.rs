@@ -7,11 +7,33 @@
 //! surface behind the front one through a hole, and takes the point of the neighbour with
 //! minimum depth (ties: smaller id). d̃ is the minimum gap between two surface layers, in
 //! world units along the view axis.
+//!
+//! Deviation from the paper: where the cloud has normals, a cell is dark only when it also
+//! lies more than d̃ in front of the candidate point's tangent plane, measured along the
+//! plane's normal turned to the eye (the cell's surface placed at its pixel's centre and
+//! depth; `FillPlane` in `passes::fill`; GPU: fill_planes.wgsl then fill_occluded.wgsl).
+//! Dobrev compares depths alone, so a surface seen at a grazing angle, whose depth changes
+//! by more than d̃ from one pixel to the next, counts its own nearer pixels as a surface in
+//! front: the fill then replaced its points by a nearer surface's, growing that surface
+//! by a pixel an iteration over it (measured: `examples/nested-tori.toml`'s inner tori grew
+//! 2–4 px over the outer one's back at 512²), and in a peeled frame the replaced points came
+//! back one layer late (the dark blotches of the middle torus near its silhouettes). The
+//! plane test is the slope-scaled gap Dobrev applies in the shadow pass (§6, Fig. 14:
+//! d̃ / ⟨v, n⟩), here exact per candidate; a candidate seen edge-on (normal within 6° of
+//! perpendicular to the ray) keeps the depth test. Measured with `examples/peel_nested.rs`
+//! (the nested tori unlit, against their analytic composite, six layers): at 512² the
+//! pixels off by more than 12 levels drop from 5.3% to 0.6% (mean error 1.22 → 0.14
+//! levels), at 1024² from 5.5% to 1.8%; the remaining ones lie along the opaque torus's
+//! silhouette. Placing each cell's surface at its point's own position instead of the
+//! pixel's centre does better still (0.1% and 1.0%) but reads every cell's point: scattered
+//! reads on the CPU, and on the GPU points split over chunks a pass cannot all bind.
 
 use crate::gbuffer::GBuffer;
+use crate::params::ViewParams;
 use crate::passes::fill::cpu::{fill_points, Changed};
 #[cfg(doc)]
 use crate::passes::fill_background::cpu::fill_background_step;
+use crate::passes::Surfaces;
 
 /// One iteration from `src` into `dst` (masks over the (2·radius+1)² window); returns the
 /// number of pixels replaced.
@@ -23,19 +45,20 @@ pub fn fill_occluded(src: &GBuffer, dst: &mut GBuffer, layer_gap: f32, radius: u
 /// [`fill_occluded`] on `g` itself (every pixel decided from `g` as it was, then the
 /// replaced pixels written).
 pub fn fill_occluded_in_place(g: &mut GBuffer, layer_gap: f32, radius: u32) -> u64 {
-    fill_occluded_step(g, layer_gap, radius, None).0
+    fill_occluded_step(g, layer_gap, radius, None, None).0
 }
 
 /// [`fill_occluded_in_place`] after a step that changed `since` (see
 /// [`fill_background_step`]): returns the pixels replaced and where they are.
-pub fn fill_occluded_step(
+pub(crate) fn fill_occluded_step(
     g: &mut GBuffer,
     layer_gap: f32,
     radius: u32,
     since: Option<&Changed>,
+    slope: Option<(&ViewParams, Surfaces<'_>)>,
 ) -> (u64, Changed) {
     // "Dark" (solid) cells: at least d̃ nearer than the candidate pixel.
-    fill_points(g, radius, layer_gap, since)
+    fill_points(g, radius, layer_gap, since, slope)
 }
 
 #[cfg(test)]

@@ -26,11 +26,19 @@ impl GeometryKernel for FillOccluded {
         PassId::FillOccluded
     }
 
-    fn cpu(&self, _v: &ViewParams, a: &mut GBuffer, _b: &mut GBuffer, gap: f32) -> (u32, u64) {
+    fn cpu(
+        &self,
+        v: &ViewParams,
+        a: &mut GBuffer,
+        _b: &mut GBuffer,
+        gap: f32,
+        surfaces: Option<super::Surfaces<'_>>,
+    ) -> (u32, u64) {
         let gap = self.layer_gap.unwrap_or(gap);
         let mut since = None;
         super::iterate_in_place(a, self.iterations, |g| {
-            let (n, changed) = cpu::fill_occluded_step(g, gap, self.radius, since.as_ref());
+            let slope = surfaces.map(|s| (v, s));
+            let (n, changed) = cpu::fill_occluded_step(g, gap, self.radius, since.as_ref(), slope);
             since = Some(changed);
             n
         })
@@ -42,9 +50,15 @@ impl GeometryKernel for FillOccluded {
         b: Binder<'_>,
         cur: &mut Cursor,
         gap: f32,
+        cloud: Option<&crate::device::cloud::GpuCloud>,
     ) -> Result<(), GpuError> {
-        let pass = b.pass::<gpu::Gpu>();
         let (id, its, gap) = (self.id(), self.iterations, self.layer_gap.unwrap_or(gap));
-        super::fill::gpu::record(rec, b, cur, &pass.0, id, its, self.radius, gap)
+        let cloud = cloud.filter(|c| c.has_normals);
+        if let Some(cloud) = cloud {
+            gpu::record_planes(rec, b, cur, cloud)?;
+        }
+        let planes = cloud.is_some();
+        let pass = b.pass::<gpu::Gpu>();
+        super::fill::gpu::record(rec, b, cur, &pass.0, id, its, self.radius, gap, planes)
     }
 }

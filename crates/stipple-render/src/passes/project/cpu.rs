@@ -64,6 +64,12 @@
 //!   fills give a hole its neighbour's nearer depth), so without the bit a point judged part
 //!   of one layer could be judged a layer of its own later. The deep layers of a frame,
 //!   where most points were peeled before, cost half as much.
+//! * The fills feed this test: a layer's hole filled by the occluded fill carries the plane of
+//!   the neighbour that filled it. Where a tube is seen at a grazing angle that fill compared
+//!   depths alone and replaced the layer's own points by a nearer surface's, which then came
+//!   back one layer late (the dark blotches of `examples/nested-tori.toml`'s middle torus
+//!   at 512²); it now compares with the pixel's tangent plane (see
+//!   [`crate::passes::fill_occluded`]).
 //! * Nothing is peeled behind a pixel the layer left empty (Dobrev's rule: a hole of a layer
 //!   is filled or stays a hole). Without normals the reference is the largest depth of the
 //!   layer over the pixel's 3×3 neighbourhood, counting neighbours at most 4 d̃ behind
@@ -204,7 +210,7 @@ pub fn peel_planes(
 
 /// The dot product in the shaders' order of operations.
 #[inline(always)]
-fn dot3(a: Vec3, b: Vec3) -> f32 {
+pub(crate) fn dot3(a: Vec3, b: Vec3) -> f32 {
     a.x * b.x + a.y * b.y + a.z * b.z
 }
 

@@ -271,6 +271,7 @@ pub(crate) fn record_gather(
     b: Binder<'_>,
     cur: &Cursor,
     cloud: &GpuCloud,
+    id: PassId,
 ) -> Result<(), GpuError> {
     let q = rec.section();
     let gathers = gather_groups(rec, b, cur, cloud)?;
@@ -283,5 +284,5 @@ pub(crate) fn record_gather(
         p.dispatch_workgroups(fx, fy, 1);
     }
     drop(p);
-    rec.end(PassId::Shade, 1, vec![], q)
+    rec.end(id, 1, vec![], q)
 }

@@ -23,7 +23,14 @@ impl GeometryKernel for Visibility {
         PassId::Visibility
     }
 
-    fn cpu(&self, v: &ViewParams, a: &mut GBuffer, b: &mut GBuffer, _gap: f32) -> (u32, u64) {
+    fn cpu(
+        &self,
+        v: &ViewParams,
+        a: &mut GBuffer,
+        b: &mut GBuffer,
+        _gap: f32,
+        _surfaces: Option<super::Surfaces<'_>>,
+    ) -> (u32, u64) {
         let changed = cpu::visibility(v, a, b, self.kernel, self.threshold);
         std::mem::swap(a, b);
         (1, changed)
@@ -35,6 +42,7 @@ impl GeometryKernel for Visibility {
         b: Binder<'_>,
         cur: &mut Cursor,
         _gap: f32,
+        _cloud: Option<&crate::device::cloud::GpuCloud>,
     ) -> Result<(), GpuError> {
         gpu::record(self, rec, b, cur)
     }
