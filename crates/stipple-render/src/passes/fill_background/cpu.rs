@@ -56,6 +56,7 @@ pub fn fill_background_step(
         Some(&spans),
         |_, id| !is_point(id),
         pre,
+        |_| {},
         |_, _| |_: f32, nid: u32, _: i32, _: i32| is_point(nid),
     );
     apply(g, changes)

@@ -6,7 +6,7 @@ fn candidate(d: f32, id: u32) -> bool {
     return is_point(id);
 }
 
-// The tangent plane of the pixel's point (normal facing the eye, n · x; zero where it says
+// The tangent plane of the pixel's point (cpu::fill::plane_coefficients; zero where it says
 // nothing), or zero without planes.
 fn own_plane(k: u32) -> vec4<f32> {
     if (fp.planes == 0u) {
@@ -22,26 +22,24 @@ fn carry(k: u32, src: u32) {
     }
 }
 
-// cpu::fill::FillPlane::in_front, with ViewParams::pixel_ray.
+// cpu::fill::FillPlane::in_front (own: cpu::fill::plane_coefficients).
 fn in_front(own: vec4<f32>, nx: i32, ny: i32, nd: f32) -> bool {
-    let px = 2.0 * (f32(nx) + 0.5) / f32(view.width) - 1.0;
-    let py = 1.0 - 2.0 * (f32(ny) + 0.5) / f32(view.height);
-    let off = view.right * (px / view.sx) + view.up * (py / view.sy);
-    var o = view.eye;
-    var dir = view.forward;
+    let u = (f32(nx) + 0.5) * (2.0 / f32(view.width)) - 1.0;
+    let v = 1.0 - (f32(ny) + 0.5) * (2.0 / f32(view.height));
+    var off = 0.0;
     if (view.perspective == 1u) {
-        dir = view.forward + off;
+        off = own.w + nd * (own.z + u * own.x + v * own.y);
     } else {
-        o = view.eye + off;
+        off = own.w + u * own.x + v * own.y + nd * own.z;
     }
-    return dot3(own.xyz, o + dir * nd) - own.w > fp.gap;
+    return off > fp.gap;
 }
 
 fn solid(d: f32, own: vec4<f32>, nd: f32, nid: u32, nx: i32, ny: i32) -> bool {
     if (!(nd <= d - fp.gap)) {
         return false;
     }
-    if (dot3(own.xyz, own.xyz) == 0.0) {
+    if (all(own == vec4<f32>(0.0))) {
         return true;
     }
     return in_front(own, nx, ny, nd);

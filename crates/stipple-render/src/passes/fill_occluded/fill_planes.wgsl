@@ -1,6 +1,7 @@
 // fill_planes: each pixel's tangent plane for the slope-aware occluded fill (CPU twin:
-// cpu/fill.rs `FillPlane::of`), from the positions and normals gather wrote: the normal turned
-// to face the eye and n · x, into plane[2k]; zero where the pixel shows no point or its point
+// cpu/fill.rs `FillPlane::of`), from the positions and normals gather wrote: with the normal
+// turned to face the eye, the four numbers of cpu/fill.rs `plane_coefficients`, into
+// plane[2k]; zero where the pixel shows no point or its point
 // is seen edge-on (normal within 6° of perpendicular to the ray: project.wgsl's EDGE_COS2).
 
 struct FillPlanes {
@@ -38,7 +39,12 @@ fn fill_planes(@builtin(global_invocation_id) gid: vec3<u32>) {
             if (c > 0.0) {
                 n = -n;
             }
-            out = vec4<f32>(n, dot3(n, x));
+            out = vec4<f32>(
+                dot3(n, view.right) / view.sx,
+                dot3(n, view.up) / view.sy,
+                dot3(n, view.forward),
+                dot3(n, view.eye) - dot3(n, x),
+            );
         }
     }
     plane[2u * k] = out;
