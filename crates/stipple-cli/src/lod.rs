@@ -5,6 +5,7 @@ use crate::Result;
 use anyhow::{anyhow, Context};
 use glam::DVec3;
 use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use stipple_core::{Camera, PointCloud};
@@ -155,56 +156,250 @@ pub fn open_with_camera(p: &Path, camera: &CameraArgs) -> Result<(Arc<LodTree>, 
 
 /// A tree streamed as the view moves (`stipple view`): nodes are requested for each camera
 /// and loaded on background threads; a cut is drawn from what is resident, missing nodes
-/// standing in by their nearest resident ancestor, so a frame never waits for the disk.
+/// standing in by their nearest resident ancestor, so a frame never waits for the disk. A
+/// COPC file beyond the point budget streams alike ([`CopcStream`]).
 pub struct TreeStream {
-    pub tree: Arc<LodTree>,
-    streamer: Streamer,
-    opts: SelectOptions,
+    source: StreamSource,
+}
+
+enum StreamSource {
+    Tree {
+        tree: Arc<LodTree>,
+        streamer: Streamer,
+        opts: SelectOptions,
+    },
+    Copc(CopcStream),
 }
 
 impl TreeStream {
+    /// A `.stlod` tree, or a COPC file (`stipple_io::copc::is_copc`).
     pub fn open(p: &Path, lod: &LodArgs) -> Result<TreeStream> {
+        if stipple_io::copc::is_copc(p) && !is_tree(p) {
+            return Ok(TreeStream {
+                source: StreamSource::Copc(CopcStream::open(p, lod)?),
+            });
+        }
         let tree = open(p)?;
         let opts = lod.select_options(&tree)?;
         let streamer = Streamer::new(tree.clone(), lod.cache_bytes(), lod.loaders)?;
         Ok(TreeStream {
-            tree,
-            streamer,
-            opts,
+            source: StreamSource::Tree {
+                tree,
+                streamer,
+                opts,
+            },
         })
     }
 
     /// The point budget of a full cut.
     pub fn point_budget(&self) -> u64 {
-        self.opts.point_budget
+        match &self.source {
+            StreamSource::Tree { opts, .. } => opts.point_budget,
+            StreamSource::Copc(c) => c.budget,
+        }
     }
 
     /// The fewest points a cut can hold (one node).
     pub fn least_budget(&self) -> u64 {
-        self.tree.header.max_node_points as u64
+        match &self.source {
+            StreamSource::Tree { tree, .. } => tree.header.max_node_points as u64,
+            StreamSource::Copc(c) => c.least,
+        }
     }
 
     /// The cut for `camera` from the resident nodes (requesting the missing ones), within
     /// `budget` points when given (a coarser cut while the view moves), and how many of the
     /// cut's nodes are still loading.
     pub fn cut(&self, camera: &Camera, budget: Option<u64>) -> Result<(PreparedCloud, usize)> {
-        if let Some(e) = self.streamer.error() {
+        let budget = budget.map(|b| b.clamp(self.least_budget(), self.point_budget()));
+        let (tree, streamer, opts) = match &self.source {
+            StreamSource::Tree {
+                tree,
+                streamer,
+                opts,
+            } => (tree, streamer, opts),
+            StreamSource::Copc(c) => return c.cut(camera, budget),
+        };
+        if let Some(e) = streamer.error() {
             return Err(anyhow::Error::msg(e));
         }
-        let mut opts = self.opts;
+        let mut opts = *opts;
         if let Some(b) = budget {
-            opts.point_budget = b.clamp(self.least_budget(), opts.point_budget);
+            opts.point_budget = b;
         }
-        let sel = stipple_lod::select(&self.tree, camera, &opts);
-        self.streamer.request(&sel.nodes);
-        let (parts, missing) = self.streamer.resident_cut(&sel.nodes);
-        Ok((cut_cloud(&self.tree, &parts, camera), missing))
+        let sel = stipple_lod::select(tree, camera, &opts);
+        streamer.request(&sel.nodes);
+        let (parts, missing) = streamer.resident_cut(&sel.nodes);
+        Ok((cut_cloud(tree, &parts, camera), missing))
     }
 
     /// Nodes loaded so far (a change means a better cut may be ready).
     pub fn loads(&self) -> u64 {
-        self.streamer.stats().loads
+        match &self.source {
+            StreamSource::Tree { streamer, .. } => streamer.stats().loads,
+            StreamSource::Copc(c) => c.shared.loads.load(Ordering::Relaxed),
+        }
     }
+}
+
+/// A COPC file streamed as the view moves: each camera's cut is chosen as `render` chooses
+/// it ([`load_copc_cut`]); the nodes not yet decoded are decoded on a background thread
+/// (nodes in parallel) while the frame draws the resident ones. COPC stores each point once,
+/// so a node still loading leaves its part of the view sparser (its ancestors are drawn)
+/// rather than standing in by an ancestor. Decoded nodes are kept up to `--cache`; beyond
+/// it, nodes outside the latest cut are dropped.
+pub struct CopcStream {
+    copc: Arc<stipple_io::copc::Copc>,
+    origin: DVec3,
+    budget: u64,
+    least: u64,
+    root: usize,
+    max_px: f64,
+    cache_bytes: u64,
+    shared: Arc<CopcShared>,
+    requests: std::sync::mpsc::Sender<Vec<usize>>,
+}
+
+#[derive(Default)]
+struct CopcShared {
+    resident: std::sync::Mutex<std::collections::HashMap<usize, Arc<PointCloud>>>,
+    pending: std::sync::Mutex<std::collections::HashSet<usize>>,
+    loads: AtomicU64,
+    error: std::sync::Mutex<Option<String>>,
+}
+
+/// Bytes a decoded point takes in the cache (position, attributes, colour).
+const COPC_POINT_BYTES: u64 = 24;
+
+impl CopcStream {
+    fn open(p: &Path, lod: &LodArgs) -> Result<CopcStream> {
+        let copc = Arc::new(stipple_io::copc::Copc::open(p)?);
+        if !(lod.lod_error > 0.0 && lod.lod_error.is_finite()) {
+            return Err(anyhow!(
+                "--lod-error {}: must be a positive number of pixels",
+                lod.lod_error
+            ));
+        }
+        let least = copc.nodes.iter().map(|n| n.point_count).max().unwrap_or(1);
+        let shift = copc.colour_shift()?;
+        let origin = copc_origin(&copc);
+        let shared = Arc::new(CopcShared::default());
+        // The root, decoded now: the first frame draws it while the rest of its cut
+        // decodes, and a cut that holds nothing else (the camera looks away) still has it.
+        let root = (0..copc.nodes.len())
+            .min_by_key(|&i| copc.nodes[i].key.level)
+            .ok_or_else(|| anyhow!("{}: the COPC hierarchy holds no points", p.display()))?;
+        let c = copc.read_nodes_with(&[root], origin, Some(shift))?;
+        shared.resident.lock().unwrap().insert(root, Arc::new(c));
+        let (requests, rx) = std::sync::mpsc::channel::<Vec<usize>>();
+        {
+            let (copc, shared) = (copc.clone(), shared.clone());
+            std::thread::Builder::new()
+                .name("copc nodes".into())
+                .spawn(move || {
+                    use rayon::prelude::*;
+                    // Ends when the stream (the sender) is dropped.
+                    while let Ok(nodes) = rx.recv() {
+                        nodes.par_iter().for_each(|&i| {
+                            let r = copc.read_nodes_with(&[i], origin, Some(shift));
+                            match r {
+                                Ok(c) => {
+                                    shared.resident.lock().unwrap().insert(i, Arc::new(c));
+                                    shared.loads.fetch_add(1, Ordering::Relaxed);
+                                }
+                                Err(e) => *shared.error.lock().unwrap() = Some(e.to_string()),
+                            }
+                            shared.pending.lock().unwrap().remove(&i);
+                        });
+                    }
+                })
+                .context("starting the COPC node decoder")?;
+        }
+        Ok(CopcStream {
+            copc,
+            origin,
+            budget: lod.point_budget.max(least),
+            least,
+            root,
+            max_px: lod.lod_error as f64,
+            cache_bytes: lod.cache_bytes(),
+            shared,
+            requests,
+        })
+    }
+
+    fn cut(&self, camera: &Camera, budget: Option<u64>) -> Result<(PreparedCloud, usize)> {
+        if let Some(e) = self.shared.error.lock().unwrap().clone() {
+            return Err(anyhow::Error::msg(e));
+        }
+        let sel = copc_selection(
+            &self.copc,
+            camera,
+            budget.unwrap_or(self.budget),
+            self.max_px,
+        );
+        let mut resident = self.shared.resident.lock().unwrap();
+        let missing: Vec<usize> = sel
+            .iter()
+            .copied()
+            .filter(|i| !resident.contains_key(i))
+            .collect();
+        {
+            let mut pending = self.shared.pending.lock().unwrap();
+            let ask: Vec<usize> = missing
+                .iter()
+                .copied()
+                .filter(|&i| pending.insert(i))
+                .collect();
+            if !ask.is_empty() && self.requests.send(ask).is_err() {
+                return Err(anyhow!("the COPC node decoder stopped"));
+            }
+        }
+        // The cut's resident nodes, taken under the lock and joined after it: decoding
+        // threads wait on it, and the cloud's preparation below runs on the same pool.
+        let mut parts: Vec<Arc<PointCloud>> = sel
+            .iter()
+            .filter_map(|i| resident.get(i).cloned())
+            .collect();
+        if parts.is_empty() {
+            parts.extend(resident.get(&self.root).cloned());
+        }
+        // Over the cache's size: keep the nodes of this cut, and the root.
+        let held: u64 = resident.values().map(|c| c.len() as u64).sum();
+        if held * COPC_POINT_BYTES > self.cache_bytes {
+            let keep: std::collections::HashSet<usize> = sel.iter().copied().collect();
+            resident.retain(|i, _| *i == self.root || keep.contains(i));
+        }
+        drop(resident);
+        let mut cloud = PointCloud {
+            origin: self.origin,
+            z_up: true,
+            ..Default::default()
+        };
+        for c in &parts {
+            cloud.append(c);
+        }
+        Ok((PreparedCloud::new(cloud), missing.len()))
+    }
+}
+
+/// The origin a COPC file's clouds are expressed in: the centre of its header's bounds,
+/// rounded (the same for every cut).
+fn copc_origin(copc: &stipple_io::copc::Copc) -> DVec3 {
+    ((copc.min + copc.max) * 0.5).round()
+}
+
+/// The nodes `render` and the viewer draw of a COPC file for `camera`: coarse levels first,
+/// finer ones where they are close, until `budget` points or `max_px` pixels between samples.
+fn copc_selection(
+    copc: &stipple_io::copc::Copc,
+    camera: &Camera,
+    budget: u64,
+    max_px: f64,
+) -> Vec<usize> {
+    stipple_io::copc::select_nodes(copc, budget, |lo, hi, s| {
+        node_detail(camera, (lo + hi) * 0.5, (hi - lo).length() * 0.5, s, max_px)
+    })
 }
 
 /// For `render`: the complete cut for the camera (waiting for its nodes, with a spinner).
@@ -482,10 +677,7 @@ pub fn load_copc_cut(
     let Some((copc, cam)) = open_copc_cut(p, camera, lod)? else {
         return Ok(None);
     };
-    let max_px = lod.lod_error as f64;
-    let sel = stipple_io::copc::select_nodes(&copc, lod.point_budget, |lo, hi, s| {
-        node_detail(&cam, (lo + hi) * 0.5, (hi - lo).length() * 0.5, s, max_px)
-    });
+    let sel = copc_selection(&copc, &cam, lod.point_budget, lod.lod_error as f64);
     let points: u64 = sel.iter().map(|&i| copc.nodes[i].point_count).sum();
     let bar = indicatif::ProgressBar::new_spinner();
     bar.enable_steady_tick(Duration::from_millis(120));
@@ -494,8 +686,11 @@ pub fn load_copc_cut(
         sel.len(),
         copc.nodes.len()
     ));
-    let origin = ((copc.min + copc.max) * 0.5).round();
-    let cloud = copc.read_nodes(&sel, origin);
+    let origin = copc_origin(&copc);
+    // The root's colour shift, as the viewer streams it node by node.
+    let cloud = copc
+        .colour_shift()
+        .and_then(|shift| copc.read_nodes_with(&sel, origin, Some(shift)));
     bar.finish_and_clear();
     let cloud = cloud?;
     let label = format!(

@@ -430,6 +430,60 @@ fn a_tree_streams_into_the_window() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A COPC file beyond the point budget streams as a tree does: the window cuts again for a
+/// new camera while its nodes decode in the background, and the finished view is what
+/// `render` draws from the file for the same camera.
+#[test]
+fn a_copc_file_streams_into_the_window() {
+    let Some(tools) = tools() else { return };
+    let dir = tempdir("view-copc");
+    for args in [
+        &["gen", "torus", "-o", "t.ply", "--points", "400000"][..],
+        &["build-lod", "t.ply", "-o", "t.copc.laz"][..],
+    ] {
+        let o = stipple(&dir, args);
+        assert!(o.status.success(), "{args:?}: {}", text(&o));
+    }
+    let (w, h) = (160usize, 120usize);
+    let size = format!("{w}x{h}");
+    let budget = ["--point-budget", "150000"];
+    let mut args = vec![
+        "t.copc.laz",
+        "--size",
+        &size,
+        "--backend",
+        "cpu",
+        "-o",
+        "shot",
+    ];
+    args.extend(budget);
+    let s = Session::start(&tools, &dir, &args);
+    s.wait_title_without("loading");
+    // Zoom in two notches: a new cut, decoded while the window draws what it has.
+    s.x(&["mousemove", "--sync", "80", "60"]);
+    s.x(&["click", "4"]);
+    s.x(&["click", "4"]);
+    std::thread::sleep(Duration::from_millis(300));
+    s.wait_title_without("loading");
+    s.wait_title_without("moving");
+    s.x(&["key", "c"]);
+    wait_for(&dir.join("shot-1.json"), "the camera");
+    let mut args = vec!["t.copc.laz", "--camera", "shot-1.json"];
+    args.extend(budget);
+    let reference = render(&dir, &args, "ref.png");
+    let off = s.settled(&reference, w, h);
+    s.close();
+    assert!(
+        off * 1000 <= w * h,
+        "{off} pixels differ from render's cut of the COPC file"
+    );
+    let covered = (0..w * h)
+        .filter(|&k| reference[4 * k..4 * k + 3] != reference[..3])
+        .count();
+    assert!(covered > w * h / 10, "the torus covers the window");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// A tree whose file is damaged while it streams: the last cut stays on screen, the title
 /// says why, and the viewer goes on (and closes cleanly).
 #[test]

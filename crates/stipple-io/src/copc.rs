@@ -420,6 +420,30 @@ impl Copc {
     /// The points of the nodes `which` (indices into [`Copc::nodes`]), decoded in parallel,
     /// as one cloud with positions relative to `origin`.
     pub fn read_nodes(&self, which: &[usize], origin: DVec3) -> Result<PointCloud, IoError> {
+        self.read_nodes_with(which, origin, None)
+    }
+
+    /// How 16-bit colours become 8-bit ones for clouds read a node at a time: the shift (8
+    /// or 0) the root node's colours ask for (see [`Copc::read_nodes`]), so that every node
+    /// of a view streamed node by node is shifted alike; 0 without colours.
+    pub fn colour_shift(&self) -> Result<u32, IoError> {
+        if self.format < 7 {
+            return Ok(0);
+        }
+        let Some(root) = (0..self.nodes.len()).min_by_key(|&i| self.nodes[i].key.level) else {
+            return Ok(0);
+        };
+        let parts = self.decode(&[root], DVec3::ZERO)?;
+        Ok(rgb_shift(parts.iter().flat_map(|p| p.rgb.iter())))
+    }
+
+    /// [`Copc::read_nodes`], with the colour shift given (None: from the nodes read).
+    pub fn read_nodes_with(
+        &self,
+        which: &[usize],
+        origin: DVec3,
+        shift: Option<u32>,
+    ) -> Result<PointCloud, IoError> {
         let path = &self.path;
         let rec = self.record_len;
         let colour = self.format >= 7;
@@ -442,7 +466,38 @@ impl Copc {
                 ));
             }
         }
-        let parts: Vec<Part> = which
+        let parts = self.decode(which, origin)?;
+        let total: usize = parts.iter().map(|p| p.positions.len()).sum();
+        let mut cloud = PointCloud {
+            origin,
+            positions: Vec::with_capacity(total),
+            intensity: Some(Vec::with_capacity(total)),
+            classification: Some(Vec::with_capacity(total)),
+            return_number: Some(Vec::with_capacity(total)),
+            z_up: true,
+            ..Default::default()
+        };
+        let mut rgb: Vec<[u16; 3]> = Vec::with_capacity(if colour { total } else { 0 });
+        for p in parts {
+            cloud.positions.extend(p.positions);
+            cloud.intensity.as_mut().unwrap().extend(p.intensity);
+            cloud.classification.as_mut().unwrap().extend(p.class);
+            cloud.return_number.as_mut().unwrap().extend(p.returns);
+            rgb.extend(p.rgb);
+        }
+        if colour {
+            let shift = shift.unwrap_or_else(|| rgb_shift(rgb.iter()));
+            cloud.colors = Some(rgb.iter().map(|c| c.map(|v| (v >> shift) as u8)).collect());
+        }
+        Ok(cloud)
+    }
+
+    /// The chosen nodes' points, decoded in parallel (positions relative to `origin`).
+    fn decode(&self, which: &[usize], origin: DVec3) -> Result<Vec<Part>, IoError> {
+        let path = &self.path;
+        let rec = self.record_len;
+        let colour = self.format >= 7;
+        which
             .par_iter()
             .map(|&w| {
                 let n = self.nodes[w];
@@ -487,32 +542,17 @@ impl Copc {
                 }
                 Ok(p)
             })
-            .collect::<Result<_, IoError>>()?;
-        let total: usize = parts.iter().map(|p| p.positions.len()).sum();
-        let mut cloud = PointCloud {
-            origin,
-            positions: Vec::with_capacity(total),
-            intensity: Some(Vec::with_capacity(total)),
-            classification: Some(Vec::with_capacity(total)),
-            return_number: Some(Vec::with_capacity(total)),
-            z_up: true,
-            ..Default::default()
-        };
-        let mut rgb: Vec<[u16; 3]> = Vec::with_capacity(if colour { total } else { 0 });
-        for p in parts {
-            cloud.positions.extend(p.positions);
-            cloud.intensity.as_mut().unwrap().extend(p.intensity);
-            cloud.classification.as_mut().unwrap().extend(p.class);
-            cloud.return_number.as_mut().unwrap().extend(p.returns);
-            rgb.extend(p.rgb);
-        }
-        if colour {
-            // As the LAS reader: 8-bit values stored in 16 bits are kept, others shifted.
-            let max = rgb.iter().flatten().copied().max().unwrap_or(0);
-            let shift = if max > 255 { 8 } else { 0 };
-            cloud.colors = Some(rgb.iter().map(|c| c.map(|v| (v >> shift) as u8)).collect());
-        }
-        Ok(cloud)
+            .collect::<Result<_, IoError>>()
+    }
+}
+
+/// As the LAS reader: 8-bit values stored in 16 bits are kept (shift 0), others shifted by 8.
+fn rgb_shift<'a>(rgb: impl Iterator<Item = &'a [u16; 3]>) -> u32 {
+    let max = rgb.flatten().copied().max().unwrap_or(0);
+    if max > 255 {
+        8
+    } else {
+        0
     }
 }
 
