@@ -24,8 +24,8 @@ pub struct LodArgs {
     /// apart on screen.
     #[arg(long, default_value_t = 1.0, value_name = "PX", value_parser = crate::args::finite_f32)]
     pub lod_error: f32,
-    /// For a .stlod tree or a COPC file in `view`: memory for cached node payloads (default: 4 × the point budget's
-    /// size, at least 1 GiB).
+    /// For a .stlod tree or a COPC file in `view`: memory for cached node payloads
+    /// (default: 4 × the point budget's size, at least 1 GiB).
     #[arg(long, value_parser = parse_size, value_name = "SIZE")]
     pub cache: Option<u64>,
     /// For a .stlod tree: background threads loading nodes (1 to 64).
