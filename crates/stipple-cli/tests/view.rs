@@ -386,42 +386,44 @@ fn shadows_refine_while_the_view_rests() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-/// A tree streams: the window opens at once with what is resident (the root first) and
-/// cuts again as nodes arrive, and the finished view is what `render` draws from the tree
-/// for the same camera (which waits for the whole cut).
-#[test]
-fn a_tree_streams_into_the_window() {
+/// Builds `file` from a generated torus of `points` with `build-lod`, opens it in the viewer
+/// with `extra` arguments, zooms in `notches` wheel notches, waits until no node is loading
+/// and the view rests, and checks the window against `render`'s image of the same file for
+/// the camera the viewer saved.
+fn streams_into_the_window(name: &str, file: &str, points: &str, extra: &[&str], notches: usize) {
     let Some(tools) = tools() else { return };
-    let dir = tempdir("view-tree");
+    let dir = tempdir(name);
     for args in [
-        &["gen", "torus", "-o", "t.ply", "--points", "300000"][..],
-        &["build-lod", "t.ply", "-o", "t.stlod"][..],
+        &["gen", "torus", "-o", "t.ply", "--points", points][..],
+        &["build-lod", "t.ply", "-o", file][..],
     ] {
         let o = stipple(&dir, args);
         assert!(o.status.success(), "{args:?}: {}", text(&o));
     }
     let (w, h) = (160usize, 120usize);
     let size = format!("{w}x{h}");
-    let s = Session::start(
-        &tools,
-        &dir,
-        &["t.stlod", "--size", &size, "--backend", "cpu", "-o", "shot"],
-    );
+    let mut args = vec![file, "--size", &size, "--backend", "cpu", "-o", "shot"];
+    args.extend(extra);
+    let s = Session::start(&tools, &dir, &args);
     s.wait_title_without("loading");
-    // Zoom in a notch: a new cut, coarse while moving, streamed and refined at rest.
+    // Zoom in: a new cut, coarse while moving, streamed and refined at rest.
     s.x(&["mousemove", "--sync", "80", "60"]);
-    s.x(&["click", "4"]);
+    for _ in 0..notches {
+        s.x(&["click", "4"]);
+    }
     std::thread::sleep(Duration::from_millis(300));
     s.wait_title_without("loading");
     s.wait_title_without("moving");
     s.x(&["key", "c"]);
     wait_for(&dir.join("shot-1.json"), "the camera");
-    let reference = render(&dir, &["t.stlod", "--camera", "shot-1.json"], "ref.png");
+    let mut args = vec![file, "--camera", "shot-1.json"];
+    args.extend(extra);
+    let reference = render(&dir, &args, "ref.png");
     let off = s.settled(&reference, w, h);
     s.close();
     assert!(
         off * 1000 <= w * h,
-        "{off} pixels differ from render's cut of the tree"
+        "{off} pixels differ from render's cut of {file}"
     );
     let covered = (0..w * h)
         .filter(|&k| reference[4 * k..4 * k + 3] != reference[..3])
@@ -430,58 +432,21 @@ fn a_tree_streams_into_the_window() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// A tree streams: the window opens at once with what is resident (the root first) and
+/// cuts again as nodes arrive, and the finished view is what `render` draws from the tree
+/// for the same camera (which waits for the whole cut).
+#[test]
+fn a_tree_streams_into_the_window() {
+    streams_into_the_window("view-tree", "t.stlod", "300000", &[], 1);
+}
+
 /// A COPC file beyond the point budget streams as a tree does: the window cuts again for a
 /// new camera while its nodes decode in the background, and the finished view is what
 /// `render` draws from the file for the same camera.
 #[test]
 fn a_copc_file_streams_into_the_window() {
-    let Some(tools) = tools() else { return };
-    let dir = tempdir("view-copc");
-    for args in [
-        &["gen", "torus", "-o", "t.ply", "--points", "400000"][..],
-        &["build-lod", "t.ply", "-o", "t.copc.laz"][..],
-    ] {
-        let o = stipple(&dir, args);
-        assert!(o.status.success(), "{args:?}: {}", text(&o));
-    }
-    let (w, h) = (160usize, 120usize);
-    let size = format!("{w}x{h}");
     let budget = ["--point-budget", "150000"];
-    let mut args = vec![
-        "t.copc.laz",
-        "--size",
-        &size,
-        "--backend",
-        "cpu",
-        "-o",
-        "shot",
-    ];
-    args.extend(budget);
-    let s = Session::start(&tools, &dir, &args);
-    s.wait_title_without("loading");
-    // Zoom in two notches: a new cut, decoded while the window draws what it has.
-    s.x(&["mousemove", "--sync", "80", "60"]);
-    s.x(&["click", "4"]);
-    s.x(&["click", "4"]);
-    std::thread::sleep(Duration::from_millis(300));
-    s.wait_title_without("loading");
-    s.wait_title_without("moving");
-    s.x(&["key", "c"]);
-    wait_for(&dir.join("shot-1.json"), "the camera");
-    let mut args = vec!["t.copc.laz", "--camera", "shot-1.json"];
-    args.extend(budget);
-    let reference = render(&dir, &args, "ref.png");
-    let off = s.settled(&reference, w, h);
-    s.close();
-    assert!(
-        off * 1000 <= w * h,
-        "{off} pixels differ from render's cut of the COPC file"
-    );
-    let covered = (0..w * h)
-        .filter(|&k| reference[4 * k..4 * k + 3] != reference[..3])
-        .count();
-    assert!(covered > w * h / 10, "the torus covers the window");
-    std::fs::remove_dir_all(&dir).ok();
+    streams_into_the_window("view-copc", "t.copc.laz", "400000", &budget, 2);
 }
 
 /// A tree whose file is damaged while it streams: the last cut stays on screen, the title

@@ -12,7 +12,7 @@
 //! iterations, `PEEL_NESTED_RAW=1` drops the colour passes, `PEEL_NESTED_COL=256` prints a
 //! column's pixels and layers, `PEEL_NESTED_GRID=x,y,w,h,layer` a layer's patch).
 use glam::DVec3;
-use stipple_core::{Camera, PointCloud, Projection};
+use stipple_core::PointCloud;
 use stipple_render::{gpu::GpuOptions, Backend, Pipeline, PreparedCloud, Renderer};
 
 #[allow(dead_code)] // shared with the tests; each example uses part of it
@@ -60,16 +60,7 @@ fn main() {
         .map(|s| s.split(',').map(|v| v.parse().unwrap()).collect())
         .unwrap_or(vec![512, 1024]);
     for size in sizes {
-        let cam = Camera {
-            eye: DVec3::new(0.0, 2.2, 3.0),
-            target: DVec3::ZERO,
-            up: DVec3::Y,
-            projection: Projection::Perspective { fov_deg: 40.0 },
-            width: size,
-            height: size,
-            near: 0.5,
-            far: 10.0,
-        };
+        let cam = rims::oblique(size);
         let mut pipe = Pipeline {
             layers: 6,
             lighting: false,

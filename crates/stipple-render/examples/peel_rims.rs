@@ -7,8 +7,7 @@
 //! pixels off by more than 12 levels (speckle) and the worst class's luminance deviation.
 //! `cargo run --release -p stipple-render --example peel_rims [cpu|gpu]`
 //! (`PEEL_RIMS_OUT=dir` writes the images, `PEEL_RIMS_SIZES=256,512` picks the sizes).
-use glam::DVec3;
-use stipple_core::{Camera, PointCloud, Projection};
+use stipple_core::PointCloud;
 use stipple_render::{gpu::GpuOptions, Backend, Pipeline, PreparedCloud, Renderer};
 
 #[allow(dead_code)] // shared with the tests; each example uses part of it
@@ -50,16 +49,7 @@ fn main() {
         .map(|s| s.split(',').map(|v| v.parse().unwrap()).collect())
         .unwrap_or(vec![256, 384, 512, 768]);
     for size in sizes {
-        let cam = Camera {
-            eye: DVec3::new(0.0, 2.2, 3.0),
-            target: DVec3::ZERO,
-            up: DVec3::Y,
-            projection: Projection::Perspective { fov_deg: 40.0 },
-            width: size,
-            height: size,
-            near: 0.5,
-            far: 10.0,
-        };
+        let cam = rims::oblique(size);
         let mut pipe = Pipeline {
             layers: 4,
             lighting: false,

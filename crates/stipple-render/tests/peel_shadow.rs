@@ -565,16 +565,7 @@ fn peeled_layers_stay_closed_where_rays_graze_a_transparent_torus() {
         ..Pipeline::default()
     };
     for size in [384u32, 640, 1024] {
-        let cam = Camera {
-            eye: DVec3::new(0.0, 2.2, 3.0),
-            target: DVec3::ZERO,
-            up: DVec3::Y,
-            projection: Projection::Perspective { fov_deg: 40.0 },
-            width: size,
-            height: size,
-            near: 0.5,
-            far: 10.0,
-        };
+        let cam = common::rims::oblique(size);
         let counts = common::rims::crossings(&cam, &sdf);
         let w = size as usize;
         for mut r in common::backends() {
@@ -642,16 +633,7 @@ fn nested_transparent_tori_composite_as_the_analytic_layers() {
         ..Pipeline::default()
     };
     for size in [512u32, 768] {
-        let cam = Camera {
-            eye: DVec3::new(0.0, 2.2, 3.0),
-            target: DVec3::ZERO,
-            up: DVec3::Y,
-            projection: Projection::Perspective { fov_deg: 40.0 },
-            width: size,
-            height: size,
-            near: 0.5,
-            far: 10.0,
-        };
+        let cam = common::rims::oblique(size);
         let (seq, want) = common::rims::composite(&cam, &surfaces, background);
         for mut r in common::backends() {
             let f = r.render(&c, &cam, &pipe).unwrap();

@@ -5,6 +5,21 @@
 use glam::DVec3;
 use stipple_core::{Camera, Projection};
 
+/// The oblique view of `examples/nested-tori.toml` (eye (0, 2.2, 3) looking at the origin,
+/// 40°), `size` pixels square: rays graze the tori's tubes near their silhouettes.
+pub fn oblique(size: u32) -> Camera {
+    Camera {
+        eye: DVec3::new(0.0, 2.2, 3.0),
+        target: DVec3::ZERO,
+        up: DVec3::Y,
+        projection: Projection::Perspective { fov_deg: 40.0 },
+        width: size,
+        height: size,
+        near: 0.5,
+        far: 10.0,
+    }
+}
+
 /// Signed distance to a torus around the Y axis (major radius `major`, tube `tube`).
 pub fn torus_sdf(major: f64, tube: f64) -> impl Fn(DVec3) -> f64 {
     move |q| (((q.x * q.x + q.z * q.z).sqrt() - major).powi(2) + q.y * q.y).sqrt() - tube
