@@ -16,6 +16,11 @@ pub fn peak_rss() -> Option<u64> {
     status_kib("/proc/self/status", "VmHWM:").map(|k| k * 1024)
 }
 
+/// Resident memory of this process now (VmRSS), bytes.
+pub fn current_rss() -> Option<u64> {
+    status_kib("/proc/self/status", "VmRSS:").map(|k| k * 1024)
+}
+
 /// Physical memory of the machine, bytes.
 pub fn total_memory() -> Option<u64> {
     status_kib("/proc/meminfo", "MemTotal:").map(|k| k * 1024)
