@@ -286,8 +286,8 @@ impl CopcStream {
         let shared = Arc::new(CopcShared::default());
         // The root, decoded now: the first frame draws it while the rest of its cut
         // decodes, and a cut that holds nothing else (the camera looks away) still has it.
-        let root = (0..copc.nodes.len())
-            .min_by_key(|&i| copc.nodes[i].key.level)
+        let root = copc
+            .root()
             .ok_or_else(|| anyhow!("{}: the COPC hierarchy holds no points", p.display()))?;
         let c = copc.read_nodes_with(&[root], origin, Some(shift))?;
         shared.resident.lock().unwrap().insert(root, Arc::new(c));

@@ -423,6 +423,12 @@ impl Copc {
         self.read_nodes_with(which, origin, None)
     }
 
+    /// The node of the lowest level that holds points (the root, in a file whose root has
+    /// points); None for a hierarchy without points.
+    pub fn root(&self) -> Option<usize> {
+        (0..self.nodes.len()).min_by_key(|&i| self.nodes[i].key.level)
+    }
+
     /// How 16-bit colours become 8-bit ones for clouds read a node at a time: the shift (8
     /// or 0) the root node's colours ask for (see [`Copc::read_nodes`]), so that every node
     /// of a view streamed node by node is shifted alike; 0 without colours.
@@ -430,7 +436,7 @@ impl Copc {
         if self.format < 7 {
             return Ok(0);
         }
-        let Some(root) = (0..self.nodes.len()).min_by_key(|&i| self.nodes[i].key.level) else {
+        let Some(root) = self.root() else {
             return Ok(0);
         };
         let parts = self.decode(&[root], DVec3::ZERO)?;

@@ -434,6 +434,11 @@ mod tests {
             ),
             (&BUCKET_SORT_MODULE, "MAX_K", p::bucket_sort::MAX_K as f64),
             (
+                &FILL_PLANES_MODULE,
+                "EDGE_COS2",
+                p::project::cpu::EDGE_COS2 as f64,
+            ),
+            (
                 &SORTED_MODULE,
                 "MAX_FOOTPRINT",
                 p::splat::MAX_FOOTPRINT as f64,

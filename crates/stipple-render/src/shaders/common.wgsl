@@ -21,6 +21,10 @@ const BACKGROUND: u32 = 0xffffffffu;
 // The id of a pixel the visibility operator emptied (gbuffer.rs HOLE): mutable by the fill.
 const HOLE: u32 = 0xfffffffeu;
 
+// cpu::project::EDGE_COS2: a normal whose squared cosine with the view ray is below this is
+// seen edge-on (project.wgsl's facing, fill_planes.wgsl).
+const EDGE_COS2: f32 = 0.01;
+
 fn is_point(id: u32) -> bool {
     return id < HOLE;
 }

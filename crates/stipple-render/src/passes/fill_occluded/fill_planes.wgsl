@@ -2,7 +2,7 @@
 // cpu/fill.rs `FillPlane::of`), from the positions and normals gather wrote: with the normal
 // turned to face the eye, the four numbers of cpu/fill.rs `plane_coefficients`, into
 // plane[2k]; zero where the pixel shows no point or its point
-// is seen edge-on (normal within 6° of perpendicular to the ray: project.wgsl's EDGE_COS2).
+// is seen edge-on (normal within 6° of perpendicular to the ray: common.wgsl's EDGE_COS2).
 
 struct FillPlanes {
     pad0: u32,
@@ -17,8 +17,6 @@ struct FillPlanes {
 @group(0) @binding(3) var<storage, read> attr_pos: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> attr_normal: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> plane: array<vec4<f32>>;
-
-const PLANE_EDGE_COS2: f32 = 0.01;
 
 @compute @workgroup_size(8, 8)
 fn fill_planes(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -35,7 +33,7 @@ fn fill_planes(@builtin(global_invocation_id) gid: vec3<u32>) {
             ray = x - view.eye;
         }
         let c = dot3(n, ray);
-        if (!(c * c < PLANE_EDGE_COS2 * dot3(n, n) * dot3(ray, ray))) {
+        if (!(c * c < EDGE_COS2 * dot3(n, n) * dot3(ray, ray))) {
             if (c > 0.0) {
                 n = -n;
             }

@@ -18,11 +18,10 @@ struct Chunk {
     pad1: u32,
 }
 
-// cpu::project::PEEL_SLOPE_CAP, PEEL_NEIGHBOUR_GAPS, GRAZING_COS2 and EDGE_COS2.
+// cpu::project::PEEL_SLOPE_CAP, PEEL_NEIGHBOUR_GAPS and GRAZING_COS2 (EDGE_COS2: common.wgsl).
 const PEEL_SLOPE_CAP: f32 = 16.0;
 const PEEL_NEIGHBOUR_GAPS: f32 = 4.0;
 const GRAZING_COS2: f32 = 0.25;
-const EDGE_COS2: f32 = 0.01;
 
 // cpu::project::Facing.
 const FRONT: u32 = 0u;
