@@ -2223,6 +2223,24 @@ mod tests {
         assert_eq!(out, pts.len(), "every normal outward");
     }
 
+    /// The same torus in a spatial order (as meshes and many scans are written): orientation
+    /// takes its other path (the file's order, no chunk-local loop), with the same result.
+    #[test]
+    fn torus_in_spatial_order_is_oriented_outward_too() {
+        let (pts, truth) = torus(60_000, 2);
+        let order = orient::spatial_order(&pts);
+        let pts: Vec<Vec3> = order.iter().map(|&i| pts[i as usize]).collect();
+        let truth: Vec<Vec3> = order.iter().map(|&i| truth[i as usize]).collect();
+        let nb = neighbours(&pts, 16).unwrap();
+        assert!(orient::local_fraction(&nb, 1 << 13) >= 0.9);
+        let random = neighbours(&torus(60_000, 2).0, 16).unwrap();
+        assert!(orient::local_fraction(&random, 1 << 13) < 0.9);
+        let e = estimate(&pts, None, 16, 1.0).unwrap();
+        let (median, _, out) = angles(&e.normals, &truth);
+        assert!(median <= 2.0, "median error {median}°");
+        assert_eq!(out, pts.len(), "every normal outward");
+    }
+
     #[test]
     fn random_signs_are_detected_and_repaired() {
         let pts = sphere(20_000, 3);
