@@ -2108,11 +2108,10 @@ mod tests {
         (a[a.len() / 2], a[a.len() * 9 / 10], outward)
     }
 
-    #[test]
-    fn knn_matches_brute_force() {
-        let pts = sphere(3000, 7);
-        let nb = neighbours(&pts, 16).unwrap();
-        for i in (0..pts.len()).step_by(97) {
+    /// Every `step`-th point's 16 neighbours and k-th distance are brute force's.
+    fn assert_brute_force(pts: &[Vec3], step: usize) {
+        let nb = neighbours(pts, 16).unwrap();
+        for i in (0..pts.len()).step_by(step) {
             let mut all: Vec<(f32, u32)> = (0..pts.len())
                 .filter(|&j| j != i)
                 .map(|j| ((pts[j] - pts[i]).length_squared(), j as u32))
@@ -2122,6 +2121,11 @@ mod tests {
             assert_eq!(nb.of(i), &want[..], "point {i}");
             assert!((nb.kth[i] - all[15].0.sqrt()).abs() < 1e-6);
         }
+    }
+
+    #[test]
+    fn knn_matches_brute_force() {
+        assert_brute_force(&sphere(3000, 7), 97);
     }
 
     /// The same, point by point, on a cloud with everything the search special-cases:
@@ -2192,16 +2196,7 @@ mod tests {
             }
         }
         pts.reverse();
-        let nb = neighbours(&pts, 16).unwrap();
-        for i in (0..pts.len()).step_by(41) {
-            let mut all: Vec<(f32, u32)> = (0..pts.len())
-                .filter(|&j| j != i)
-                .map(|j| ((pts[j] - pts[i]).length_squared(), j as u32))
-                .collect();
-            all.sort_by(|a, b| a.partial_cmp(b).unwrap());
-            let want: Vec<u32> = all[..16].iter().map(|e| e.1).collect();
-            assert_eq!(nb.of(i), &want[..], "point {i}");
-        }
+        assert_brute_force(&pts, 41);
     }
 
     #[test]
