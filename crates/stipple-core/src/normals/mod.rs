@@ -629,6 +629,14 @@ impl<T: Copy> Scatter<T> {
     }
 }
 
+/// e^(−x2), the weight of a neighbour at x2 squared widths off a plane, in single
+/// precision: a weight needs no more digits, and `f32::exp` is faster than `f64::exp`
+/// (the robust re-fit on Autzen: 5.3 → 4.5 s).
+#[inline]
+fn gauss(x2: f64) -> f64 {
+    (-(x2 as f32)).exp() as f64
+}
+
 fn check(positions: &[Vec3], k: usize) -> Result<usize, NormalError> {
     if !(3..=64).contains(&k) {
         return Err(NormalError::BadK(k));
@@ -1433,7 +1441,7 @@ fn jet(
             d.dot(t2) as f64 / s,
             d.dot(n) as f64 / s,
         );
-        let w = (-(h / sigma) * (h / sigma)).exp();
+        let w = gauss((h / sigma) * (h / sigma));
         let row = [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v];
         // The normal equations are symmetric: the upper triangle now, the rest below.
         for r in 0..U {
@@ -1511,7 +1519,7 @@ pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
             ids.iter()
                 .map(|&j| {
                     let h = (positions[j as usize].as_dvec3() - p0).dot(c) / sigma;
-                    (-h * h).exp()
+                    gauss(h * h)
                 })
                 .sum()
         };
@@ -1550,7 +1558,7 @@ pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
             for &j in ids {
                 let d = positions[j as usize].as_dvec3() - p0;
                 let h = d.dot(cur) / sigma;
-                let w = (-h * h).exp();
+                let w = gauss(h * h);
                 ws.push(w);
                 wsum += w;
                 c += w * d;
