@@ -7,6 +7,19 @@
 
 use glam::{DVec3, Vec3};
 
+/// The Morton code of a cell's coordinates (10 bits each): their bits interleaved, x
+/// lowest.
+pub(crate) fn morton3(c: [u32; 3]) -> u32 {
+    let spread = |v: u32| {
+        let mut x = v & 0x3ff;
+        x = (x | (x << 16)) & 0x0300_00ff;
+        x = (x | (x << 8)) & 0x0300_f00f;
+        x = (x | (x << 4)) & 0x030c_30c3;
+        (x | (x << 2)) & 0x0924_9249
+    };
+    spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
+}
+
 /// An axis-aligned box in the cloud's local (origin-relative) frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {

@@ -83,23 +83,16 @@ impl Builder {
 
 /// Indices of `p` sorted by the Morton code of their position in a 2^10 grid over the bounds.
 pub fn morton_order(p: &[Vec3]) -> Vec<usize> {
-    fn spread(v: u32) -> u64 {
-        let mut x = v as u64 & 0x3ff;
-        x = (x | (x << 16)) & 0x0300_00ff;
-        x = (x | (x << 8)) & 0x0300_f00f;
-        x = (x | (x << 4)) & 0x030c_30c3;
-        (x | (x << 2)) & 0x0924_9249
-    }
     let b = crate::Bounds::from_points(p);
     let scale = 1023.0 / b.extent().max_element().max(f32::MIN_POSITIVE);
-    let mut keyed: Vec<(u64, usize)> = p
+    let mut keyed: Vec<(u32, usize)> = p
         .iter()
         .enumerate()
         .map(|(i, &q)| {
             let c = ((q - b.min) * scale)
                 .to_array()
                 .map(|v| v.clamp(0.0, 1023.0) as u32);
-            (spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2, i)
+            (crate::cloud::morton3(c), i)
         })
         .collect();
     keyed.sort_unstable();

@@ -343,13 +343,13 @@ impl Grid {
         let (z0, z1) = ((c[2] - 1).max(0), (c[2] + 1).min(LIM - 1));
         for (j, cur) in cache.cursors.iter_mut().enumerate() {
             let (x, y) = (c[0] + j as i64 % 3 - 1, c[1] + j as i64 / 3 - 1);
-            if !(0..LIM).contains(&x) || !(0..LIM).contains(&y) || z0 > z1 {
+            if !(0..LIM).contains(&x) || !(0..LIM).contains(&y) {
                 continue;
             }
             let lo = key_of([x, y, z0]);
             // Forward a few runs, else (a query out of order, or a long way on) a binary
             // search.
-            if *cur > runs.len() || (*cur > 0 && runs[*cur - 1].0 >= lo) {
+            if *cur > 0 && runs[*cur - 1].0 >= lo {
                 *cur = runs.partition_point(|r| r.0 < lo);
             } else {
                 let mut steps = 0;

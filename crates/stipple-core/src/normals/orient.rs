@@ -19,12 +19,15 @@
 //! them by level on its own, and the serial loop takes level after level from every chunk
 //! in turn (no global array of edges). An edge that both of its ends list (each is among
 //! the other's nearest, as most are) is listed once, which halves the serial loop's work.
-//! Chunks are runs of points in a spatial order (a coarse Morton grid), and each runs
-//! Kruskal's loop on its own edges first: by the cycle property, an edge that closes a
-//! cycle within the chunk is dropped by the serial loop too, so only the chunk's own
-//! spanning-forest edges and the edges that leave it go on (Autzen: 59 M edges → 16 M).
+//! Where the file's order scatters neighbours (LiDAR flight lines, COPC nodes: the serial
+//! loop's union–find then misses the cache on every edge), chunks are runs of points in a
+//! spatial order (a coarse Morton grid), and each runs Kruskal's loop on its own edges
+//! first: by the cycle property, an edge that closes a cycle within the chunk is dropped by
+//! the serial loop too, so only the chunk's own spanning-forest edges and the edges that
+//! leave it go on (Autzen: 59 M edges → 16 M). Where the file keeps neighbours together
+//! (meshes, most scans), chunks follow the file and nothing is dropped early.
 //! On the Dragon (437 645 points): 276 ms with Prim, 84 ms with one global counting sort,
-//! 55 ms now; on Autzen (10.65 M), 6.3 → 2.8 → 2.6 s (BENCHMARKS.md).
+//! 55 ms now; on Autzen (10.65 M), 6.3 → 2.8 → 2.0–2.5 s (BENCHMARKS.md).
 
 use super::{same_layer, Neighbours, TREE_K};
 use crate::cloud::Bounds;
@@ -302,21 +305,13 @@ pub(super) fn spatial_order(positions: &[Vec3]) -> Vec<u32> {
     let bits = ((n / 16).max(1).ilog2() / 3 + 1).clamp(1, 8);
     let cells = 1usize << (3 * bits);
     let scale = (1u32 << bits) as f32 / b.extent().max_element().max(1e-30);
-    let spread = |mut v: u32| {
-        // Bits of v to every third bit.
-        v &= 0x3ff;
-        v = (v | (v << 16)) & 0x0300_00ff;
-        v = (v | (v << 8)) & 0x0300_f00f;
-        v = (v | (v << 4)) & 0x030c_30c3;
-        (v | (v << 2)) & 0x0924_9249
-    };
     let top = (1u32 << bits) - 1;
     let code: Vec<u32> = positions
         .par_iter()
         .map(|&p| {
             let c = ((p - b.min) * scale).max(Vec3::ZERO);
             let q = |v: f32| (v as u32).min(top);
-            spread(q(c.x)) | spread(q(c.y)) << 1 | spread(q(c.z)) << 2
+            crate::cloud::morton3([q(c.x), q(c.y), q(c.z)])
         })
         .collect();
     let mut at = vec![0u32; cells + 1];
