@@ -440,13 +440,13 @@ pub(crate) fn fill_changes<S: Fn(f32, u32, i32, i32) -> bool>(
                         }
                         Precheck::None => 0,
                     };
+                    // The row's tests come after its prechecks: `solid(d, id)` may read the
+                    // pixel's point (the occluded fill's plane), which is asked for now, so
+                    // that it arrives while the rest of the row is prechecked; reads that do
+                    // not wait on each other overlap (one candidate at a time, they took a
+                    // third of the occluded fill's time).
+                    touch(id);
                     batch.push((x, known));
-                }
-                // The row's tests after its prechecks: `solid(d, id)` may read the pixel's
-                // point (the occluded fill's plane), and reads that do not wait on each other
-                // overlap (a third of the occluded fill's time, one candidate at a time).
-                for &(x, _) in batch.iter() {
-                    touch(src.id[(y * w + x) as usize]);
                 }
                 let tests: Vec<S> = batch
                     .iter()
