@@ -293,26 +293,31 @@ impl PeelTest<'_> {
                 return false;
             }
             // A point facing the other way from the layer's point here is a new layer
-            // however close (unless either is edge-on: see `Facing`).
+            // however close (unless either is edge-on: see `Facing`). (The ray and its
+            // squared length are shared by the facings below: `Facing::of`'s arithmetic.)
             let n = normals[index];
-            let own = Facing::of(v, p, n);
+            let ray = to_point(v, p);
+            let rr = dot3(ray, ray);
+            let facing = |m: Vec3| Facing::of_cos(dot3(m, ray), dot3(m, m), rr);
+            let own = facing(n);
             // An edge-on point behind a pixel the layer covers starts no layer of its own
             // (see `Facing::Edge`).
             if own == Facing::Edge {
                 return true;
             }
-            if own.opposes(Facing::of(v, p, Vec3::new(c[0], c[1], c[2]))) {
+            let facing_here = facing(Vec3::new(c[0], c[1], c[2]));
+            if own.opposes(facing_here) {
                 return false;
             }
             // On the tangent plane of the layer's point at pixel q, facing the same way:
             // at most d̃ behind it, along its normal (Fig. 14's slope-scaled gap, exactly),
             // and at most 16 d̃ behind the point's depth.
-            let on_plane_with = |pl: Plane, depth: f32| {
+            let on_plane_with = |pl: Plane, depth: f32, known: Option<Facing>| {
                 if !pl[3].is_finite() {
                     return false;
                 }
                 let m = Vec3::new(pl[0], pl[1], pl[2]);
-                let facing = Facing::of(v, p, m);
+                let facing = known.unwrap_or_else(|| facing(m));
                 if own.opposes(facing) {
                     return false;
                 }
@@ -326,8 +331,8 @@ impl PeelTest<'_> {
                 };
                 behind <= self.gap && z <= depth + PEEL_SLOPE_CAP * self.gap
             };
-            let on_plane = |q: usize| on_plane_with(planes[q], self.own[q]);
-            if on_plane_with(c, d0) {
+            let on_plane = |q: usize| on_plane_with(planes[q], self.own[q], None);
+            if on_plane_with(c, d0, Some(facing_here)) {
                 return true;
             }
             // Or on a neighbour's plane: a curved surface seen at a grazing angle spreads
@@ -337,9 +342,8 @@ impl PeelTest<'_> {
             // in the layer must not peel that surface around it. Only grazing points are
             // tested so (a point whose normal is within 60° of the ray sees the curvature
             // of less than a pixel): the others skip the eight reads.
-            let ray = to_point(v, p);
             let c = dot3(n, ray);
-            if c * c > GRAZING_COS2 * dot3(n, n) * dot3(ray, ray) {
+            if c * c > GRAZING_COS2 * dot3(n, n) * rr {
                 return false;
             }
             let here = if v.perspective == 1 {
@@ -389,8 +393,14 @@ impl Facing {
     #[inline(always)]
     pub fn of(v: &ViewParams, p: Vec3, n: Vec3) -> Facing {
         let ray = to_point(v, p);
-        let c = dot3(n, ray);
-        if c * c < EDGE_COS2 * dot3(n, n) * dot3(ray, ray) {
+        Facing::of_cos(dot3(n, ray), dot3(n, n), dot3(ray, ray))
+    }
+
+    /// The facing of a normal n from `c` = n · ray, `nn` = n · n and `rr` = ray · ray (the
+    /// ray to its point, as [`Facing::of`] takes it).
+    #[inline(always)]
+    fn of_cos(c: f32, nn: f32, rr: f32) -> Facing {
+        if c * c < EDGE_COS2 * nn * rr {
             Facing::Edge
         } else if c > 0.0 {
             Facing::Back
