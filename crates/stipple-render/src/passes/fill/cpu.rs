@@ -102,6 +102,16 @@ impl MaskRows {
     fn blocked(&self, src: &GBuffer, x: i32, y: i32, solid: impl Fn(f32) -> bool) -> u8 {
         let (w, h) = (src.width as i32, src.height as i32);
         let r = self.radius as i32;
+        if x >= r && y >= r && x + r < w && y + r < h {
+            // Inside the image: rows of a fixed length the compiler unrolls (this precheck
+            // runs for every candidate with a nearer cell around it).
+            let first = ((y - r) * w + x - r) as usize;
+            return match self.radius {
+                1 => self.blocked_inside::<3>(&src.depth, first, w as usize, solid),
+                2 => self.blocked_inside::<5>(&src.depth, first, w as usize, solid),
+                _ => self.blocked_inside::<7>(&src.depth, first, w as usize, solid),
+            };
+        }
         let (a, b) = ((x - r).max(0), (x + r).min(w - 1));
         let mut blocked = 0u8;
         for yy in (y - r).max(0)..=(y + r).min(h - 1) {
@@ -112,6 +122,30 @@ impl MaskRows {
                 p |= (solid(d) as usize) << (i + shift);
             }
             blocked |= self.blocks[(yy - y + r) as usize][p];
+        }
+        blocked
+    }
+
+    /// [`MaskRows::blocked`] for a window of N = 2r + 1 columns and rows inside the image,
+    /// whose top-left cell is `depth[first]` (rows `w` apart).
+    #[inline(always)]
+    fn blocked_inside<const N: usize>(
+        &self,
+        depth: &[f32],
+        first: usize,
+        w: usize,
+        solid: impl Fn(f32) -> bool,
+    ) -> u8 {
+        debug_assert_eq!(N, 2 * self.radius as usize + 1);
+        let mut blocked = 0u8;
+        for (dy, masks) in self.blocks.iter().enumerate().take(N) {
+            let start = first + dy * w;
+            let row: &[f32; N] = depth[start..start + N].try_into().expect("N cells");
+            let mut p = 0usize;
+            for (i, &d) in row.iter().enumerate() {
+                p |= (solid(d) as usize) << i;
+            }
+            blocked |= masks[p];
         }
         blocked
     }
