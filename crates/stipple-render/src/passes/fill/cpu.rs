@@ -190,6 +190,15 @@ impl Coverage {
         // Bits x − r ..= x + r of a row, at x − r + PAD ≥ 0.
         let s = (x - r + Self::PAD as i32) as usize;
         let (word, off) = (s / 64, s % 64);
+        if y >= r && y + r < h {
+            // All rows inside the image: a fixed count the compiler unrolls.
+            let first = (y - r) as usize * self.stride + word;
+            return match self.rows.radius {
+                1 => self.blocked_inside::<3>(first, off),
+                2 => self.blocked_inside::<5>(first, off),
+                _ => self.blocked_inside::<7>(first, off),
+            };
+        }
         let mut blocked = 0u8;
         for yy in (y - r).max(0)..=(y + r).min(h - 1) {
             let row = &self.bits[yy as usize * self.stride..];
@@ -199,6 +208,22 @@ impl Coverage {
             }
             let p = (v as usize) & ((1 << n) - 1);
             blocked |= self.rows.blocks[(yy - y + r) as usize][p];
+        }
+        blocked
+    }
+
+    /// [`Coverage::blocked`] for N = 2r + 1 rows inside the image, the first row's window
+    /// starting at bit `off` of `bits[first]`.
+    #[inline(always)]
+    fn blocked_inside<const N: usize>(&self, first: usize, off: usize) -> u8 {
+        debug_assert_eq!(N, 2 * self.rows.radius as usize + 1);
+        let mut blocked = 0u8;
+        for (dy, masks) in self.rows.blocks.iter().enumerate().take(N) {
+            let k = first + dy * self.stride;
+            // Two words always exist: each row ends with a spare one.
+            let pair = (self.bits[k] as u128) | ((self.bits[k + 1] as u128) << 64);
+            let p = ((pair >> off) as usize) & ((1 << N) - 1);
+            blocked |= masks[p];
         }
         blocked
     }
