@@ -293,13 +293,13 @@ pub(crate) fn fill_points(
 /// and the tests that follow find the points in the cache: the occluded fill's plane reads
 /// cost a third of its time one candidate at a time (a plain load in their place: 18% more).
 #[inline(always)]
-fn prefetch(v: &[Vec3], i: u32) {
+pub(crate) fn prefetch<T>(v: &[T], i: u32) {
     #[cfg(target_arch = "x86_64")]
     if let Some(p) = v.get(i as usize) {
         // SAFETY: a prefetch never faults, and the address is that of an element of `v`.
         unsafe {
             std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                (p as *const Vec3).cast(),
+                (p as *const T).cast(),
             )
         };
     }

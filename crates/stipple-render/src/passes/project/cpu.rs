@@ -90,6 +90,7 @@
 
 use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
+use crate::passes::fill::cpu::prefetch;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -196,7 +197,13 @@ pub fn peel_planes(
     out.par_chunks_mut(ROWS)
         .zip(id.par_chunks(ROWS).zip(surface.par_chunks(ROWS)))
         .for_each(|(o, (id, surface))| {
-            for (o, (&i, d)) in o.iter_mut().zip(id.iter().zip(surface)) {
+            for (k, (o, (&i, d))) in o.iter_mut().zip(id.iter().zip(surface)).enumerate() {
+                // The points of pixels a few ahead are asked for now: their reads overlap
+                // this pixel's.
+                if let (Some(&j), Some(n)) = (id.get(k + AHEAD), normals) {
+                    prefetch(positions, j);
+                    prefetch(n, j);
+                }
                 *o = match normals {
                     Some(n) if d.is_finite() && (i as usize) < positions.len() => {
                         let (n, x) = (n[i as usize], positions[i as usize]);
@@ -207,6 +214,9 @@ pub fn peel_planes(
             }
         });
 }
+
+/// How many pixels ahead [`peel_planes`] asks for the points it will read.
+const AHEAD: usize = 16;
 
 /// The dot product in the shaders' order of operations.
 #[inline(always)]

@@ -22,6 +22,7 @@
 
 use crate::gbuffer::{is_point, GBuffer};
 use crate::params::ViewParams;
+use crate::passes::fill::cpu::prefetch;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -268,6 +269,9 @@ pub fn shade_points(
         .collect()
 }
 
+/// How many pixels ahead [`shade`] asks for the points it will read.
+const AHEAD: usize = 16;
+
 /// Shades every pixel: `colour` gets linear RGB (background colour where no point is),
 /// `surface_depth` the view depth of the surface (+inf on background).
 pub fn shade(
@@ -285,8 +289,20 @@ pub fn shade(
         .zip(surface_depth.par_chunks_mut(w))
         .enumerate()
         .for_each(|(j, (crow, drow))| {
+            let ids = &g.id[j * w..(j + 1) * w];
             for i in 0..w {
                 let k = j * w + i;
+                // The point of a pixel a few ahead is asked for now, so that its reads
+                // (scattered over the cloud) overlap this pixel's.
+                if let Some(&a) = ids.get(i + AHEAD).filter(|&&a| is_point(a)) {
+                    prefetch(input.positions, a);
+                    if let Some(n) = input.normals {
+                        prefetch(n, a);
+                    }
+                    if let Albedo::Colours(c) = input.albedo {
+                        prefetch(c, a);
+                    }
+                }
                 let id = g.id[k];
                 if !is_point(id) {
                     crow[i] = p.background;
