@@ -307,6 +307,19 @@ pub(crate) fn prefetch<T>(v: &[T], i: u32) {
     let _ = (v, i);
 }
 
+/// [`prefetch`] by address (for a buffer another closure holds mutably): a prefetch never
+/// faults, whatever the address.
+#[inline(always)]
+pub(crate) fn prefetch_at<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing architecturally and never faults.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
 /// The slope-aware part of the occluded fill's test (see `passes::fill_occluded`): the
 /// tangent plane of a candidate's point, turned to face the eye, against which a cell's
 /// surface is placed at its pixel's centre and depth.
