@@ -263,6 +263,23 @@ impl PeelTest<'_> {
         }
     }
 
+    /// Asks for the depth [`PeelTest::depth`] will read at `pix`.
+    #[inline(always)]
+    fn depth_ahead(&self, pix: usize) {
+        match self.planes {
+            Some(_) => prefetch(self.own, pix as u32),
+            None => prefetch(self.reference, pix as u32),
+        }
+    }
+
+    /// Asks for the plane [`PeelTest::plane`] will read at `pix`.
+    #[inline(always)]
+    fn plane_ahead(&self, pix: usize) {
+        if let Some((planes, _)) = self.planes {
+            prefetch(planes, pix as u32);
+        }
+    }
+
     /// The previous layer's plane at `pix` (none without normals).
     #[inline(always)]
     fn plane(&self, pix: usize) -> Plane {
@@ -518,6 +535,8 @@ fn project_peeled(
     let mut kept = 0;
     // (pixel, depth, index in the chunk, the previous layer's depth and plane there)
     let mut batch = [(0usize, 0f32, 0usize, 0f32, [0f32; 4]); N];
+    // (pixel, depth, index in the chunk) of the points in view
+    let mut seen = [(0usize, 0f32, 0usize); N];
     let mark = |i: usize| {
         if let Some(d) = t.done {
             d[i / 64].fetch_or(1 << (i % 64), Ordering::Relaxed);
@@ -533,6 +552,8 @@ fn project_peeled(
                 d[i / 64].load(Ordering::Relaxed) & (1 << (i % 64)) != 0
             })
         };
+        // The points in view, whose depths at their pixels are asked for.
+        let mut m = 0;
         for (k, &p) in chunk.iter().enumerate() {
             if skip(k) {
                 continue;
@@ -540,12 +561,19 @@ fn project_peeled(
             let Some((pix, z)) = project_point(v, p) else {
                 continue;
             };
+            t.depth_ahead(pix);
+            seen[m] = (pix, z, k);
+            m += 1;
+        }
+        for &(pix, z, k) in &seen[..m] {
+            let p = chunk[k];
             let depth = t.depth(pix);
             match t.by_depth(z, depth) {
                 Some(true) => mark(first + k),
                 Some(false) => kept += emit(v, normals, p, pix, z, first + k, &mut write),
                 None => {
-                    // The slot this point may write after its plane test.
+                    // The plane it will be tested with, and the slot it may write.
+                    t.plane_ahead(pix);
                     ahead(pix);
                     batch[n] = (pix, z, k, depth, [0.0; 4]);
                     n += 1;
