@@ -30,6 +30,45 @@ use crate::params::ViewParams;
 use crate::pipeline::Iterations;
 use crate::stats::PassId;
 
+/// Asks the processor to bring `v[i]` into the cache (nothing where `i` is out of range, or
+/// off x86-64), for a read that comes later. The CPU passes read points and pixels at
+/// addresses scattered over the cloud or an image; asked for as soon as the address is
+/// known, such reads overlap each other and the work in between instead of each waiting for
+/// its own (the occluded fill's plane reads cost a third of its time one candidate at a
+/// time; see BENCHMARKS.md, "Scattered reads asked for ahead", for the projection's and
+/// shade's).
+#[inline(always)]
+pub(crate) fn prefetch<T>(v: &[T], i: u32) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(p) = v.get(i as usize) {
+        // SAFETY: a prefetch never faults, and the address is that of an element of `v`.
+        unsafe {
+            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                (p as *const T).cast(),
+            )
+        };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (v, i);
+}
+
+/// [`prefetch`] by address (for a buffer another closure holds mutably): a prefetch never
+/// faults, whatever the address.
+#[inline(always)]
+pub(crate) fn prefetch_at<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing architecturally and never faults.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = p;
+}
+
+/// How many pixels ahead a pass that walks an image's pixels and reads each one's point
+/// (shade, the peel planes) asks for the point it will read ([`prefetch`]).
+pub(crate) const PREFETCH_AHEAD: usize = 16;
+
 /// A cloud's positions and unit normals, indexed by the point ids of a G-buffer.
 #[derive(Clone, Copy)]
 pub(crate) struct Surfaces<'a> {

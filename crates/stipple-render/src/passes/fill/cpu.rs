@@ -10,7 +10,7 @@ use crate::gbuffer::{is_point, GBuffer, BACKGROUND};
 use crate::masks::{window, MAX_RADIUS};
 use crate::params::ViewParams;
 use crate::passes::project::cpu::{dot3, Facing};
-use crate::passes::Surfaces;
+use crate::passes::{prefetch, Surfaces};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -286,38 +286,6 @@ pub(crate) fn fill_points(
         },
     );
     apply(g, changes)
-}
-
-/// Asks the processor to bring `v[i]` into the cache (nothing where `i` is out of range, or
-/// off x86-64). A row's prefetches do not wait on each other, so their cache misses overlap,
-/// and the tests that follow find the points in the cache: the occluded fill's plane reads
-/// cost a third of its time one candidate at a time (a plain load in their place: 18% more).
-#[inline(always)]
-pub(crate) fn prefetch<T>(v: &[T], i: u32) {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(p) = v.get(i as usize) {
-        // SAFETY: a prefetch never faults, and the address is that of an element of `v`.
-        unsafe {
-            std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
-                (p as *const T).cast(),
-            )
-        };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (v, i);
-}
-
-/// [`prefetch`] by address (for a buffer another closure holds mutably): a prefetch never
-/// faults, whatever the address.
-#[inline(always)]
-pub(crate) fn prefetch_at<T>(p: *const T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch reads nothing architecturally and never faults.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast())
-    };
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
 }
 
 /// The slope-aware part of the occluded fill's test (see `passes::fill_occluded`): the

@@ -90,7 +90,7 @@
 
 use crate::gbuffer::{GBuffer, BACKGROUND};
 use crate::params::ViewParams;
-use crate::passes::fill::cpu::{prefetch, prefetch_at};
+use crate::passes::{prefetch, prefetch_at, PREFETCH_AHEAD};
 use glam::Vec3;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -200,7 +200,7 @@ pub fn peel_planes(
             for (k, (o, (&i, d))) in o.iter_mut().zip(id.iter().zip(surface)).enumerate() {
                 // The points of pixels a few ahead are asked for now: their reads overlap
                 // this pixel's.
-                if let (Some(&j), Some(n)) = (id.get(k + AHEAD), normals) {
+                if let (Some(&j), Some(n)) = (id.get(k + PREFETCH_AHEAD), normals) {
                     prefetch(positions, j);
                     prefetch(n, j);
                 }
@@ -214,9 +214,6 @@ pub fn peel_planes(
             }
         });
 }
-
-/// How many pixels ahead [`peel_planes`] asks for the points it will read.
-const AHEAD: usize = 16;
 
 /// The dot product in the shaders' order of operations.
 #[inline(always)]
@@ -620,8 +617,8 @@ fn emit(
 
 /// The first layer's loop, 32 points at a time: the pixels of a batch's visible points are
 /// found and their slots asked for (`ahead`), then the keys are written, so that the
-/// scattered writes' cache misses overlap (the Dragon's first layer at 1024²: 9.4–9.8 → 5.9–6.2
-/// ms).
+/// scattered writes' cache misses overlap (the Dragon's first layer at 1024²: 9.4–9.8 →
+/// 5.9–6.2 ms).
 #[inline(always)]
 fn project_loop(
     v: &ViewParams,

@@ -22,7 +22,7 @@
 
 use crate::gbuffer::{is_point, GBuffer};
 use crate::params::ViewParams;
-use crate::passes::fill::cpu::prefetch;
+use crate::passes::{prefetch, PREFETCH_AHEAD};
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -269,9 +269,6 @@ pub fn shade_points(
         .collect()
 }
 
-/// How many pixels ahead [`shade`] asks for the points it will read.
-const AHEAD: usize = 16;
-
 /// Shades every pixel: `colour` gets linear RGB (background colour where no point is),
 /// `surface_depth` the view depth of the surface (+inf on background).
 pub fn shade(
@@ -294,7 +291,7 @@ pub fn shade(
                 let k = j * w + i;
                 // The point of a pixel a few ahead is asked for now, so that its reads
                 // (scattered over the cloud) overlap this pixel's.
-                if let Some(&a) = ids.get(i + AHEAD).filter(|&&a| is_point(a)) {
+                if let Some(&a) = ids.get(i + PREFETCH_AHEAD).filter(|&&a| is_point(a)) {
                     prefetch(input.positions, a);
                     if let Some(n) = input.normals {
                         prefetch(n, a);
