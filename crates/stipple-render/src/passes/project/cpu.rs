@@ -606,13 +606,17 @@ fn emit(
     index: usize,
     write: &mut impl FnMut(usize, u64),
 ) -> u64 {
-    if let Some(n) = normals {
-        if back_facing(v, p, n[index]) {
-            return 0;
-        }
+    if culled(v, normals, p, index) {
+        return 0;
     }
     write(pix, key(z, index as u32));
     1
+}
+
+/// Does culling (`normals` given) find the point `index` at `p` back-facing?
+#[inline(always)]
+fn culled(v: &ViewParams, normals: Option<&[Vec3]>, p: Vec3, index: usize) -> bool {
+    normals.is_some_and(|n| back_facing(v, p, n[index]))
 }
 
 /// The first layer's loop, 32 points at a time: the pixels of a batch's visible points are
@@ -638,7 +642,7 @@ fn project_loop(
                 continue;
             };
             let index = base + c * N + k;
-            if normals.is_some_and(|nr| back_facing(v, p, nr[index])) {
+            if culled(v, normals, p, index) {
                 continue;
             }
             ahead(pix);
