@@ -176,9 +176,15 @@ fn key_of(c: [i64; 3]) -> u64 {
     ((c[0] as u64) << 42) | ((c[1] as u64) << 21) | (c[2] as u64)
 }
 
+/// A cell key's slot in the table, before the mask. A product's bits depend only on the
+/// key's bits below them, so its high half is folded into its low: the product's bits
+/// 20–40 alone (the slot before) held only z and y, and every cell of one (y, z) row across
+/// x fell into one chain of slots (on Autzen, lookups beyond the 27 cells took two thirds
+/// of their searches' time, and the whole search 6.3 s instead of 4.9).
 #[inline]
 fn hash(k: u64) -> usize {
-    (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 20) as usize
+    let h = k.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    (h ^ (h >> 32)) as usize
 }
 
 impl Grid {
@@ -474,12 +480,12 @@ impl Grid {
     }
 }
 
-/// The points of the 3 × 3 × 3 cells around one cell, gathered once for all the queries in
-/// that cell (structure of arrays, so distances to all of them vectorise), and the last
-/// query's k-th distance, which bounds the next one's.
 /// The first bound [`Grid::knn_nearby`] tries, in previous k-th distances.
 const GUESS: f32 = 1.2;
 
+/// The points of the 3 × 3 × 3 cells around one cell, gathered once for all the queries in
+/// that cell (structure of arrays, so distances to all of them vectorise), and the last
+/// query's k-th distance, which bounds the next one's.
 #[derive(Default)]
 struct Nearby {
     cell: Option<[i64; 3]>,
