@@ -480,6 +480,38 @@ impl Grid {
     }
 }
 
+/// Sets `bits` to one bit per element of `d2` (64 a word, the first in the lowest bit): set
+/// where 0 < d2 ≤ `bound`.
+fn within(d2: &[f32], bound: f32, bits: &mut Vec<u64>) {
+    bits.clear();
+    for chunk in d2.chunks(64) {
+        let mut w = 0u64;
+        let mut j = 0;
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{
+                _mm_and_ps, _mm_cmpgt_ps, _mm_cmple_ps, _mm_loadu_ps, _mm_movemask_ps, _mm_set1_ps,
+                _mm_setzero_ps,
+            };
+            // SAFETY: SSE is part of x86-64, and each load reads four elements of `chunk`
+            // (j + 4 ≤ its length).
+            unsafe {
+                let (b, zero) = (_mm_set1_ps(bound), _mm_setzero_ps());
+                while j + 4 <= chunk.len() {
+                    let d = _mm_loadu_ps(chunk.as_ptr().add(j));
+                    let m = _mm_and_ps(_mm_cmple_ps(d, b), _mm_cmpgt_ps(d, zero));
+                    w |= (_mm_movemask_ps(m) as u64) << j;
+                    j += 4;
+                }
+            }
+        }
+        for (o, &d) in chunk[j..].iter().enumerate() {
+            w |= ((d <= bound && d > 0.0) as u64) << (j + o);
+        }
+        bits.push(w);
+    }
+}
+
 /// The first bound [`Grid::knn_nearby`] tries, in previous k-th distances.
 const GUESS: f32 = 1.2;
 
@@ -494,6 +526,8 @@ struct Nearby {
     z: Vec<f32>,
     id: Vec<u32>,
     d2: Vec<f32>,
+    /// Which of `d2` lie within a query's bound, 64 a word ([`within`]).
+    bits: Vec<u64>,
     keys: Vec<u64>,
     /// The previous query and its k-th distance.
     last: Option<(Vec3, f32)>,
@@ -563,13 +597,22 @@ impl Grid {
             }
             None => [f32::INFINITY; 2],
         } {
-            kept = 0;
-            near.keys.resize(m, 0);
-            for (&d, &id) in near.d2.iter().zip(&near.id) {
-                near.keys[kept] = ((d.to_bits() as u64) << 32) | id as u64;
-                kept += (d <= bound && d > 0.0) as usize;
-            }
+            // Which candidates lie within the bound, a bit each (four compared at once), and
+            // then keys for those alone: about one in six on Autzen, where a key written for
+            // every candidate and counted or not was a third of the search's time.
+            within(&near.d2, bound, &mut near.bits);
+            kept = near.bits.iter().map(|w| w.count_ones() as usize).sum();
             if kept >= k {
+                near.keys.clear();
+                for (at, &w) in near.bits.iter().enumerate() {
+                    let mut w = w;
+                    while w != 0 {
+                        let u = at * 64 + w.trailing_zeros() as usize;
+                        w &= w - 1;
+                        near.keys
+                            .push(((near.d2[u].to_bits() as u64) << 32) | near.id[u] as u64);
+                    }
+                }
                 break;
             }
         }
