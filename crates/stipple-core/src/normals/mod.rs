@@ -226,8 +226,11 @@ impl Grid {
             min,
             inv_cell,
             cell,
-            pts: keyed.iter().map(|&(_, i)| positions[i as usize]).collect(),
-            ids: keyed.iter().map(|&(_, i)| i).collect(),
+            pts: keyed
+                .par_iter()
+                .map(|&(_, i)| positions[i as usize])
+                .collect(),
+            ids: keyed.par_iter().map(|&(_, i)| i).collect(),
             table,
             mask,
             runs,
@@ -255,13 +258,8 @@ impl Grid {
     /// positions would remain.
     fn remove_copies(&mut self, min_distinct: usize) -> Vec<(u32, u32)> {
         let bits = |p: Vec3| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()];
-        let mut runs: Vec<(u64, u32, u32)> = self
-            .table
-            .iter()
-            .copied()
-            .filter(|r| r.0 != u64::MAX)
-            .collect();
-        runs.sort_unstable_by_key(|r| r.1);
+        // (In key order, which is the order of `pts`.)
+        let mut runs = std::mem::take(&mut self.runs);
         let (pts, ids) = (&self.pts, &self.ids);
         let copies: Vec<(u32, u32)> = runs
             .par_iter()
@@ -293,6 +291,7 @@ impl Grid {
             })
             .collect();
         if copies.is_empty() || self.pts.len() - copies.len() < min_distinct {
+            self.runs = runs;
             return Vec::new();
         }
         let mut gone = vec![false; self.pts.len()];
