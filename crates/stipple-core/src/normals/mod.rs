@@ -483,6 +483,7 @@ impl Grid {
 
 /// Sets `bits` to one bit per element of `d2` (64 a word, the first in the lowest bit): set
 /// where 0 < d2 ≤ `bound`.
+#[inline(always)]
 fn within(d2: &[f32], bound: f32, bits: &mut Vec<u64>) {
     bits.clear();
     for chunk in d2.chunks(64) {
@@ -545,6 +546,40 @@ impl Grid {
     /// the 27 cells' reach): [`Grid::knn`] then searches outwards. Points are distinct
     /// (see [`neighbours`]), so distance 0 is the query itself. Same answer as `knn`.
     fn knn_nearby(
+        &self,
+        t: usize,
+        k: usize,
+        out: &mut Vec<(f32, u32)>,
+        cache: &mut CellCache,
+        near: &mut Nearby,
+    ) -> Nearest {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: the processor has AVX2 (checked just above).
+            return unsafe { self.knn_nearby_avx2(t, k, out, cache, near) };
+        }
+        self.knn_nearby_in(t, k, out, cache, near)
+    }
+
+    /// [`Grid::knn_nearby`] compiled for AVX2: eight distances at a time instead of four.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn knn_nearby_avx2(
+        &self,
+        t: usize,
+        k: usize,
+        out: &mut Vec<(f32, u32)>,
+        cache: &mut CellCache,
+        near: &mut Nearby,
+    ) -> Nearest {
+        self.knn_nearby_in(t, k, out, cache, near)
+    }
+
+    #[inline(always)]
+    fn knn_nearby_in(
         &self,
         t: usize,
         k: usize,
