@@ -545,41 +545,8 @@ impl Grid {
     /// certain from these cells (fewer than k within the bound, or a k-th distance beyond
     /// the 27 cells' reach): [`Grid::knn`] then searches outwards. Points are distinct
     /// (see [`neighbours`]), so distance 0 is the query itself. Same answer as `knn`.
-    fn knn_nearby(
-        &self,
-        t: usize,
-        k: usize,
-        out: &mut Vec<(f32, u32)>,
-        cache: &mut CellCache,
-        near: &mut Nearby,
-    ) -> Nearest {
-        #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") {
-            // SAFETY: the processor has AVX2 (checked just above).
-            return unsafe { self.knn_nearby_avx2(t, k, out, cache, near) };
-        }
-        self.knn_nearby_in(t, k, out, cache, near)
-    }
-
-    /// [`Grid::knn_nearby`] compiled for AVX2: eight distances at a time instead of four.
-    ///
-    /// # Safety
-    /// The processor must have AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn knn_nearby_avx2(
-        &self,
-        t: usize,
-        k: usize,
-        out: &mut Vec<(f32, u32)>,
-        cache: &mut CellCache,
-        near: &mut Nearby,
-    ) -> Nearest {
-        self.knn_nearby_in(t, k, out, cache, near)
-    }
-
     #[inline(always)]
-    fn knn_nearby_in(
+    fn knn_nearby(
         &self,
         t: usize,
         k: usize,
@@ -681,6 +648,25 @@ impl Grid {
                 .map(|&e| (f32::from_bits((e >> 32) as u32), e as u32)),
         );
         Nearest::Found(k)
+    }
+}
+
+impl Grid {
+    /// [`Grid::knn_nearby`] compiled for AVX2: eight distances at a time instead of four.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn knn_nearby_avx2(
+        &self,
+        t: usize,
+        k: usize,
+        out: &mut Vec<(f32, u32)>,
+        cache: &mut CellCache,
+        near: &mut Nearby,
+    ) -> Nearest {
+        self.knn_nearby(t, k, out, cache, near)
     }
 }
 
@@ -868,8 +854,18 @@ fn query(mut grid: Grid, all: usize, k: usize) -> Result<Neighbours, NormalError
             let mut cache = CellCache::new();
             let mut near = Nearby::default();
             let mut row = vec![0u32; k];
+            #[cfg(target_arch = "x86_64")]
+            let avx2 = std::is_x86_feature_detected!("avx2");
             for t in b * BLOCK..(b * BLOCK + BLOCK).min(n) {
                 let i = grid.ids[t];
+                #[cfg(target_arch = "x86_64")]
+                let found = if avx2 {
+                    // SAFETY: the processor has AVX2 (checked for this block).
+                    unsafe { grid.knn_nearby_avx2(t, k, &mut buf, &mut cache, &mut near) }
+                } else {
+                    grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near)
+                };
+                #[cfg(not(target_arch = "x86_64"))]
                 let found = grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near);
                 let m = match found {
                     Nearest::Found(m) => m,
