@@ -65,11 +65,11 @@ fn main() {
     normals::orient_above(pts, &mut above, nb);
     stage("pca+above", t);
     let t = Instant::now();
-    normals::robust_normals(pts, &mut nm, nb);
+    let crease = normals::robust_normals(pts, &mut nm, nb);
     stage("robust", t);
     let radii = normals::splat_radii(nb, 1.0);
     let t = Instant::now();
-    normals::refine_and_shape(pts, &mut nm, &radii, nb);
+    normals::refine_and_shape(pts, &mut nm, &radii, nb, &crease);
     stage("refine+shp", t);
     println!(
         "  estimation proper (k-nearest, pca, orient): {:.1} ms, {:.2} M points/s",
