@@ -1095,8 +1095,9 @@ pub fn orient_above(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -
 /// propagated by [`orient_components`] is turned to agree with the majority of the given
 /// signs (so reversed patches are repaired and open surfaces keep their side), then a
 /// component whose six extreme points (along ±x, ±y, ±z) all face inwards, as only a closed
-/// surface with inward normals can, is turned round. Returns how many normals changed sign.
-fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> usize {
+/// surface with inward normals can, is turned round. Returns how many normals changed sign,
+/// and each point's component.
+fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> (usize, Vec<u32>) {
     let given = normals.to_vec();
     let (_, label) = orient_components(positions, normals, nb);
     let m = label.iter().copied().max().map_or(0, |x| x as usize + 1);
@@ -1126,7 +1127,7 @@ fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> us
         }
         changed += (normals[i].dot(given[i]) < 0.0) as usize;
     }
-    changed
+    (changed, label)
 }
 
 /// The six axis directions along which a set's extreme points are taken.
@@ -1520,7 +1521,8 @@ fn shape_at(
         };
         let q = positions[j as usize];
         let s = (q - p).dot(m);
-        if n.dot(m) < CREASE_COS && s > 0.0 {
+        // (At most as many planes as there is room for: k may exceed it.)
+        if n.dot(m) < CREASE_COS && s > 0.0 && np < planes.len() {
             planes[np] = (s, m, m.dot(q));
             np += 1;
         }
@@ -2311,14 +2313,20 @@ fn estimate_in(
             go_on()?;
             let bad = inconsistency(positions, &normals, nb);
             let mut oriented = normals.clone();
-            let differ = orient_given(positions, &mut oriented, nb)
-                - keep_outward_regions(positions, &normals, &mut oriented, nb);
+            let (turned, label) = orient_given(positions, &mut oriented, nb);
+            let differ = turned - keep_outward_regions(positions, &normals, &mut oriented, nb);
             // A consistent field differs from the propagated one only by noise (thin parts,
             // creases): keep it as given then, unless whole components turned round.
             let share = differ as f32 / normals.len() as f32;
-            let flipped = if bad > INCONSISTENT || share >= REPATCH {
+            let flipped = if bad > INCONSISTENT || (share >= REPATCH && bad > 0.0) {
                 normals = oriented;
                 differ
+            } else if share >= REPATCH {
+                // No two neighbours on a layer disagree: the field is consistent, and where
+                // the propagation differs by whole faces it was misled (across a sharp
+                // crease, as a tetrahedron's). Only components it turned round as a whole
+                // (closed surfaces facing inwards) turn.
+                turn_whole_components(&mut normals, &oriented, &label)
             } else {
                 0
             };
@@ -2355,6 +2363,27 @@ fn estimate_in(
             })
         }
     }
+}
+
+/// Turns round the normals of each component (`label`) where most differ in sign from
+/// `oriented`; returns how many turned.
+fn turn_whole_components(normals: &mut [Vec3], oriented: &[Vec3], label: &[u32]) -> usize {
+    let m = label.iter().copied().max().map_or(0, |x| x as usize + 1);
+    let mut votes = vec![(0usize, 0usize); m];
+    for ((n, o), &l) in normals.iter().zip(oriented).zip(label) {
+        let v = &mut votes[l as usize];
+        v.0 += (n.dot(*o) < 0.0) as usize;
+        v.1 += 1;
+    }
+    let mut turned = 0;
+    for (n, &l) in normals.iter_mut().zip(label) {
+        let (differ, all) = votes[l as usize];
+        if 2 * differ > all {
+            *n = -*n;
+            turned += 1;
+        }
+    }
+    turned
 }
 
 /// Given normals at unit length; zero ones (unknown) get PCA's.

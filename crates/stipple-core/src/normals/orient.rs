@@ -97,6 +97,55 @@ impl Forest {
     }
 }
 
+/// Whether normal j must turn round to agree with normal i. Nearly parallel normals (less
+/// than 60° apart, or more than 120°) agree when they point the same way (Hoppe et al.). At
+/// a sharp crease, normals 60–120° apart (a box's edge; a tetrahedron's, 109°) say little
+/// by their dot product, which the noise of a fit or the crease's angle can turn either
+/// way (a tetrahedron's consistent normals have a negative one). There the points' places
+/// decide: across a convex edge each point lies behind the other's tangent plane, across a
+/// concave one in front of it, so consistent normals put each on opposite sides
+/// ((nᵢ·d)(nⱼ·d) < 0, d = pⱼ − pᵢ), when both points lie clearly off the other's plane.
+pub(super) fn flips(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> bool {
+    let c = normals[i].dot(normals[j]);
+    match crease_sides(positions, normals, i, j) {
+        Some((ha, hb)) => ha * hb > 0.0,
+        None => c < 0.0,
+    }
+}
+
+/// Normals this near parallel (or antiparallel; cosine) go by their dot product.
+const PARALLEL: f32 = 0.5;
+/// A point this far off the other's tangent plane (over their distance) is off it.
+const OFF: f32 = 0.1;
+
+/// At a sharp crease (normals 60–120° apart), each point's offset from the other's tangent
+/// plane (nᵢ·d, nⱼ·d), when both are clearly off it; None elsewhere.
+fn crease_sides(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> Option<(f32, f32)> {
+    let (a, b) = (normals[i], normals[j]);
+    if a.dot(b).abs() >= PARALLEL {
+        return None;
+    }
+    let d = positions[j] - positions[i];
+    let len = d.length();
+    let (ha, hb) = (a.dot(d), b.dot(d));
+    (ha.abs() > OFF * len && hb.abs() > OFF * len).then_some((ha, hb))
+}
+
+/// The spanning tree's edge weight: 1 − |nᵢ·nⱼ| (Hoppe et al.), lowered across a sharp
+/// crease by how clearly the points lie off each other's planes (there [`flips`] decides by
+/// their places, surely when they are far off), so that the tree crosses creases where the
+/// evidence is clear rather than where a point sits on the edge itself.
+pub(super) fn weight(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> f32 {
+    let c = normals[i].dot(normals[j]).abs();
+    match crease_sides(positions, normals, i, j) {
+        Some((ha, hb)) => {
+            let len = (positions[j] - positions[i]).length();
+            1.0 - c.max(ha.abs().min(hb.abs()) / len)
+        }
+        None => 1.0 - c,
+    }
+}
+
 /// [`super::orient`], also returning each point's connected component (0, 1, ..., numbered
 /// by their highest points, highest first).
 pub fn orient_components(
@@ -154,7 +203,7 @@ pub fn orient_components(
                             continue;
                         }
                     }
-                    let w = 1.0 - nr[i].dot(nr[j]).abs();
+                    let w = weight(positions, nr, i, j);
                     let level =
                         ((w.clamp(0.0, 1.0) * (LEVELS - 1) as f32) as usize).min(LEVELS - 1);
                     edges.push(((i as u64) << 32 | j as u64, level as u16));
@@ -215,7 +264,7 @@ pub fn orient_components(
         for (sorted, start) in &chunks {
             for &e in &sorted[start[l] as usize..start[l + 1] as usize] {
                 let (i, j) = ((e >> 32) as u32, e as u32);
-                let rel = (nr[i as usize].dot(nr[j as usize]) < 0.0) as u8;
+                let rel = flips(positions, nr, i as usize, j as usize) as u8;
                 if forest.join(i, j, rel) {
                     joined += 1;
                     if joined + 1 == n {
