@@ -142,7 +142,7 @@ fn sample_with(sdf: Sdf, n: usize, lim: f64, seed: u64, skip_edges: bool) -> Poi
         // On a sharp edge (a kink of the distance, where one-sided differences disagree)
         // the projection piles points up with the faces' mean normal: with `skip_edges`,
         // none is taken there.
-        let e = 1e-7;
+        let e = 1e-4;
         let s0 = sdf(q);
         let ahead = DVec3::new(
             sdf(q + DVec3::X * e) - s0,
