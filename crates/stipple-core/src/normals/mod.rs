@@ -1667,7 +1667,8 @@ pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
 }
 
 /// The re-fit of [`robust_normals`]; returns which points' neighbourhoods lie on one plane
-/// (left as they were).
+/// with no neighbour more than 1.5 σ off it (those are left as they were; `nearest_faces`
+/// looks at the others again).
 fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Vec<bool> {
     /// The share of the neighbourhood's weight above which a plane is left as it is: at a
     /// crease about half the neighbours are far off the plane (score about 0.5); noise on
@@ -1778,11 +1779,16 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
 /// Settles which face a point next to a crease lies on. The re-fit of [`robust_refit`]
 /// decides by the plane through the point that most neighbours lie on, and within about a
 /// spacing of a sharp edge both faces' planes hold about as many, so a third to a half of
-/// those points took the other face (measured on a random cube). Here each face is known
-/// from the neighbours whose neighbourhoods lie on one plane (`smooth`: their normals are
-/// the face's), and the point takes the face whose plane passes nearest it: the mean
-/// offset of that face's smooth neighbours along its normal. Points with no smooth
-/// neighbour on two faces keep their re-fit.
+/// those points took the other face (41% of those within a quarter of the 16th-neighbour
+/// distance on a random cube). Here, for each point not `smooth` (see [`robust_refit`]),
+/// the neighbours are grouped into faces by their fitted normals ([`SAME_FACE`]); a face's
+/// offset from the point is the median over its members of the point's distance from the
+/// member's tangent plane (smooth members count twice: their normals are surely the
+/// face's), and the point takes the face with the smallest offset, its members' mean
+/// normal. Only at a crease: another face of at least three members lies more than
+/// [`CREASE_COS`] away (on a curved surface the groups are bands of one smooth turn, and
+/// the re-fit stands). Two rounds, the second only where a neighbour turned by more than
+/// 5° in the first. Returns which points were set at a crease.
 fn nearest_faces(
     positions: &[Vec3],
     normals: &mut [Vec3],
