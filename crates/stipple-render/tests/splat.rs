@@ -383,7 +383,7 @@ fn sparse_box_keeps_its_edges() {
 /// (`stipple_core::normals::robust_normals`), or its splat stands off the other face.
 #[test]
 fn sparse_cylinder_and_step_keep_their_edges() {
-    let scenes: [(&str, Sdf, DVec3, usize, f64); 2] = [
+    let scenes: [Scene; 2] = [
         (
             "cylinder",
             cylinder_sdf,
@@ -393,10 +393,20 @@ fn sparse_cylinder_and_step_keep_their_edges() {
         ),
         ("step", step_sdf, DVec3::new(1.5, 1.4, 2.4), 2000, 0.9),
     ];
-    for (k, (name, sdf, eye, n, lim)) in scenes.into_iter().enumerate() {
+    measure_all(&scenes, 20, false, |_, what, r| r.check(what));
+}
+
+/// A scene: name, distance function, eye, points, half-size of the sampling cube.
+type Scene = (&'static str, Sdf, DVec3, usize, f64);
+
+/// Each scene sampled (seeds from `seed`; see [`sample_with`] for `skip_edges`) and
+/// measured in every variant and splat mode at 3–6 px spacing; `check` judges each report
+/// (the scene's name, a description, the report).
+fn measure_all(scenes: &[Scene], seed: u64, skip_edges: bool, check: impl Fn(&str, &str, Report)) {
+    for (k, &(name, sdf, eye, n, lim)) in scenes.iter().enumerate() {
         let cam = camera(eye, 256);
-        let c = sample(sdf, n, lim, 20 + k as u64);
-        for ((what, cloud), mode) in modes(variants(&c, 30 + k as u64)) {
+        let c = sample_with(sdf, n, lim, seed + k as u64, skip_edges);
+        for ((what, cloud), mode) in modes(variants(&c, seed + 10 + k as u64)) {
             let r = measure(
                 &format!("splat-{name}-{what}-{mode:?}"),
                 &cam,
@@ -405,7 +415,7 @@ fn sparse_cylinder_and_step_keep_their_edges() {
                 mode,
             );
             assert!((3.0..=6.0).contains(&r.spacing_px), "{name}: {r:?}");
-            r.check(&format!("{name}, normals {what}, {mode:?}"));
+            check(name, &format!("{name}, normals {what}, {mode:?}"), r);
         }
     }
 }
@@ -588,33 +598,19 @@ fn wave_sdf(p: DVec3) -> f64 {
 /// IoU ≥ 0.98 so that it cannot grow.
 #[test]
 fn sparse_polyhedra_cone_and_slab_are_whole_and_accurate() {
-    let scenes: [(&str, Sdf, DVec3, usize, f64); 4] = [
+    let scenes: [Scene; 4] = [
         ("tetra", tetra_sdf, DVec3::new(1.3, 1.0, 2.6), 1400, 1.0),
         ("octa", octa_sdf, DVec3::new(1.4, 1.2, 2.4), 2200, 1.05),
         ("cone", cone_sdf, DVec3::new(1.5, 1.2, 2.4), 1500, 0.9),
         ("wave", wave_sdf, DVec3::new(0.8, 1.9, 2.2), 2200, 1.0),
     ];
-    for (k, (name, sdf, eye, n, lim)) in scenes.into_iter().enumerate() {
-        let cam = camera(eye, 256);
-        let c = sample_with(sdf, n, lim, 40 + k as u64, true);
-        for ((what, cloud), mode) in modes(variants(&c, 50 + k as u64)) {
-            let r = measure(
-                &format!("splat-{name}-{what}-{mode:?}"),
-                &cam,
-                sdf,
-                cloud,
-                mode,
-            );
-            assert!((3.0..=6.0).contains(&r.spacing_px), "{name}: {r:?}");
-            let what = format!("{name}, normals {what}, {mode:?}");
-            if what.contains("estimated") && name != "tetra" {
-                eprintln!("{what} (IoU held at 0.98): {r:?}");
-                assert!(r.iou >= 0.98, "{what}: {r:?}");
-                let rest = Report { iou: 1.0, ..r };
-                rest.check(&what);
-                continue;
-            }
-            r.check(&what);
+    measure_all(&scenes, 40, true, |name, what, r| {
+        if what.contains("estimated") && name != "tetra" {
+            eprintln!("{what} (IoU held at 0.98): {r:?}");
+            assert!(r.iou >= 0.98, "{what}: {r:?}");
+            Report { iou: 1.0, ..r }.check(what);
+        } else {
+            r.check(what);
         }
-    }
+    });
 }
