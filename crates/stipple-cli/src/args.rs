@@ -905,6 +905,14 @@ impl PipelineArgs {
                 let px = cloud.screen_spacing(camera);
                 if px.is_finite() && px <= SPLAT_ABOVE_PX {
                     PipelineChoice::Dobrev
+                } else if !px.is_finite() {
+                    notes.push(
+                        "drawing splats: the points' spacing on screen is not known (the \
+                         points coincide, or the camera is inside the cloud; --pipeline \
+                         dobrev draws single points)"
+                            .into(),
+                    );
+                    PipelineChoice::Splat
                 } else {
                     notes.push(format!(
                         "drawing splats: the points land {px:.1} px apart on screen (more than \

@@ -353,3 +353,43 @@ fn lidar_without_sensor_directions_is_oriented_from_above() {
     let share = n.iter().filter(|n| n.z < -0.2).count() as f64 / n.len() as f64;
     assert!(share < 0.1, "rendered: {share} face down");
 }
+
+/// Degenerate clouds through `render` and `normals` at default settings: every point the
+/// same, a line, a plane. Each renders (or says why not) without a panic, and nothing the
+/// user reads says "NaN" (100 copies of one point used to report that they "land NaN px
+/// apart").
+#[test]
+fn degenerate_clouds_render_and_say_so_plainly() {
+    let dir = tempdir("degenerate");
+    let clouds: [(&str, Vec<[f64; 3]>); 3] = [
+        ("copies", vec![[0.5, 0.5, 0.5]; 100]),
+        (
+            "line",
+            (0..500).map(|i| [i as f64 * 0.01, 0.0, 0.0]).collect(),
+        ),
+        (
+            "plane",
+            (0..2000)
+                .map(|i| [(i % 50) as f64 * 0.02, (i / 50) as f64 * 0.02, 0.0])
+                .collect(),
+        ),
+    ];
+    for (name, pts) in clouds {
+        let body: String = pts
+            .iter()
+            .map(|p| format!("{} {} {}\n", p[0], p[1], p[2]))
+            .collect();
+        std::fs::write(dir.join(format!("{name}.xyz")), body).unwrap();
+        let input = format!("{name}.xyz");
+        for args in [
+            vec!["render", &input, "-o", "out.png", "--backend", "cpu"],
+            vec!["normals", &input, "-o", "out.ply", "--force"],
+        ] {
+            let o = stipple(&dir, &args);
+            let t = text(&o);
+            assert!(o.status.success(), "{name}: stipple {args:?}: {t}");
+            assert!(!t.contains("NaN"), "{name}: stipple {args:?}: {t}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
