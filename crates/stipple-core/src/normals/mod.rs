@@ -1256,6 +1256,9 @@ pub fn tangent_frame(n: Vec3) -> (Vec3, Vec3) {
 /// Largest |curvature| × radius a splat may bend with: the patch then rises at most r/2 off
 /// its tangent plane at its rim (see [`shapes`]).
 pub const MAX_BEND: f32 = 1.0;
+/// How near the other face's plane (over the splat's radius, on either side) a point on an
+/// edge may lie to be cut at it through itself (see [`shapes`]).
+pub const EDGE_SLACK: f32 = 0.05;
 /// Neighbours whose normals differ by more than this (cosine: 37°) are across a crease.
 pub const CREASE_COS: f32 = 0.8;
 /// Neighbours whose normals are within this (cosine: 18°) lie on one face of a crease.
@@ -1290,7 +1293,9 @@ pub struct SplatShape {
 ///   depth between samples. Limited to [`MAX_BEND`] / radius (noise); degenerate
 ///   neighbourhoods (a line, duplicates) are flat.
 /// - **clip**: at a crease (a neighbour j whose normal differs by more than [`CREASE_COS`]
-///   and whose tangent plane has p behind it: a convex edge of outward-facing normals), the
+///   and whose tangent plane has p behind it: a convex edge of outward-facing normals; or,
+///   at an edge of a right angle or more, p on that plane within [`EDGE_SLACK`] of its
+///   radius either side, cut through p), the
 ///   splat is cut by j's tangent plane, the nearest such plane (and at a corner by a second
 ///   one, across a crease from the first). A disc on one face of a box
 ///   then ends at the edge instead of sticking out of the silhouette by up to its radius.
@@ -1522,8 +1527,14 @@ fn shape_at(
         let q = positions[j as usize];
         let s = (q - p).dot(m);
         // (At most as many planes as there is room for: k may exceed it.)
-        if n.dot(m) < CREASE_COS && s > 0.0 && np < planes.len() {
-            planes[np] = (s, m, m.dot(q));
+        // A point on the edge itself (within EDGE_SLACK of its radius of the other face's
+        // plane, on either side: it took one face of two equally near) is cut there too,
+        // through itself, or its splat reaches past the edge along its own plane. Not at
+        // edges sharper than a right angle, where the faces' splats then overlap too little.
+        let c = n.dot(m);
+        let slack = if c > -0.2 { EDGE_SLACK * radii[i] } else { 0.0 };
+        if c < CREASE_COS && (s > 0.0 || (slack > 0.0 && s > -slack)) && np < planes.len() {
+            planes[np] = (s.max(0.0), m, m.dot(q).max(m.dot(p)));
             np += 1;
         }
     }
