@@ -69,8 +69,8 @@ surface layers (each through the filters above) and blends them front to back wi
 point's opacity; `--shadows` computes a per-point shadow texture from point or area lights
 (soft shadows by Monte Carlo sampling), which scene files can cache.
 
-Clouds larger than memory: `build-lod` builds a kd-tree whose inner nodes hold filtered
-samples (Pintus et al. 2011, §7); `render` and `bench` then draw a cut of it chosen by
+Clouds larger than memory: `build-lod` builds a kd-tree whose inner nodes hold samples taken
+out of their children, every point stored once (Pintus et al. 2011, §7); `render` and `bench` then draw a cut of it chosen by
 projected size under a point budget, streaming nodes from disk.";
 
 #[derive(Parser)]

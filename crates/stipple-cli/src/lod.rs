@@ -454,7 +454,8 @@ pub fn info(p: &Path, verify: bool) -> Result<()> {
     let h = &tree.header;
     let (lo, hi) = tree.world_bounds();
     let leaves = tree.nodes.iter().filter(|n| n.is_leaf()).count();
-    let samples: u64 = tree.nodes.iter().map(|n| n.sample_count as u64).sum();
+    let stored: u64 = tree.nodes.iter().map(|n| n.payload_bytes as u64).sum();
+    let records = h.point_count * stipple_lod::Record::SIZE as u64;
     println!(
         "{} (stipple LOD tree, format {})",
         p.display(),
@@ -468,8 +469,15 @@ pub fn info(p: &Path, verify: bool) -> Result<()> {
         h.max_node_points
     );
     println!(
-        "  samples     {samples} stored ({:.2}× the input)",
-        samples as f64 / h.point_count.max(1) as f64
+        "  payloads    {:.1} MiB, each point stored once ({}: {:.2}× its {:.1} MiB of records)",
+        stored as f64 / (1 << 20) as f64,
+        if h.codec == stipple_lod::format::CODEC_RAW {
+            "uncompressed"
+        } else {
+            "LZ4"
+        },
+        stored as f64 / records.max(1) as f64,
+        records as f64 / (1 << 20) as f64
     );
     println!("  bounds min  {:.4} {:.4} {:.4}", lo.x, lo.y, lo.z);
     println!("  bounds max  {:.4} {:.4} {:.4}", hi.x, hi.y, hi.z);

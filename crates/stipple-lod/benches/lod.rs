@@ -1,4 +1,4 @@
-//! Kernels of the LOD hierarchy: the inner-node filter, the in-memory kd build, selection.
+//! Kernels of the LOD hierarchy: inner-node sampling, the in-memory kd build, selection.
 //! Whole builds and frames are timed by `stipple build-lod` and `stipple bench tree.stlod`.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
@@ -27,13 +27,13 @@ fn bounds() -> Bounds {
     }
 }
 
-fn filter(c: &mut Criterion) {
-    let mut g = c.benchmark_group("filter");
+fn sample_pick(c: &mut Criterion) {
+    let mut g = c.benchmark_group("sample");
     for m in [8_192usize, 32_768] {
         let pts = sheet(2 * m);
         g.throughput(Throughput::Elements(pts.len() as u64));
         g.bench_with_input(BenchmarkId::new("2M points to M", m), &m, |b, &m| {
-            b.iter(|| sample::filter(&pts, &bounds(), m, None))
+            b.iter(|| sample::pick(&pts, &bounds(), m, None))
         });
     }
     g.finish();
@@ -88,5 +88,5 @@ fn select(c: &mut Criterion) {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-criterion_group!(benches, filter, build, select);
+criterion_group!(benches, sample_pick, build, select);
 criterion_main!(benches);

@@ -9,8 +9,10 @@
 //! 2. *Plan.* Walking the kd rule over the grid's counts (3-D prefix sums) finds the subtrees
 //!    ("chunks") small enough to build in memory.
 //! 3. *Build.* Chunks are loaded one at a time and built in memory by [`crate::kd`] on all
-//!    cores; their payloads are appended to the output in preorder. The inner nodes above
-//!    them are filtered from their children's samples, which the chunks return.
+//!    cores; their payloads are appended to the output in preorder, all but the chunk's root,
+//!    whose records the chunk returns: the inner nodes above take their samples out of their
+//!    children's records ([`crate::sample`]), and only then are the children's payloads final
+//!    and written. Every point is stored once.
 //!
 //! A node that is larger than a chunk but whose longest axis the grid cannot split any more
 //! is distributed again into a finer grid over its own box (the same code, reading its
@@ -21,11 +23,13 @@
 //! the same file for the same inputs and options (payload order, node numbering and samples
 //! do not depend on thread timing).
 
-use crate::format::{Header, Node, FLAG_COLOUR, FLAG_Z_UP, HEADER_SIZE, NODE_SIZE, NONE};
+use crate::format::{
+    Header, Node, CODEC_LZ4, CODEC_RAW, FLAG_COLOUR, FLAG_Z_UP, HEADER_SIZE, NODE_SIZE, NONE,
+};
 use crate::kd::{self, LocalNode};
 use crate::record::Record;
 use crate::source::open_inputs;
-use crate::{sample, LodError};
+use crate::{codec, sample, LodError};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::fs::File;
@@ -78,6 +82,9 @@ pub struct BuildOptions {
     /// [`LodError::Interrupted`] at the next batch of input or node written, and removes what it
     /// wrote.
     pub cancel: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// How payloads are stored (default [`CODEC_LZ4`]; [`crate::format::CODEC_RAW`] keeps
+    /// them as records, readable by a memory map).
+    pub codec: u32,
 }
 
 fn check_cancel(c: &Option<std::sync::Arc<std::sync::atomic::AtomicBool>>) -> Result<(), LodError> {
@@ -97,6 +104,7 @@ impl Default for BuildOptions {
             abort_after_chunks: None,
             replace: false,
             cancel: None,
+            codec: CODEC_LZ4,
         }
     }
 }
@@ -135,6 +143,12 @@ pub struct BuildReport {
 
 /// Builds a tree from `inputs` into `output` (replacing it only when the build succeeded).
 pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<BuildReport, LodError> {
+    if o.codec != CODEC_RAW && o.codec != CODEC_LZ4 {
+        return Err(LodError::Invalid(format!(
+            "unknown payload codec {}",
+            o.codec
+        )));
+    }
     if o.max_node_points < 2 {
         return Err(LodError::Invalid(
             "the node size M must be at least 2".into(),
@@ -173,6 +187,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
     let file = File::create(&tmp).map_err(|e| LodError::io(output, e))?;
     let mut out = Out {
         w: BufWriter::with_capacity(1 << 20, file),
+        codec: o.codec,
         offset: 0,
         arena: Vec::new(),
         path: output.to_owned(),
@@ -208,7 +223,8 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         report.read_seconds = t0.elapsed().as_secs_f64();
         progress(Phase::Building, 0);
         let nodes = kd::build(&mut recs, bounds, 0, m as usize);
-        let (root, _) = out.chunk(&nodes, &recs)?;
+        let (root, samples) = out.chunk(&nodes, &recs)?;
+        out.finish(root, &samples)?;
         report.largest_chunk = recs.len() as u64;
         progress(Phase::Building, total);
         (root, bounds)
@@ -275,7 +291,8 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         };
         report.read_seconds = t0.elapsed().as_secs_f64();
         let full = buckets.grid.full();
-        let (root, _) = ctx.node(&mut out, &buckets, full, bounds, 0)?;
+        let (root, samples) = ctx.node(&mut out, &buckets, full, bounds, 0)?;
+        out.finish(root, &samples)?;
         report.spilled = ctx.spill.len;
         report.largest_chunk = ctx.largest;
         report.redistributions = ctx.redistributions;
@@ -306,6 +323,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
             children: n.children.map(|c| c.map(|a| id[a])).unwrap_or([NONE; 2]),
             spacing: n.spacing,
             payload_offset: n.offset,
+            payload_bytes: n.bytes,
             payload_crc: n.crc,
             depth: n.depth,
         };
@@ -325,6 +343,7 @@ pub fn build(inputs: &[PathBuf], output: &Path, o: &BuildOptions) -> Result<Buil
         table_offset,
         table_size: table.len() as u64,
         table_crc: crc32fast::hash(&table),
+        codec: o.codec,
     };
     report.nodes = header.node_count;
     report.bytes = out.offset;
@@ -445,12 +464,14 @@ struct ArenaNode {
     children: Option<[usize; 2]>,
     spacing: f32,
     offset: u64,
+    bytes: u32,
     crc: u32,
     depth: u16,
 }
 
 struct Out {
     w: BufWriter<File>,
+    codec: u32,
     offset: u64,
     arena: Vec<ArenaNode>,
     path: PathBuf,
@@ -469,34 +490,52 @@ impl Out {
         Ok(())
     }
 
-    /// Appends one node's payload; returns its arena index.
-    #[allow(clippy::too_many_arguments)]
-    fn node(
+    /// Adds a node whose payload is not final yet (its parent will take samples out of it):
+    /// [`Out::finish`] writes it. Returns its arena index.
+    fn pending(
         &mut self,
         bounds: Bounds,
         subtree_points: u64,
         children: Option<[usize; 2]>,
         spacing: f32,
         depth: u16,
-        samples: &[Record],
-    ) -> Result<usize, LodError> {
-        let bytes: &[u8] = bytemuck::cast_slice(samples);
-        let offset = self.offset;
-        self.write(bytes)?;
+    ) -> usize {
         self.arena.push(ArenaNode {
             bounds,
             subtree_points,
-            samples: samples.len() as u32,
+            samples: 0,
             children,
             spacing,
-            offset,
-            crc: crc32fast::hash(bytes),
+            offset: 0,
+            bytes: 0,
+            crc: 0,
             depth,
         });
-        Ok(self.arena.len() - 1)
+        self.arena.len() - 1
     }
 
-    /// Appends an in-memory subtree (preorder); returns its root's arena index and samples.
+    /// Appends the final payload of node `i` (made by [`Out::pending`]).
+    fn finish(&mut self, i: usize, samples: &[Record]) -> Result<(), LodError> {
+        let stored = codec::encode(self.codec, samples);
+        self.finish_encoded(i, samples.len(), &stored)
+    }
+
+    fn finish_encoded(&mut self, i: usize, count: usize, stored: &[u8]) -> Result<(), LodError> {
+        let offset = self.offset;
+        let bytes = u32::try_from(stored.len()).map_err(|_| {
+            LodError::Invalid("internal error: a node's payload exceeds 4 GiB".into())
+        })?;
+        self.write(stored)?;
+        let a = &mut self.arena[i];
+        a.samples = count as u32;
+        a.offset = offset;
+        a.bytes = bytes;
+        a.crc = crc32fast::hash(stored);
+        Ok(())
+    }
+
+    /// Appends an in-memory subtree (preorder), all but its root, whose payload is returned
+    /// with its arena index: the parent above takes its samples out of it.
     fn chunk(
         &mut self,
         nodes: &[LocalNode],
@@ -504,14 +543,25 @@ impl Out {
     ) -> Result<(usize, Vec<Record>), LodError> {
         let base = self.arena.len();
         for n in nodes {
-            self.node(
+            self.pending(
                 n.bounds,
                 n.subtree_points,
                 n.children.map(|c| c.map(|k| base + k)),
                 n.spacing,
                 n.depth,
-                n.samples(recs),
-            )?;
+            );
+        }
+        // Encoded on all cores, a batch at a time (memory), written in order.
+        let codec = self.codec;
+        let batch = 4 * rayon::current_num_threads();
+        for (b, group) in nodes[1..].chunks(batch).enumerate() {
+            let stored: Vec<Vec<u8>> = group
+                .par_iter()
+                .map(|n| codec::encode(codec, n.samples(recs)))
+                .collect();
+            for (k, (n, s)) in group.iter().zip(&stored).enumerate() {
+                self.finish_encoded(base + 1 + b * batch + k, n.samples(recs).len(), s)?;
+            }
         }
         self.chunks += 1;
         if self.abort_after == Some(self.chunks) {
@@ -519,6 +569,41 @@ impl Out {
             std::process::abort();
         }
         Ok((base, nodes[0].samples(recs).to_vec()))
+    }
+
+    /// The samples of a node above the chunks: taken out of its children's payloads (`li`
+    /// and `ri`, still pending), which are then written. Returns the node's arena index, still
+    /// pending, and its samples.
+    #[allow(clippy::too_many_arguments)]
+    fn parent(
+        &mut self,
+        bounds: Bounds,
+        count: u64,
+        depth: u16,
+        m: usize,
+        (li, ls): (usize, Vec<Record>),
+        (ri, rs): (usize, Vec<Record>),
+    ) -> Result<(usize, Vec<Record>), LodError> {
+        let mut merged = ls;
+        let left = merged.len();
+        merged.extend_from_slice(&rs);
+        drop(rs);
+        let child = self.arena[li].spacing.max(self.arena[ri].spacing);
+        let guess = sample::first_guess(child, merged.len(), m);
+        let (chosen, spacing) = sample::pick(&merged, &bounds, m, guess);
+        let samples: Vec<Record> = chosen.iter().map(|&i| merged[i as usize]).collect();
+        let (tl, tr) = sample::taken_masks(&chosen, left, merged.len());
+        let kept = |part: &[Record], taken: &[bool]| -> Vec<Record> {
+            part.iter()
+                .zip(taken)
+                .filter(|(_, &t)| !t)
+                .map(|(r, _)| *r)
+                .collect()
+        };
+        self.finish(li, &kept(&merged[..left], &tl))?;
+        self.finish(ri, &kept(&merged[left..], &tr))?;
+        let i = self.pending(bounds, count, Some([li, ri]), spacing, depth);
+        Ok((i, samples))
     }
 }
 
@@ -822,16 +907,9 @@ impl OutOfCore<'_> {
             let (mut left, mut right) = (r.clone(), r.clone());
             left[axis] = ra.start..split_at;
             right[axis] = split_at..ra.end;
-            let (li, ls) = self.node(out, b, left, lb, depth + 1)?;
-            let (ri, rs) = self.node(out, b, right, rb, depth + 1)?;
-            let mut merged = ls;
-            merged.extend_from_slice(&rs);
-            drop(rs);
-            let child = out.arena[li].spacing.max(out.arena[ri].spacing);
-            let guess = sample::first_guess(child, merged.len(), self.m);
-            let (samples, spacing) = sample::filter(&merged, &bounds, self.m, guess);
-            let i = out.node(bounds, count, Some([li, ri]), spacing, depth, &samples)?;
-            return Ok((i, samples));
+            let l = self.node(out, b, left, lb, depth + 1)?;
+            let r = self.node(out, b, right, rb, depth + 1)?;
+            return out.parent(bounds, count, depth, self.m, l, r);
         }
         // The grid cannot split this node's longest axis: distribute it again, finer, reading
         // its buckets through a second handle while the new blocks are appended.

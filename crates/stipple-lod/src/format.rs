@@ -3,9 +3,9 @@
 //!
 //! ```text
 //! 0        header (256 bytes, CRC-32 of its first 252 bytes in the last 4)
-//! 256      payloads: each node's records (16 bytes each), contiguous per build chunk,
-//!          every payload starting on a 16-byte boundary (memory-map friendly)
-//! table    node table: node_count × 64 bytes, CRC-32 in the header
+//! 256      payloads: each node's records, stored as the header's codec says (raw 16-byte
+//!          records on 16-byte boundaries, or LZ4-compressed byte planes: crate::codec)
+//! table    node table: node_count × 72 bytes, CRC-32 in the header
 //! end      = table offset + table size: nothing follows
 //! ```
 //!
@@ -29,9 +29,9 @@ use std::path::{Path, PathBuf};
 use stipple_core::Bounds;
 
 pub const MAGIC: [u8; 8] = *b"STIPLOD\n";
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 pub const HEADER_SIZE: u64 = 256;
-pub const NODE_SIZE: u64 = 64;
+pub const NODE_SIZE: u64 = 72;
 pub const NONE: u32 = u32::MAX;
 
 /// Header flag: records carry colours (from RGB, or grey from intensity).
@@ -56,7 +56,15 @@ pub struct Header {
     pub table_offset: u64,
     pub table_size: u64,
     pub table_crc: u32,
+    /// How payloads are stored ([`CODEC_RAW`], [`CODEC_LZ4`]).
+    pub codec: u32,
 }
+
+/// Payload codec: the records as they are.
+pub const CODEC_RAW: u32 = 0;
+/// Payload codec: byte planes of the records, compressed as one LZ4 block
+/// ([`crate::codec`]).
+pub const CODEC_LZ4: u32 = 1;
 
 impl Header {
     pub fn has_colour(&self) -> bool {
@@ -88,6 +96,7 @@ impl Header {
         w.u64(self.table_offset);
         w.u64(self.table_size);
         w.u32(self.table_crc);
+        w.u32(self.codec);
         let crc = crc32fast::hash(&b[..252]);
         b[252..].copy_from_slice(&crc.to_le_bytes());
         b
@@ -108,7 +117,7 @@ impl Header {
         let version = r.u32();
         if version != VERSION {
             return Err(format!(
-                "format version {version} is not supported by this stipple (it reads version {VERSION}); rebuild the tree"
+                "format version {version} is not supported by this stipple (it reads version {VERSION}); rebuild the tree from its inputs with `stipple build-lod`"
             ));
         }
         let stored = u32::from_le_bytes(b[252..].try_into().unwrap());
@@ -141,6 +150,14 @@ impl Header {
             table_offset: r.u64(),
             table_size: r.u64(),
             table_crc: r.u32(),
+            codec: match r.u32() {
+                c @ (CODEC_RAW | CODEC_LZ4) => c,
+                c => {
+                    return Err(format!(
+                        "unknown payload codec {c}: the file is corrupt or from a newer stipple"
+                    ))
+                }
+            },
         })
     }
 }
@@ -150,10 +167,11 @@ impl Header {
 pub struct Node {
     /// The node's kd box (local frame). Every record of the node lies inside it.
     pub bounds: Bounds,
-    /// Input points in this node's subtree.
+    /// Input points in this node's box (stored in it, its descendants or its ancestors).
     pub subtree_points: u64,
-    /// Records in this node's payload: the points of a leaf, the filtered samples of an
-    /// inner node.
+    /// Records stored in this node: the samples it took out of its children (an inner node),
+    /// or what its ancestors left of the points in its box (a leaf). Every input point is
+    /// stored in exactly one node.
     pub sample_count: u32,
     /// Children, or [`NONE`] for a leaf.
     pub children: [u32; 2],
@@ -161,6 +179,8 @@ pub struct Node {
     /// an inner node, an estimate from area and count for a leaf.
     pub spacing: f32,
     pub payload_offset: u64,
+    /// Bytes of the stored payload (`sample_count` × 16 when stored raw).
+    pub payload_bytes: u32,
     pub payload_crc: u32,
     /// Depth below the root.
     pub depth: u16,
@@ -171,7 +191,8 @@ impl Node {
         self.children[0] == NONE
     }
 
-    pub fn payload_size(&self) -> u64 {
+    /// Bytes of the decoded payload.
+    pub fn records_size(&self) -> u64 {
         self.sample_count as u64 * Record::SIZE as u64
     }
 
@@ -185,9 +206,9 @@ impl Node {
         w.u32(self.children[1]);
         w.f32(self.spacing);
         w.u64(self.payload_offset);
+        w.u32(self.payload_bytes);
         w.u32(self.payload_crc);
         w.u16(self.depth);
-        w.u16(0);
     }
 
     fn decode(b: &[u8]) -> Node {
@@ -203,6 +224,7 @@ impl Node {
             children: [r.u32(), r.u32()],
             spacing: r.f32(),
             payload_offset: r.u64(),
+            payload_bytes: r.u32(),
             payload_crc: r.u32(),
             depth: r.u16(),
         }
@@ -288,21 +310,33 @@ impl LodTree {
                 path: self.path.clone(),
                 message: format!("node {id} does not exist"),
             })?;
+        let corrupt = |what: String| LodError::Corrupt {
+            path: self.path.clone(),
+            message: format!(
+                "node {id}'s points (bytes {}..{}) {what}: the file is corrupt",
+                n.payload_offset,
+                n.payload_offset + n.payload_bytes as u64
+            ),
+        };
         let mut recs = vec![Record::zeroed(); n.sample_count as usize];
-        let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut recs);
-        self.file
-            .read_exact_at(bytes, n.payload_offset)
-            .map_err(|e| LodError::io(&self.path, e))?;
-        if crc32fast::hash(bytes) != n.payload_crc && !cfg!(fuzzing) {
-            return Err(LodError::Corrupt {
-                path: self.path.clone(),
-                message: format!(
-                    "node {id}'s points (bytes {}..{}) do not match their checksum: the file is corrupt",
-                    n.payload_offset,
-                    n.payload_offset + n.payload_size()
-                ),
-            });
+        if self.header.codec == CODEC_RAW {
+            let bytes: &mut [u8] = bytemuck::cast_slice_mut(&mut recs);
+            self.file
+                .read_exact_at(bytes, n.payload_offset)
+                .map_err(|e| LodError::io(&self.path, e))?;
+            if crc32fast::hash(bytes) != n.payload_crc && !cfg!(fuzzing) {
+                return Err(corrupt("do not match their checksum".into()));
+            }
+            return Ok(recs);
         }
+        let mut stored = vec![0u8; n.payload_bytes as usize];
+        self.file
+            .read_exact_at(&mut stored, n.payload_offset)
+            .map_err(|e| LodError::io(&self.path, e))?;
+        if crc32fast::hash(&stored) != n.payload_crc && !cfg!(fuzzing) {
+            return Err(corrupt("do not match their checksum".into()));
+        }
+        crate::codec::decode(self.header.codec, &stored, &mut recs).map_err(corrupt)?;
         Ok(recs)
     }
 
@@ -340,14 +374,32 @@ fn check_structure(h: &Header, nodes: &[Node]) -> Result<(), String> {
     for (i, n) in nodes.iter().enumerate() {
         let end = n
             .payload_offset
-            .checked_add(n.payload_size())
+            .checked_add(n.payload_bytes as u64)
             .ok_or("a payload offset overflows")?;
-        if n.payload_offset < HEADER_SIZE || end > h.table_offset || n.payload_offset % 16 != 0 {
+        let raw = h.codec == CODEC_RAW;
+        if n.payload_offset < HEADER_SIZE
+            || end > h.table_offset
+            || (raw && n.payload_offset % 16 != 0)
+        {
             return Err(format!(
                 "node {i}'s points lie outside the payload area: the file is corrupt"
             ));
         }
+        // What a payload decodes to is bounded by what is stored (no codec expands more than
+        // `MAX_RATIO` times), so a crafted count cannot ask for a huge allocation.
+        let fits = if raw {
+            n.payload_bytes as u64 == n.records_size()
+        } else {
+            n.records_size() <= (n.payload_bytes as u64 + 64) * crate::codec::MAX_RATIO
+        };
+        if !fits {
+            return Err(format!(
+                "node {i} holds {} points in {} bytes: the file is corrupt",
+                n.sample_count, n.payload_bytes
+            ));
+        }
         if n.sample_count as u64 > n.subtree_points
+            || n.sample_count > h.max_node_points
             || !n.bounds.min.is_finite()
             || !n.bounds.max.is_finite()
         {
@@ -356,7 +408,7 @@ fn check_structure(h: &Header, nodes: &[Node]) -> Result<(), String> {
             ));
         }
         if n.is_leaf() {
-            if n.children[1] != NONE || n.subtree_points != n.sample_count as u64 {
+            if n.children[1] != NONE {
                 return Err(format!("leaf {i} is inconsistent: the file is corrupt"));
             }
             continue;
@@ -375,7 +427,7 @@ fn check_structure(h: &Header, nodes: &[Node]) -> Result<(), String> {
                 .checked_add(nodes[c as usize].subtree_points)
                 .ok_or_else(|| format!("node {i}'s counts overflow: the file is corrupt"))?;
         }
-        if sum != n.subtree_points || n.sample_count > h.max_node_points {
+        if sum != n.subtree_points {
             return Err(format!(
                 "node {i}'s counts do not add up: the file is corrupt"
             ));
@@ -386,6 +438,28 @@ fn check_structure(h: &Header, nodes: &[Node]) -> Result<(), String> {
     }
     if nodes[0].subtree_points != h.point_count {
         return Err("the root's point count differs from the header's: the file is corrupt".into());
+    }
+    // Every point is stored once: the records a subtree stores (its own and its
+    // descendants') are at most the input points in its box, and the whole tree's are all of
+    // them. Children follow their parents, so one pass from the end sums each subtree.
+    let mut stored = vec![0u64; nodes.len()];
+    for (i, n) in nodes.iter().enumerate().rev() {
+        let mut s = n.sample_count as u64;
+        if !n.is_leaf() {
+            s += stored[n.children[0] as usize] + stored[n.children[1] as usize];
+        }
+        if s > n.subtree_points {
+            return Err(format!(
+                "node {i}'s subtree stores more points than its box holds: the file is corrupt"
+            ));
+        }
+        stored[i] = s;
+    }
+    if stored[0] != h.point_count {
+        return Err(format!(
+            "the nodes store {} points, the header says {}: the file is corrupt",
+            stored[0], h.point_count
+        ));
     }
     Ok(())
 }
@@ -468,6 +542,7 @@ mod tests {
             children,
             spacing: 0.1,
             payload_offset: at,
+            payload_bytes: 16,
             payload_crc: 0,
             depth: 0,
         };
@@ -487,6 +562,7 @@ mod tests {
             table_offset: HEADER_SIZE + 1024,
             table_size: 3 * NODE_SIZE,
             table_crc: 0,
+            codec: CODEC_RAW,
         };
         let e = check_structure(&h, &nodes).unwrap_err();
         assert!(e.contains("node 0's counts overflow"), "{e}");

@@ -2,7 +2,8 @@
 //!
 //! A node with fewer than M points is a leaf. Otherwise its points go to two children by
 //! bisecting its box at the midpoint of the longest axis (a point on the plane goes right),
-//! and the node's samples are its children's samples filtered on a grid ([`crate::sample`]).
+//! and the node's samples are taken out of its children's payloads on a grid
+//! ([`crate::sample`]): every point is stored once, in the highest node that took it.
 //! The two halves are built in parallel (rayon) while they are large.
 //!
 //! The split rule is a function of the box alone, so the out-of-core builder can predict the
@@ -62,7 +63,7 @@ pub fn leaf_spacing(b: &Bounds, n: usize) -> f32 {
 pub enum Payload {
     /// A leaf: a range of the chunk's (partitioned) records.
     Range(usize, usize),
-    /// An inner node's filtered samples.
+    /// An inner node's samples (taken out of its children's payloads).
     Owned(Vec<Record>),
 }
 
@@ -79,9 +80,39 @@ pub struct LocalNode {
 
 impl LocalNode {
     pub fn samples<'a>(&'a self, recs: &'a [Record]) -> &'a [Record] {
+        self.samples_at(recs, 0)
+    }
+
+    /// [`LocalNode::samples`] where `recs` starts at record `base` of the chunk.
+    fn samples_at<'a>(&'a self, recs: &'a [Record], base: usize) -> &'a [Record] {
         match &self.payload {
-            Payload::Range(s, n) => &recs[*s..*s + *n],
+            Payload::Range(s, n) => &recs[*s - base..*s - base + *n],
             Payload::Owned(v) => v,
+        }
+    }
+
+    /// Removes the payload's records marked in `taken` (a parent took them), keeping the
+    /// others in order. A leaf's range shrinks: its kept records move to its front.
+    fn give_up(&mut self, taken: &[bool], recs: &mut [Record], base: usize) {
+        match &mut self.payload {
+            Payload::Range(s, n) => {
+                let r = &mut recs[*s - base..*s - base + *n];
+                let mut w = 0;
+                for i in 0..r.len() {
+                    if !taken[i] {
+                        r[w] = r[i];
+                        w += 1;
+                    }
+                }
+                *n = w;
+            }
+            Payload::Owned(v) => {
+                let mut i = 0;
+                v.retain(|_| {
+                    i += 1;
+                    !taken[i - 1]
+                });
+            }
         }
     }
 }
@@ -117,7 +148,7 @@ fn build_at(
     let k = partition(recs, |r| r.pos[axis] < mid);
     let (lb, rb) = halves(&bounds, axis, mid);
     let (l, r) = recs.split_at_mut(k);
-    let (ln, rn) = if n >= PARALLEL_MIN {
+    let (mut ln, mut rn) = if n >= PARALLEL_MIN {
         rayon::join(
             || build_at(l, base, lb, depth + 1, m),
             || build_at(r, base + k, rb, depth + 1, m),
@@ -128,17 +159,17 @@ fn build_at(
             build_at(r, base + k, rb, depth + 1, m),
         )
     };
-    let local = |node: &LocalNode| -> Vec<Record> {
-        match &node.payload {
-            Payload::Range(s, c) => recs[s - base..s - base + c].to_vec(),
-            Payload::Owned(v) => v.clone(),
-        }
-    };
-    let mut merged = local(&ln[0]);
-    merged.extend_from_slice(&local(&rn[0]));
+    // The node's samples are taken out of its children's payloads.
+    let mut merged = ln[0].samples_at(recs, base).to_vec();
+    let left = merged.len();
+    merged.extend_from_slice(rn[0].samples_at(recs, base));
     let guess = sample::first_guess(ln[0].spacing.max(rn[0].spacing), merged.len(), m);
-    let (samples, spacing) = sample::filter(&merged, &bounds, m, guess);
+    let (chosen, spacing) = sample::pick(&merged, &bounds, m, guess);
+    let samples: Vec<Record> = chosen.iter().map(|&i| merged[i as usize]).collect();
+    let (tl, tr) = sample::taken_masks(&chosen, left, merged.len());
     drop(merged);
+    ln[0].give_up(&tl, recs, base);
+    rn[0].give_up(&tr, recs, base);
     let mut out = Vec::with_capacity(1 + ln.len() + rn.len());
     out.push(LocalNode {
         bounds,

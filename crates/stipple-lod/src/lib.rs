@@ -1,6 +1,7 @@
 //! Out-of-core multi-resolution point hierarchy (Pintus et al. 2011, §7): the coarse-grained
-//! kd-tree whose leaves hold the input points and whose inner nodes hold filtered samples of
-//! their children, so that any view can be drawn from a bounded number of points.
+//! kd-tree whose inner nodes hold samples taken out of their children, so that every point is
+//! stored once and any view can be drawn from a bounded number of points (a node with its
+//! ancestors).
 //!
 //! - [`build()`]: inputs (LAS/LAZ streamed, others read whole) to a `.stlod` file, in memory or
 //!   out of core within a memory budget, on all cores.
@@ -10,6 +11,7 @@
 //! - [`Streamer`]: node payloads in an LRU cache, loaded by background threads.
 
 pub mod build;
+pub mod codec;
 pub mod format;
 pub mod kd;
 pub mod mem;

@@ -1,5 +1,8 @@
-//! Inner-node filtering (Pintus §7): a parent's samples are its children's samples merged on a
-//! grid, one sample per occupied cell, with the cell's average position and colour.
+//! Inner-node sampling (Pintus §7, stored once as Potree does): a parent takes its samples
+//! out of its children's payloads, one point per occupied cell of a grid, the point nearest
+//! the cell's centre. The points it takes leave the children, so every input point is stored
+//! exactly once in the tree, and a node drawn with its ancestors has the density of its cell
+//! size.
 //!
 //! Deviation: the paper divides the node into a fixed grid of M cells. A scanned surface
 //! crosses only a 2-D slice of a 3-D grid, so M cubic cells leave a surface node with about
@@ -7,7 +10,8 @@
 //! budget allows. Here the cells are cubes whose size is chosen (a few counting rounds, each a
 //! hash of the cell keys) so that as many cells as possible, but at most M, are occupied. The
 //! cell size is stored as the node's spacing and drives the screen-space error of the
-//! selection.
+//! selection. The paper's samples average their cell; ours are input points, so nothing is
+//! stored twice and a sample never floats between two surfaces.
 
 use crate::record::Record;
 use stipple_core::Bounds;
@@ -26,15 +30,11 @@ pub fn first_guess(child_spacing: f32, n: usize, m: usize) -> Option<f32> {
     (s.is_finite() && s > 0.0).then_some(s)
 }
 
-/// Merges `points` (all inside `bounds`) into at most `m` samples; returns them and the cell
-/// size. `guess` is a cell size to try first (see [`first_guess`]). Deterministic: samples
-/// come out in the order their cells were first met.
-pub fn filter(
-    points: &[Record],
-    bounds: &Bounds,
-    m: usize,
-    guess: Option<f32>,
-) -> (Vec<Record>, f32) {
+/// Picks at most `m` of `points` (all inside `bounds`), one per occupied cell; returns their
+/// indices and the cell size. `guess` is a cell size to try first (see [`first_guess`]).
+/// Deterministic: indices come out in the order their cells were first met; within a cell
+/// the point nearest its centre wins, the first one on a tie.
+pub fn pick(points: &[Record], bounds: &Bounds, m: usize, guess: Option<f32>) -> (Vec<u32>, f32) {
     let m = m.max(1);
     let e = bounds.extent();
     let emax = e.max_element().max(f32::MIN_POSITIVE);
@@ -51,7 +51,7 @@ pub fn filter(
         .max(min_cell);
     // Each round merges at a cell size; a round that overflows M stops early and estimates
     // the occupancy it would have reached.
-    let mut best: Option<(Vec<Record>, f32)> = None;
+    let mut best: Option<(Vec<u32>, f32)> = None;
     for _ in 0..ROUNDS {
         let occ = match table.merge(points, bounds.min, s, m) {
             Ok(v) => {
@@ -125,53 +125,72 @@ impl CellTable {
         }
     }
 
-    /// One sample per occupied cell of size `s`, or, when more than `limit` cells are
-    /// occupied, an estimate of how many would be (extrapolated from where it stopped).
+    /// One sample per occupied cell of size `s` (the index of the point nearest the cell's
+    /// centre), or, when more than `limit` cells are occupied, an estimate of how many would
+    /// be (extrapolated from where it stopped).
     fn merge(
         &mut self,
         points: &[Record],
         min: glam::Vec3,
         s: f32,
         limit: usize,
-    ) -> Result<Vec<Record>, usize> {
+    ) -> Result<Vec<u32>, usize> {
         self.keys.fill(EMPTY);
         let inv = 1.0 / s;
-        // Sums per occupied cell: position (f64), colour, count.
-        let mut acc: Vec<([f64; 3], [u32; 3], u32)> = Vec::with_capacity(limit.min(points.len()));
+        // Per occupied cell: the best point so far and its squared distance (in cells) from
+        // the centre.
+        let mut best: Vec<(u32, f32)> = Vec::with_capacity(limit.min(points.len()));
         for (i, r) in points.iter().enumerate() {
             let (h, new) = self.find(key(r.pos, min, inv));
+            let d2 = centre_distance2(r.pos, min, inv);
             if new {
-                if acc.len() == limit {
+                if best.len() == limit {
                     return Err((limit as f64 * points.len() as f64 / (i + 1) as f64) as usize + 1);
                 }
-                self.slot[h] = acc.len() as u32;
-                acc.push(([0.0; 3], [0; 3], 0));
-            }
-            let a = &mut acc[self.slot[h] as usize];
-            for i in 0..3 {
-                a.0[i] += r.pos[i] as f64;
-                a.1[i] += r.rgb[i] as u32;
-            }
-            a.2 += 1;
-        }
-        Ok(acc
-            .iter()
-            .map(|(p, c, n)| {
-                let k = *n as f64;
-                Record {
-                    pos: [(p[0] / k) as f32, (p[1] / k) as f32, (p[2] / k) as f32],
-                    rgb: c.map(|v| ((v + n / 2) / n) as u8),
-                    reserved: 0,
+                self.slot[h] = best.len() as u32;
+                best.push((i as u32, d2));
+            } else {
+                let b = &mut best[self.slot[h] as usize];
+                if d2 < b.1 {
+                    *b = (i as u32, d2);
                 }
-            })
-            .collect())
+            }
+        }
+        Ok(best.into_iter().map(|(i, _)| i).collect())
     }
+}
+
+/// Squared distance of a point from the centre of its cell, in cells.
+fn centre_distance2(p: [f32; 3], min: glam::Vec3, inv: f32) -> f32 {
+    let d = |v: f32, lo: f32| {
+        let x = (v - lo) * inv;
+        x - x.floor() - 0.5
+    };
+    let (a, b, c) = (d(p[0], min.x), d(p[1], min.y), d(p[2], min.z));
+    a * a + b * b + c * c
+}
+
+/// Which of a node's two children's payloads a parent takes: `chosen` indexes their
+/// concatenation (left first, `left` records long). Returns one mask per child.
+pub fn taken_masks(chosen: &[u32], left: usize, total: usize) -> (Vec<bool>, Vec<bool>) {
+    let mut l = vec![false; left];
+    let mut r = vec![false; total - left];
+    for &i in chosen {
+        let i = i as usize;
+        if i < left {
+            l[i] = true;
+        } else {
+            r[i - left] = true;
+        }
+    }
+    (l, r)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use glam::Vec3;
+    use std::collections::HashSet;
 
     fn grid_plane(n: usize) -> Vec<Record> {
         let mut v = Vec::new();
@@ -187,43 +206,45 @@ mod tests {
     }
 
     #[test]
-    fn a_plane_keeps_close_to_m_samples_inside_the_box() {
+    fn a_plane_keeps_close_to_m_samples_one_per_cell() {
         let pts = grid_plane(300); // 90 000 points
         let b = Bounds {
             min: Vec3::ZERO,
             max: Vec3::ONE,
         };
-        let (s, cell) = filter(&pts, &b, 4096, None);
-        assert!(s.len() <= 4096, "{} samples", s.len());
+        let (idx, cell) = pick(&pts, &b, 4096, None);
+        assert!(idx.len() <= 4096, "{} samples", idx.len());
         // A literal 4096-cell cube grid would give 16² = 256 samples on this plane.
-        assert!(s.len() >= 2000, "only {} samples", s.len());
+        assert!(idx.len() >= 2000, "only {} samples", idx.len());
         assert!(cell > 0.0 && cell < 0.05, "cell {cell}");
-        for r in &s {
-            let p = r.p();
-            assert!(p.cmpge(b.min).all() && p.cmple(b.max).all(), "{p}");
-            assert_eq!(p.z, 0.5);
-            assert_eq!(r.rgb[1], 100);
+        let (mut seen, mut cells) = (HashSet::new(), HashSet::new());
+        for &i in &idx {
+            assert!(seen.insert(i), "index {i} picked twice");
+            let c = ((pts[i as usize].p() - b.min) / cell).floor().as_ivec3();
+            assert!(cells.insert(c.to_array()), "two samples in cell {c}");
         }
     }
 
     #[test]
-    fn merging_averages_position_and_colour() {
+    fn each_cell_keeps_the_point_nearest_its_centre() {
         let pts = vec![
-            Record::new(Vec3::new(0.1, 0.1, 0.1), [0, 0, 0]),
-            Record::new(Vec3::new(0.2, 0.1, 0.1), [100, 200, 50]),
+            Record::new(Vec3::new(0.05, 0.1, 0.1), [0, 0, 0]),
+            Record::new(Vec3::new(0.2, 0.2, 0.2), [100, 200, 50]),
             Record::new(Vec3::new(0.9, 0.9, 0.9), [10, 10, 10]),
         ];
         let b = Bounds {
             min: Vec3::ZERO,
             max: Vec3::ONE,
         };
-        let (s, _) = filter(&pts, &b, 2, None);
-        assert_eq!(s.len(), 2);
-        let a = s.iter().find(|r| r.pos[0] < 0.5).unwrap();
-        assert!((a.pos[0] - 0.15).abs() < 1e-6);
-        assert_eq!(a.rgb, [50, 100, 25]);
+        let (idx, s) = pick(&pts, &b, 2, None);
+        assert!(s >= 0.45, "cell {s}");
+        assert_eq!(idx.len(), 2);
+        // The first and second points share a cell; the second is nearer its centre.
+        assert!(idx.contains(&1) && idx.contains(&2), "{idx:?}");
         // Few points: every point keeps its own cell.
-        let (s, _) = filter(&pts, &b, 10, None);
-        assert_eq!(s.len(), 3);
+        let (idx, _) = pick(&pts, &b, 10, None);
+        assert_eq!(idx, vec![0, 1, 2]);
+        let (l, r) = taken_masks(&[0, 2], 2, 3);
+        assert_eq!((l, r), (vec![true, false], vec![true]));
     }
 }

@@ -1,12 +1,14 @@
 //! View-dependent cuts: which nodes to draw for a camera.
 //!
-//! The hierarchy is not additive: an inner node's samples stand for its whole subtree, so a
-//! cut is a set of nodes none of which is another's ancestor. Starting from the root, the cut
-//! node with the largest screen-space error is replaced by its visible children, as long as
-//! the point budget allows, until every error is below the target. The error of a node is its
-//! sample spacing projected at the nearest point of its box, in pixels: large and near nodes
-//! come first. Nodes outside the view frustum are dropped. Ties are broken by node id, so the
-//! same tree and camera always give the same cut.
+//! The hierarchy is additive: every point is stored once, and a node's points add detail to
+//! its ancestors' (Potree's scheme). A cut is therefore a subtree: the root and, wherever more
+//! detail is wanted, a node's visible children drawn together with it. Starting from the
+//! root, the drawn node with the largest screen-space error that has children not yet drawn
+//! adds them, as long as the point budget allows, until every error is below the target. The
+//! error of a node is its sample spacing (the spacing of it and its ancestors together)
+//! projected at the nearest point of its box, in pixels: large and near nodes come first.
+//! Nodes outside the view frustum are dropped. Ties are broken by node id, so the same tree
+//! and camera always give the same cut.
 
 use crate::format::{LodTree, Node};
 use glam::DVec3;
@@ -31,11 +33,12 @@ impl Default for SelectOptions {
     }
 }
 
-/// A cut, in the order it should be loaded (largest error first).
+/// A cut: the nodes to draw (each with all its ancestors), in the order they should be loaded
+/// (largest error first, so the root comes first).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Selection {
     pub nodes: Vec<u32>,
-    /// Projected sample spacing (px) of each node of `nodes` (leaves are never refined).
+    /// Projected sample spacing (px) of each node of `nodes`.
     pub errors: Vec<f32>,
     pub points: u64,
     /// Refinements skipped because the budget would have been exceeded.
@@ -176,12 +179,11 @@ pub fn select_nodes(
             .iter()
             .map(|&c| nodes[c as usize].sample_count as u64)
             .sum();
-        if points - n.sample_count as u64 + add > o.point_budget {
+        if points + add > o.point_budget {
             sel.budget_limited = true;
             continue;
         }
-        points = points - n.sample_count as u64 + add;
-        in_cut[id as usize] = false;
+        points += add;
         for c in kids {
             in_cut[c as usize] = true;
             let ce = view.error(&nodes[c as usize]);

@@ -2,8 +2,9 @@
 //! so that a frame never waits on disk.
 //!
 //! Each frame calls [`Streamer::request`] with its cut (in priority order) and draws
-//! [`Streamer::resident_cut`]: every cut node that is in memory, and for one that is not, its
-//! nearest resident ancestor, which covers the same region more coarsely. The root is loaded
+//! [`Streamer::resident_cut`]: every cut node that is in memory. The tree is additive, so a
+//! node that is not leaves its region drawn by its resident ancestors, more coarsely (the
+//! nearest resident ancestor is drawn even when the cut does not name it). The root is loaded
 //! when the streamer is created and never evicted, so every frame has something to draw; the
 //! next frames refine as loads complete. Nodes of the latest cut are pinned; the others are
 //! evicted least recently used first when the cache is over its budget.

@@ -70,7 +70,7 @@ fn inside(b: &stipple_core::Bounds, p: Vec3) -> bool {
 /// Checks the tree invariants of the issue against the inputs.
 fn check_invariants(tree: &LodTree, inputs: &[PathBuf]) {
     let m = tree.header.max_node_points;
-    let mut leaf_points = Vec::new();
+    let mut stored = Vec::new();
     for (i, n) in tree.nodes.iter().enumerate() {
         let recs = tree.read_node(i as u32).unwrap();
         assert_eq!(recs.len(), n.sample_count as usize);
@@ -88,14 +88,21 @@ fn check_invariants(tree: &LodTree, inputs: &[PathBuf]) {
                 "leaf {i} has {} ≥ M points",
                 n.sample_count
             );
-            leaf_points.extend(recs);
         } else {
             assert!(
                 n.sample_count <= m,
                 "inner node {i}: {} > M samples",
                 n.sample_count
             );
-            assert!(n.sample_count > 0 || n.subtree_points == 0);
+            // At most one sample per cell of the node's spacing.
+            let mut cells = std::collections::HashSet::new();
+            for r in &recs {
+                let c = ((r.p() - n.bounds.min) / n.spacing).floor().as_ivec3();
+                assert!(
+                    cells.insert(c.to_array()),
+                    "node {i}: two samples in cell {c}"
+                );
+            }
             let [a, b] = n.children;
             let (ca, cb) = (&tree.nodes[a as usize], &tree.nodes[b as usize]);
             assert_eq!(
@@ -109,15 +116,16 @@ fn check_invariants(tree: &LodTree, inputs: &[PathBuf]) {
             assert_eq!((ca.bounds, cb.bounds), (l, r), "node {i}'s children");
             assert!(n.subtree_points >= m as u64);
         }
+        stored.extend(recs);
     }
     assert_eq!(tree.root().subtree_points, tree.header.point_count);
-    // Every input point lands in exactly one leaf: the leaves' records are the input's.
-    sort(&mut leaf_points);
+    // Every input point is stored exactly once: the nodes' records are the input's.
+    sort(&mut stored);
     let want = input_records(inputs, tree.header.origin);
-    assert_eq!(leaf_points.len(), want.len());
+    assert_eq!(stored.len(), want.len());
     assert!(
-        leaf_points == want,
-        "the leaves do not hold exactly the input points"
+        stored == want,
+        "the nodes do not hold exactly the input points, each once"
     );
 }
 
@@ -144,6 +152,33 @@ fn in_memory_build_keeps_the_invariants_and_is_deterministic() {
         std::fs::read(dir.join("t2.stlod")).unwrap(),
     );
     assert!(x == y, "two builds of the same input differ");
+    // Uncompressed: the same tree, records stored as they are, and larger.
+    let o = BuildOptions {
+        codec: stipple_lod::format::CODEC_RAW,
+        ..o
+    };
+    build(&inputs, &dir.join("raw.stlod"), &o).unwrap();
+    let raw = LodTree::open(&dir.join("raw.stlod")).unwrap();
+    assert_eq!(raw.nodes.len(), tree.nodes.len());
+    for (i, (a, b)) in raw.nodes.iter().zip(&tree.nodes).enumerate() {
+        assert_eq!((a.sample_count, a.spacing), (b.sample_count, b.spacing));
+        assert_eq!(a.payload_bytes as u64, a.records_size());
+        assert_eq!(
+            raw.read_node(i as u32).unwrap(),
+            tree.read_node(i as u32).unwrap()
+        );
+    }
+    let raw_size = std::fs::metadata(dir.join("raw.stlod")).unwrap().len();
+    assert!(
+        raw_size > x.len() as u64 * 5 / 4,
+        "{raw_size} vs {}",
+        x.len()
+    );
+    // Each point once: the tree is the records and the node table, nothing more.
+    assert_eq!(
+        raw_size,
+        256 + 95_000 * 16 + raw.nodes.len() as u64 * stipple_lod::format::NODE_SIZE
+    );
     // No temporary files remain.
     let left: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()
@@ -278,6 +313,12 @@ fn corrupt_or_truncated_trees_fail_to_open_with_a_reason() {
     b[..256].fill(0);
     std::fs::write(&bad, &b).unwrap();
     assert!(open_err(&bad).contains("interrupted"), "{}", open_err(&bad));
+    // A tree of an older format: refused, saying what to do.
+    let mut b = bytes.clone();
+    b[8..12].copy_from_slice(&1u32.to_le_bytes());
+    std::fs::write(&bad, &b).unwrap();
+    let e = open_err(&bad);
+    assert!(e.contains("version 1") && e.contains("build-lod"), "{e}");
     // Not a tree at all.
     assert!(open_err(&dir.join("a.las")).contains("not a stipple LOD tree"));
     let _ = std::fs::remove_dir_all(&dir);
@@ -327,13 +368,10 @@ fn selection_respects_the_budget_refines_monotonically_and_culls() {
             assert!(s.points >= last, "budget {budget}: {} < {last}", s.points);
             last = s.points;
             assert_eq!(s, tree_select(&tree, &cam, budget), "not deterministic");
-            // A cut: no node is another's ancestor.
+            // A cut of an additive tree: a subtree, every node drawn with its parent.
             for &n in &s.nodes {
-                let mut a = parent[n as usize];
-                while a != NONE {
-                    assert!(!s.nodes.contains(&a), "{a} is an ancestor of {n}");
-                    a = parent[a as usize];
-                }
+                let p = parent[n as usize];
+                assert!(n == 0 || s.nodes.contains(&p), "{n} without its parent {p}");
             }
         }
     }
@@ -341,22 +379,28 @@ fn selection_respects_the_budget_refines_monotonically_and_culls() {
     // and the error order puts the nearest, largest nodes first.
     let mut prev: Option<Vec<u32>> = None;
     let mut refined = 0;
+    let depth = |s: &[u32]| s.iter().map(|&i| tree.nodes[i as usize].depth).max();
     for h in [2000.0, 800.0, 300.0, 120.0, 50.0, 20.0, 8.0] {
         let cam = looking_down(c + DVec3::new(0.0, 0.0, h), c);
         let s = tree_select(&tree, &cam, u64::MAX);
         assert!(!s.budget_limited);
         assert!(s.errors.windows(2).all(|w| w[0] >= w[1]));
         if let Some(p) = &prev {
-            for &far in p {
-                let mut a = parent[far as usize];
-                while a != NONE {
-                    assert!(
-                        !s.nodes.contains(&a),
-                        "at h = {h}, {a} is coarser than {far}"
-                    );
-                    a = parent[a as usize];
-                }
-            }
+            assert!(
+                depth(&s.nodes) >= depth(p),
+                "at h = {h}, the cut got coarser"
+            );
+            // The centre's nodes stay, and gain children.
+            let centre = |s: &[u32]| -> Vec<u32> {
+                let at = (c - tree.header.origin).as_vec3();
+                s.iter()
+                    .copied()
+                    .filter(|&i| inside(&tree.nodes[i as usize].bounds, at))
+                    .collect()
+            };
+            let (was, now) = (centre(p), centre(&s.nodes));
+            assert!(was.iter().all(|n| now.contains(n)), "at h = {h}");
+            assert!(now.len() >= was.len());
             refined += s.nodes.iter().filter(|n| !p.contains(n)).count();
         }
         prev = Some(s.nodes);
@@ -396,13 +440,15 @@ fn streaming_draws_ancestors_until_nodes_arrive_and_stays_in_budget() {
     let cut_bytes: u64 = sel
         .nodes
         .iter()
-        .map(|&i| tree.nodes[i as usize].payload_size())
+        .map(|&i| tree.nodes[i as usize].records_size())
         .sum();
-    let budget = cut_bytes + cut_bytes / 4;
+    // Room for this cut: the next one's new nodes must evict some of it.
+    let budget = cut_bytes;
     let s = Streamer::new(tree.clone(), budget, 2).unwrap();
-    // Nothing requested yet: the root stands in for the whole cut.
+    // Nothing requested yet: the root (always resident) stands in for the whole cut.
     let (parts, missing) = s.resident_cut(&sel.nodes);
-    assert_eq!(missing, sel.nodes.len());
+    assert_eq!(sel.nodes[0], 0);
+    assert_eq!(missing, sel.nodes.len() - 1);
     assert_eq!(parts.iter().map(|p| p.0).collect::<Vec<_>>(), vec![0]);
     s.request(&sel.nodes);
     assert!(s.wait_idle(Duration::from_secs(30)));
@@ -427,9 +473,9 @@ fn streaming_draws_ancestors_until_nodes_arrive_and_stays_in_budget() {
             <= budget.max(
                 sel2.nodes
                     .iter()
-                    .map(|&i| tree.nodes[i as usize].payload_size())
+                    .map(|&i| tree.nodes[i as usize].records_size())
                     .sum::<u64>()
-                    + tree.nodes[0].payload_size()
+                    + tree.nodes[0].records_size()
             ),
         "{st:?}"
     );

@@ -31,8 +31,8 @@ pub struct BuildLodArgs {
     /// name and renamed when complete.
     #[arg(short, long)]
     output: PathBuf,
-    /// M: a node with fewer points is a leaf; an inner node holds at most M samples filtered
-    /// from its children.
+    /// M: a node with fewer points is a leaf; an inner node holds at most M samples taken
+    /// out of its children (every point is stored once).
     #[arg(long, default_value = "32768", value_parser = parse_m, value_name = "M")]
     max_node_points: u32,
     /// Memory budget for the build, e.g. 512M or 4G: the process's peak, the memory it held
@@ -50,6 +50,10 @@ pub struct BuildLodArgs {
     /// Replace the output if it exists.
     #[arg(long)]
     force: bool,
+    /// Store node payloads uncompressed (about 1.6x larger; a reader may then memory-map
+    /// them). By default they are LZ4-compressed byte planes.
+    #[arg(long)]
+    uncompressed: bool,
 }
 
 pub fn build_lod(a: BuildLodArgs) -> Result<()> {
@@ -112,6 +116,11 @@ pub fn build_lod_with(
         abort_after_chunks: std::env::var(ABORT_ENV).ok().and_then(|v| v.parse().ok()),
         replace: a.force,
         cancel,
+        codec: if a.uncompressed {
+            stipple_lod::format::CODEC_RAW
+        } else {
+            stipple_lod::format::CODEC_LZ4
+        },
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
