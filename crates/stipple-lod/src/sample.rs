@@ -84,9 +84,20 @@ pub fn pick(points: &[Record], bounds: &Bounds, m: usize, guess: Option<f32>) ->
     }
 }
 
-fn key(p: [f32; 3], min: glam::Vec3, inv: f32) -> u64 {
-    let c = |v: f32, lo: f32| (((v - lo) * inv) as u64).min((1 << 21) - 1);
-    c(p[0], min.x) | c(p[1], min.y) << 21 | c(p[2], min.z) << 42
+/// A point's cell key (21 bits an axis) and its squared distance from the cell's centre, in
+/// cells. Coordinates are never negative inside the box, so truncation is the floor.
+#[inline]
+fn key_and_distance2(p: [f32; 3], min: glam::Vec3, inv: f32) -> (u64, f32) {
+    let mut key = 0;
+    let mut d2 = 0.0;
+    for (a, lo) in [min.x, min.y, min.z].into_iter().enumerate() {
+        let x = ((p[a] - lo) * inv).max(0.0);
+        let c = (x as u64).min((1 << 21) - 1);
+        let f = x - c as f32 - 0.5;
+        key |= c << (21 * a);
+        d2 += f * f;
+    }
+    (key, d2)
 }
 
 /// Open-addressing table of cell keys, reused across counting rounds.
@@ -141,8 +152,8 @@ impl CellTable {
         // the centre.
         let mut best: Vec<(u32, f32)> = Vec::with_capacity(limit.min(points.len()));
         for (i, r) in points.iter().enumerate() {
-            let (h, new) = self.find(key(r.pos, min, inv));
-            let d2 = centre_distance2(r.pos, min, inv);
+            let (k, d2) = key_and_distance2(r.pos, min, inv);
+            let (h, new) = self.find(k);
             if new {
                 if best.len() == limit {
                     return Err((limit as f64 * points.len() as f64 / (i + 1) as f64) as usize + 1);
@@ -158,16 +169,6 @@ impl CellTable {
         }
         Ok(best.into_iter().map(|(i, _)| i).collect())
     }
-}
-
-/// Squared distance of a point from the centre of its cell, in cells.
-fn centre_distance2(p: [f32; 3], min: glam::Vec3, inv: f32) -> f32 {
-    let d = |v: f32, lo: f32| {
-        let x = (v - lo) * inv;
-        x - x.floor() - 0.5
-    };
-    let (a, b, c) = (d(p[0], min.x), d(p[1], min.y), d(p[2], min.z));
-    a * a + b * b + c * c
 }
 
 /// Which of a node's two children's payloads a parent takes: `chosen` indexes their
