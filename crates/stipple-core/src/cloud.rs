@@ -88,7 +88,17 @@ impl Bounds {
 pub const MAX_COORDINATE: f64 = 1e15;
 
 /// Why a finite world position cannot be kept (see [`MAX_COORDINATE`]), if it cannot.
+/// Inlined: readers call it for every point, and nearly every point is fine.
+#[inline]
 pub fn coordinate_problem(p: glam::DVec3) -> Option<String> {
+    if p.is_finite() && p.abs().max_element() <= MAX_COORDINATE {
+        return None;
+    }
+    describe_coordinate_problem(p)
+}
+
+#[cold]
+fn describe_coordinate_problem(p: glam::DVec3) -> Option<String> {
     if !p.is_finite() {
         return Some(format!(
             "a non-finite coordinate ({}, {}, {})",

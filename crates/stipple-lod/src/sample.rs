@@ -100,39 +100,44 @@ fn key_and_distance2(p: [f32; 3], min: glam::Vec3, inv: f32) -> (u64, f32) {
     (key, d2)
 }
 
-/// Open-addressing table of cell keys, reused across counting rounds.
+/// Open-addressing table of cells, reused across counting rounds. Each entry holds its
+/// cell's key and best point, so a point costs one probe of one cache line.
 struct CellTable {
-    keys: Vec<u64>,
-    slot: Vec<u32>,
+    cells: Vec<Cell>,
+    /// Table positions in the order their cells were first met (the output order, and what
+    /// the next round clears).
+    order: Vec<u32>,
     mask: usize,
     /// Multiplicative hashing keeps the product's top bits: 64 − log2(capacity).
     shift: u32,
 }
 
+#[derive(Clone, Copy)]
+struct Cell {
+    key: u64,
+    /// The point nearest the centre so far, and its squared distance (in cells).
+    best: u32,
+    d2: f32,
+}
+
 const EMPTY: u64 = u64::MAX;
 
 impl CellTable {
+    /// A table for up to `n` cells, at most half full.
     fn with_capacity(n: usize) -> CellTable {
         let cap = (n.max(8) * 2).next_power_of_two();
         CellTable {
-            keys: vec![EMPTY; cap],
-            slot: vec![0; cap],
+            cells: vec![
+                Cell {
+                    key: EMPTY,
+                    best: 0,
+                    d2: 0.0,
+                };
+                cap
+            ],
+            order: Vec::with_capacity(n),
             mask: cap - 1,
             shift: 64 - cap.trailing_zeros(),
-        }
-    }
-
-    fn find(&mut self, k: u64) -> (usize, bool) {
-        let mut h = (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
-        loop {
-            if self.keys[h] == k {
-                return (h, false);
-            }
-            if self.keys[h] == EMPTY {
-                self.keys[h] = k;
-                return (h, true);
-            }
-            h = (h + 1) & self.mask;
         }
     }
 
@@ -146,29 +151,70 @@ impl CellTable {
         s: f32,
         limit: usize,
     ) -> Result<Vec<u32>, usize> {
-        self.keys.fill(EMPTY);
+        for &h in &self.order {
+            self.cells[h as usize].key = EMPTY;
+        }
+        self.order.clear();
         let inv = 1.0 / s;
-        // Per occupied cell: the best point so far and its squared distance (in cells) from
-        // the centre.
-        let mut best: Vec<(u32, f32)> = Vec::with_capacity(limit.min(points.len()));
-        for (i, r) in points.iter().enumerate() {
-            let (k, d2) = key_and_distance2(r.pos, min, inv);
-            let (h, new) = self.find(k);
-            if new {
-                if best.len() == limit {
-                    return Err((limit as f64 * points.len() as f64 / (i + 1) as f64) as usize + 1);
-                }
-                self.slot[h] = best.len() as u32;
-                best.push((i as u32, d2));
-            } else {
-                let b = &mut best[self.slot[h] as usize];
-                if d2 < b.1 {
-                    *b = (i as u32, d2);
+        // Blocks of points: keys and slots first, with the slots' cache lines fetched ahead
+        // (a table of M cells outgrows the L2 cache, and a point costs one miss otherwise),
+        // then the probes.
+        const BLOCK: usize = 32;
+        let mut keys = [(0u64, 0f32, 0usize); BLOCK];
+        for (b, block) in points.chunks(BLOCK).enumerate() {
+            for (slot, r) in keys.iter_mut().zip(block) {
+                let (k, d2) = key_and_distance2(r.pos, min, inv);
+                let h = (k.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize;
+                prefetch(&self.cells[h]);
+                *slot = (k, d2, h);
+            }
+            for (j, &(k, d2, mut h)) in keys[..block.len()].iter().enumerate() {
+                let i = b * BLOCK + j;
+                loop {
+                    let c = &mut self.cells[h];
+                    if c.key == k {
+                        if d2 < c.d2 {
+                            c.best = i as u32;
+                            c.d2 = d2;
+                        }
+                        break;
+                    }
+                    if c.key == EMPTY {
+                        if self.order.len() == limit {
+                            return Err((limit as f64 * points.len() as f64 / (i + 1) as f64)
+                                as usize
+                                + 1);
+                        }
+                        *c = Cell {
+                            key: k,
+                            best: i as u32,
+                            d2,
+                        };
+                        self.order.push(h as u32);
+                        break;
+                    }
+                    h = (h + 1) & self.mask;
                 }
             }
         }
-        Ok(best.into_iter().map(|(i, _)| i).collect())
+        Ok(self
+            .order
+            .iter()
+            .map(|&h| self.cells[h as usize].best)
+            .collect())
     }
+}
+
+/// Asks for the cache line of `c` ahead of its use (a hint; nothing on other targets).
+#[inline(always)]
+fn prefetch<T>(c: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: prefetching is a hint that never faults, and `c` is a valid reference.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch(c as *const T as *const i8, std::arch::x86_64::_MM_HINT_T0);
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = c;
 }
 
 /// Which of a node's two children's payloads a parent takes: `chosen` indexes their
