@@ -42,6 +42,8 @@ use stipple_core::Bounds;
 
 /// Default M: leaves hold fewer points, inner nodes at most this many samples.
 pub const DEFAULT_MAX_NODE_POINTS: u32 = 32_768;
+/// The default memory budget where the machine has room for it ([`default_memory`]).
+pub const DEFAULT_MEMORY: u64 = 1 << 30;
 /// Smallest memory budget accepted.
 pub const MIN_MEMORY: u64 = 16 << 20;
 /// Bytes per point of an in-memory build: the record, its share of inner-node samples, and
@@ -109,13 +111,17 @@ impl Default for BuildOptions {
     }
 }
 
-/// A quarter of the machine's memory, at most 8 GiB (6 GiB on a 24 GiB machine), and at most
-/// three quarters of what this process can still take (free memory, within `ulimit -v`).
+/// 1 GiB, or less where that is more than a quarter of the machine's memory or three quarters
+/// of what this process can still take (free memory, within `ulimit -v`).
+///
+/// Not more: a larger budget makes larger chunks, and a 100 M-point build went from 11–13 s
+/// (1 GiB: 15 chunks, 0.44 GiB peak) to 23 s (6 GiB: 2 chunks, 2.3 GiB peak); its top levels
+/// partition on one core, and its pages are fresh (`BENCHMARKS.md`).
 pub fn default_memory() -> u64 {
     let total = crate::mem::total_memory().unwrap_or(8 << 30);
     // Within what this process can still take (free memory, `ulimit -v`).
     let free = crate::mem::available_memory().map_or(u64::MAX, |a| a / 4 * 3);
-    (total / 4).min(free).clamp(MIN_MEMORY, 8 << 30)
+    (total / 4).min(free).clamp(MIN_MEMORY, DEFAULT_MEMORY)
 }
 
 #[derive(Clone, Debug, Default)]

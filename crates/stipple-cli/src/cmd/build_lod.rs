@@ -36,9 +36,9 @@ pub struct BuildLodArgs {
     #[arg(long, default_value = "32768", value_parser = parse_m, value_name = "M")]
     max_node_points: u32,
     /// Memory budget for the build, e.g. 512M or 4G: the process's peak, the memory it held
-    /// before building (the program itself, a few MiB) included. Inputs larger than half of
-    /// what the build may use are built out of core through a spill file. Default: a quarter
-    /// of RAM, at most 8 GiB.
+    /// before building (the program itself, a few MiB) included. Inputs of more than about
+    /// 11 M points a GiB are built out of core, in chunks, through a spill file. Default:
+    /// 1 GiB (less with under 4 GiB of RAM); a larger budget does not build faster.
     #[arg(long, value_parser = parse_size, value_name = "SIZE")]
     memory: Option<u64>,
     /// Directory for the spill file of an out-of-core build (default: beside the output).
