@@ -468,16 +468,23 @@ pub fn info(p: &Path, verify: bool) -> Result<()> {
         tree.depth(),
         h.max_node_points
     );
+    let size = |b: u64| {
+        if b < 1 << 20 {
+            format!("{:.1} KiB", b as f64 / 1024.0)
+        } else {
+            format!("{:.1} MiB", b as f64 / (1 << 20) as f64)
+        }
+    };
     println!(
-        "  payloads    {:.1} MiB, each point stored once ({}: {:.2}× its {:.1} MiB of records)",
-        stored as f64 / (1 << 20) as f64,
+        "  payloads    {}, each point stored once ({}: {:.2}× its {} of records)",
+        size(stored),
         if h.codec == stipple_lod::format::CODEC_RAW {
             "uncompressed"
         } else {
             "LZ4"
         },
         stored as f64 / records.max(1) as f64,
-        records as f64 / (1 << 20) as f64
+        size(records)
     );
     println!("  bounds min  {:.4} {:.4} {:.4}", lo.x, lo.y, lo.z);
     println!("  bounds max  {:.4} {:.4} {:.4}", hi.x, hi.y, hi.z);

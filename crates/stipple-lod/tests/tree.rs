@@ -568,3 +568,113 @@ fn a_cancelled_build_stops_and_leaves_nothing() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Hostile trees whose checksums are all valid (a checksum is no protection against intent):
+/// random bytes changed anywhere, then the header's, the table's and every payload's
+/// checksum recomputed. Opening and reading every node must fail with an error or succeed,
+/// never panic or allocate what the file cannot hold (the LZ4 payloads included).
+#[test]
+fn mutated_trees_with_valid_checksums_fail_cleanly() {
+    let dir = scratch("mutate");
+    let a = write_las(&dir, "a.las", &terrain(3_000, 300, 9));
+    for codec in [
+        stipple_lod::format::CODEC_LZ4,
+        stipple_lod::format::CODEC_RAW,
+    ] {
+        let out = dir.join("t.stlod");
+        let o = BuildOptions {
+            max_node_points: 64,
+            codec,
+            replace: true,
+            ..Default::default()
+        };
+        build(std::slice::from_ref(&a), &out, &o).unwrap();
+        let good = std::fs::read(&out).unwrap();
+        let bad = dir.join("bad.stlod");
+        let mut rng = stipple_core::rng::Rng::new(codec as u64 + 1);
+        let (mut opened, mut failed_reads) = (0, 0);
+        for _ in 0..1500 {
+            let mut b = good.clone();
+            for _ in 0..1 + (rng.f64() * 4.0) as usize {
+                let at = (rng.f64() * b.len() as f64) as usize;
+                // Half the time a small change (a count off by a little), else any byte.
+                let v = if rng.f64() < 0.5 {
+                    b[at].wrapping_add(1)
+                } else {
+                    (rng.f64() * 256.0) as u8
+                };
+                b[at] = v;
+            }
+            reseal(&mut b);
+            std::fs::write(&bad, &b).unwrap();
+            if let Ok(t) = LodTree::open(&bad) {
+                opened += 1;
+                for id in 0..t.nodes.len() as u32 {
+                    if t.read_node(id).is_err() {
+                        failed_reads += 1;
+                    }
+                }
+            }
+        }
+        // A node claiming 2^30 points (16 GiB of records) in a payload of a few bytes, under
+        // a header that allows such nodes: refused at opening, before anything is allocated.
+        let mut b = good.clone();
+        b[20..24].copy_from_slice(&u32::MAX.to_le_bytes());
+        let t = LodTree::open(&out).unwrap();
+        let leaf = t.nodes.iter().rposition(|n| n.is_leaf()).unwrap();
+        let add = (1u64 << 30) - t.nodes[leaf].sample_count as u64;
+        let table = t.header.table_offset as usize;
+        let at = |i: usize| table + i * stipple_lod::format::NODE_SIZE as usize;
+        // The counts stay consistent: the leaf's box, its ancestors' and the header's.
+        let mut path = vec![leaf];
+        while let Some(p) = t
+            .nodes
+            .iter()
+            .position(|n| n.children.contains(&(path[0] as u32)))
+        {
+            path.insert(0, p);
+        }
+        for &i in &path {
+            let n = at(i) + 24;
+            let v = u64::from_le_bytes(b[n..n + 8].try_into().unwrap()) + add;
+            b[n..n + 8].copy_from_slice(&v.to_le_bytes());
+        }
+        b[at(leaf) + 32..at(leaf) + 36].copy_from_slice(&(1u32 << 30).to_le_bytes());
+        b[24..32].copy_from_slice(&(t.header.point_count + add).to_le_bytes());
+        reseal(&mut b);
+        std::fs::write(&bad, &b).unwrap();
+        let e = open_err(&bad);
+        assert!(e.contains("points in"), "codec {codec}: {e}");
+        // The mutations reached the payload decoder, not only the checks at opening.
+        assert!(opened > 100, "codec {codec}: only {opened} mutants opened");
+        assert!(
+            codec == stipple_lod::format::CODEC_RAW || failed_reads > 10,
+            "codec {codec}: {failed_reads} failed reads"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Recomputes every checksum of a (possibly damaged) tree's bytes where its offsets allow.
+fn reseal(b: &mut [u8]) {
+    use stipple_lod::format::NODE_SIZE;
+    let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().unwrap());
+    let u32_at = |b: &[u8], at: usize| u32::from_le_bytes(b[at..at + 4].try_into().unwrap());
+    let (table, size) = (u64_at(b, 88) as usize, u64_at(b, 96) as usize);
+    if table.checked_add(size).is_some_and(|e| e <= b.len()) {
+        for n in (table..table + size).step_by(NODE_SIZE as usize) {
+            if n + NODE_SIZE as usize > b.len() {
+                break;
+            }
+            let (off, len) = (u64_at(b, n + 48) as usize, u32_at(b, n + 56) as usize);
+            if off.checked_add(len).is_some_and(|e| e <= b.len()) {
+                let crc = crc32fast::hash(&b[off..off + len]);
+                b[n + 60..n + 64].copy_from_slice(&crc.to_le_bytes());
+            }
+        }
+        let crc = crc32fast::hash(&b[table..table + size]);
+        b[104..108].copy_from_slice(&crc.to_le_bytes());
+    }
+    let crc = crc32fast::hash(&b[..252]);
+    b[252..256].copy_from_slice(&crc.to_le_bytes());
+}
