@@ -440,8 +440,8 @@ fn laz_problem(
 /// Reads a LAS/LAZ file.
 pub fn read_las(path: &Path) -> Result<PointCloud, IoError> {
     let batches = LasBatches::open(path)?;
-    if let Some(chunks) = chunks_of(path, &batches)? {
-        return read_las_parallel(path, &batches.header, batches.count, &chunks);
+    if let Some(reader) = ChunkReader::open(path, &batches)? {
+        return read_las_parallel(path, &batches.header, batches.count, &reader);
     }
     read_las_batches(path, batches)
 }
@@ -667,6 +667,118 @@ fn chunks_of(path: &Path, b: &LasBatches) -> Result<Option<Chunks>, IoError> {
     Ok((first == count).then_some((chunks, Some(vlr))))
 }
 
+/// A LAS/LAZ file whose points can be read chunk by chunk, each chunk on its own (LAZ chunks
+/// from the chunk table, blocks of LAS records): the reader of [`read_las`], open to callers
+/// that stream the points instead of collecting them (`stipple build-lod`).
+pub struct ChunkReader {
+    path: std::path::PathBuf,
+    file: std::fs::File,
+    chunks: Vec<Chunk>,
+    vlr: Option<laz::LazVlr>,
+    lay: Layout,
+    scale: DVec3,
+    offset: DVec3,
+}
+
+/// The fields of one record that a streaming reader uses.
+#[derive(Clone, Copy, Debug)]
+pub struct LasPoint {
+    pub world: DVec3,
+    pub intensity: u16,
+    /// The record's colour, when its format has one.
+    pub rgb: Option<[u16; 3]>,
+}
+
+impl ChunkReader {
+    /// The reader of an opened file, or None where the file cannot be split (see
+    /// `chunks_of`: the batch reader reads those).
+    pub fn open(path: &Path, b: &LasBatches) -> Result<Option<ChunkReader>, IoError> {
+        let Some((chunks, vlr)) = chunks_of(path, b)? else {
+            return Ok(None);
+        };
+        let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
+        let t = b.header.transforms();
+        Ok(Some(ChunkReader {
+            path: path.to_owned(),
+            file,
+            chunks,
+            vlr,
+            lay: Layout::of(b.header.point_format()),
+            scale: DVec3::new(t.x.scale, t.y.scale, t.z.scale),
+            offset: DVec3::new(t.x.offset, t.y.offset, t.z.offset),
+        }))
+    }
+
+    pub fn chunks(&self) -> &[Chunk] {
+        &self.chunks
+    }
+
+    /// Whether the records carry RGB.
+    pub fn has_rgb(&self) -> bool {
+        self.lay.rgb.is_some()
+    }
+
+    /// Bytes of one record.
+    pub fn record_len(&self) -> usize {
+        self.lay.rec
+    }
+
+    /// A chunk's records into `raw` (read, or read and decompressed); safe from several
+    /// threads at once.
+    pub fn records(&self, c: &Chunk, raw: &mut Vec<u8>) -> Result<(), IoError> {
+        use std::os::unix::fs::FileExt;
+        let path = &self.path;
+        let n = c.points as usize * self.lay.rec;
+        raw.clear();
+        stipple_core::sys::try_reserve(raw, n, "a chunk of points")
+            .map_err(|m| IoError::invalid(path, m))?;
+        raw.resize(n, 0);
+        let corrupt = |e: String| {
+            IoError::invalid(
+                path,
+                format!(
+                    "point data is corrupt or truncated in the chunk of points {} to {}: {e}",
+                    c.first,
+                    c.first + c.points
+                ),
+            )
+        };
+        match &self.vlr {
+            None => self
+                .file
+                .read_exact_at(raw, c.offset)
+                .map_err(|e| corrupt(e.to_string())),
+            Some(vlr) => {
+                let mut bytes = vec![0u8; c.bytes as usize];
+                self.file
+                    .read_exact_at(&mut bytes, c.offset)
+                    .map_err(|e| corrupt(e.to_string()))?;
+                decode_chunk(&bytes, raw, vlr, c.points).map_err(corrupt)
+            }
+        }
+    }
+
+    /// The world position of a record.
+    #[inline]
+    pub fn world(&self, r: &[u8]) -> DVec3 {
+        let i = |o: usize| i32::from_le_bytes(r[o..o + 4].try_into().unwrap()) as f64;
+        DVec3::new(i(0), i(4), i(8)) * self.scale + self.offset
+    }
+
+    /// The fields of a record.
+    #[inline]
+    pub fn point(&self, r: &[u8]) -> LasPoint {
+        LasPoint {
+            world: self.world(r),
+            intensity: u16::from_le_bytes([r[12], r[13]]),
+            rgb: self.lay.rgb.map(|at| {
+                let v = |o: usize| u16::from_le_bytes([r[at + o], r[at + o + 1]]);
+                [v(0), v(2), v(4)]
+            }),
+        }
+    }
+}
+
 /// The columns a chunk's points go to (its share of the cloud's arrays).
 struct ChunkOut<'a> {
     pos: &'a mut [glam::Vec3],
@@ -734,51 +846,14 @@ fn read_las_parallel(
     path: &Path,
     header: &las::Header,
     count: u64,
-    (chunks, vlr): &Chunks,
+    reader: &ChunkReader,
 ) -> Result<PointCloud, IoError> {
     use rayon::prelude::*;
-    use std::os::unix::fs::FileExt;
-    let file = std::fs::File::open(path).map_err(|e| IoError::io(path, e))?;
     let fmt = header.point_format();
-    let lay = Layout::of(fmt);
-    let t = header.transforms();
-    let (scale, offset) = (
-        DVec3::new(t.x.scale, t.y.scale, t.z.scale),
-        DVec3::new(t.x.offset, t.y.offset, t.z.offset),
-    );
-    let world = |r: &[u8]| {
-        let i = |o: usize| i32::from_le_bytes(r[o..o + 4].try_into().unwrap()) as f64;
-        DVec3::new(i(0), i(4), i(8)) * scale + offset
-    };
-    // A chunk's records: read (LAS) or read and decompressed (LAZ).
-    let records = |c: &Chunk, raw: &mut Vec<u8>| -> Result<(), IoError> {
-        let n = c.points as usize * lay.rec;
-        raw.clear();
-        stipple_core::sys::try_reserve(raw, n, "a chunk of points")
-            .map_err(|m| IoError::invalid(path, m))?;
-        raw.resize(n, 0);
-        let corrupt = |e: String| {
-            IoError::invalid(
-                path,
-                format!(
-                    "point data is corrupt or truncated in the chunk of points {} to {}: {e}",
-                    c.first,
-                    c.first + c.points
-                ),
-            )
-        };
-        match vlr {
-            None => file
-                .read_exact_at(raw, c.offset)
-                .map_err(|e| corrupt(e.to_string())),
-            Some(vlr) => {
-                let mut bytes = vec![0u8; c.bytes as usize];
-                file.read_exact_at(&mut bytes, c.offset)
-                    .map_err(|e| corrupt(e.to_string()))?;
-                decode_chunk(&bytes, raw, vlr, c.points).map_err(corrupt)
-            }
-        }
-    };
+    let lay = reader.lay;
+    let chunks = reader.chunks();
+    let world = |r: &[u8]| reader.world(r);
+    let records = |c: &Chunk, raw: &mut Vec<u8>| reader.records(c, raw);
     // The origin, as the batch reader chooses it: the header's centre when the header's
     // bounds hold the first chunk's points, else that chunk's centre.
     let mut raw = Vec::new();
