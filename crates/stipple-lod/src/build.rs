@@ -114,9 +114,9 @@ impl Default for BuildOptions {
 /// 1 GiB, or less where that is more than a quarter of the machine's memory or three quarters
 /// of what this process can still take (free memory, within `ulimit -v`).
 ///
-/// Not more: a larger budget makes larger chunks, and a 100 M-point build went from 11–13 s
-/// (1 GiB: 15 chunks, 0.44 GiB peak) to 23 s (6 GiB: 2 chunks, 2.3 GiB peak); its top levels
-/// partition on one core, and its pages are fresh (`BENCHMARKS.md`).
+/// Not more: a larger budget makes larger chunks, and a 100 M-point build took 14.9 s at
+/// 1 GiB (15 chunks, 0.44 GiB peak) and 23.1 s at 6 GiB (2 chunks, 2.3 GiB peak): large
+/// chunks partition their top levels on one core and touch fresh pages (`BENCHMARKS.md`).
 pub fn default_memory() -> u64 {
     let total = crate::mem::total_memory().unwrap_or(8 << 30);
     // Within what this process can still take (free memory, `ulimit -v`).
