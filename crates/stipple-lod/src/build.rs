@@ -590,15 +590,8 @@ impl Out {
         (li, ls): (usize, Vec<Record>),
         (ri, rs): (usize, Vec<Record>),
     ) -> Result<(usize, Vec<Record>), LodError> {
-        let mut merged = ls;
-        let left = merged.len();
-        merged.extend_from_slice(&rs);
-        drop(rs);
         let child = self.arena[li].spacing.max(self.arena[ri].spacing);
-        let guess = sample::first_guess(child, merged.len(), m);
-        let (chosen, spacing) = sample::pick(&merged, &bounds, m, guess);
-        let samples: Vec<Record> = chosen.iter().map(|&i| merged[i as usize]).collect();
-        let (tl, tr) = sample::taken_masks(&chosen, left, merged.len());
+        let t = sample::take(&ls, &rs, &bounds, m, child);
         let kept = |part: &[Record], taken: &[bool]| -> Vec<Record> {
             part.iter()
                 .zip(taken)
@@ -606,8 +599,9 @@ impl Out {
                 .map(|(r, _)| *r)
                 .collect()
         };
-        self.finish(li, &kept(&merged[..left], &tl))?;
-        self.finish(ri, &kept(&merged[left..], &tr))?;
+        self.finish(li, &kept(&ls, &t.left))?;
+        self.finish(ri, &kept(&rs, &t.right))?;
+        let (samples, spacing) = (t.samples, t.spacing);
         let i = self.pending(bounds, count, Some([li, ri]), spacing, depth);
         Ok((i, samples))
     }

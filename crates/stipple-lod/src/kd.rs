@@ -160,16 +160,16 @@ fn build_at(
         )
     };
     // The node's samples are taken out of its children's payloads.
-    let mut merged = ln[0].samples_at(recs, base).to_vec();
-    let left = merged.len();
-    merged.extend_from_slice(rn[0].samples_at(recs, base));
-    let guess = sample::first_guess(ln[0].spacing.max(rn[0].spacing), merged.len(), m);
-    let (chosen, spacing) = sample::pick(&merged, &bounds, m, guess);
-    let samples: Vec<Record> = chosen.iter().map(|&i| merged[i as usize]).collect();
-    let (tl, tr) = sample::taken_masks(&chosen, left, merged.len());
-    drop(merged);
-    ln[0].give_up(&tl, recs, base);
-    rn[0].give_up(&tr, recs, base);
+    let t = sample::take(
+        ln[0].samples_at(recs, base),
+        rn[0].samples_at(recs, base),
+        &bounds,
+        m,
+        ln[0].spacing.max(rn[0].spacing),
+    );
+    ln[0].give_up(&t.left, recs, base);
+    rn[0].give_up(&t.right, recs, base);
+    let (samples, spacing) = (t.samples, t.spacing);
     let mut out = Vec::with_capacity(1 + ln.len() + rn.len());
     out.push(LocalNode {
         bounds,

@@ -217,9 +217,43 @@ fn prefetch<T>(c: &T) {
     let _ = c;
 }
 
-/// Which of a node's two children's payloads a parent takes: `chosen` indexes their
-/// concatenation (left first, `left` records long). Returns one mask per child.
-pub fn taken_masks(chosen: &[u32], left: usize, total: usize) -> (Vec<bool>, Vec<bool>) {
+/// What a parent takes out of its two children's payloads.
+pub struct Taken {
+    /// The parent's samples, in the order [`pick`] gives them.
+    pub samples: Vec<Record>,
+    /// Their cell size: the parent's spacing.
+    pub spacing: f32,
+    /// Which records of the left and of the right child were taken.
+    pub left: Vec<bool>,
+    pub right: Vec<bool>,
+}
+
+/// Takes at most `m` samples out of two children's payloads (`left`, `right`; all inside
+/// `bounds`), whose spacings are at most `child_spacing` (the first guess of the cell size).
+pub fn take(
+    left: &[Record],
+    right: &[Record],
+    bounds: &Bounds,
+    m: usize,
+    child_spacing: f32,
+) -> Taken {
+    let mut merged = Vec::with_capacity(left.len() + right.len());
+    merged.extend_from_slice(left);
+    merged.extend_from_slice(right);
+    let guess = first_guess(child_spacing, merged.len(), m);
+    let (chosen, spacing) = pick(&merged, bounds, m, guess);
+    let (l, r) = taken_masks(&chosen, left.len(), merged.len());
+    Taken {
+        samples: chosen.iter().map(|&i| merged[i as usize]).collect(),
+        spacing,
+        left: l,
+        right: r,
+    }
+}
+
+/// Which of the two children's records `chosen` (indices into their concatenation, `left`
+/// records first) names.
+fn taken_masks(chosen: &[u32], left: usize, total: usize) -> (Vec<bool>, Vec<bool>) {
     let mut l = vec![false; left];
     let mut r = vec![false; total - left];
     for &i in chosen {
