@@ -41,8 +41,22 @@ const LEVELS: usize = 1024;
 /// Points per chunk of the parallel edge listing.
 const CHUNK: usize = 1 << 14;
 
+/// One thread's buffers for listing a chunk's edges, kept from chunk to chunk: fresh ones
+/// (a few MB a chunk) were mapped and zeroed by the kernel page by page each time, which
+/// cost Autzen's orientation more than the listing and the counting sort themselves.
+#[derive(Default)]
+struct Scratch {
+    /// (edge, level) as listed.
+    edges: Vec<(u64, u16)>,
+    /// The edges in order of level.
+    sorted: Vec<u64>,
+    /// The chunk's own spanning forest.
+    local: Forest,
+}
+
 /// Union–find with the parity of each element relative to its parent, kept in one word per
 /// element (parent index, parity in the top bit: one memory access per step).
+#[derive(Default)]
 struct Forest {
     link: Vec<u32>,
     size: Vec<u32>,
@@ -52,11 +66,18 @@ const PARITY: u32 = 1 << 31;
 
 impl Forest {
     fn new(n: usize) -> Forest {
+        let mut f = Forest::default();
+        f.reset(n);
+        f
+    }
+
+    /// n elements, each its own set (the buffers kept).
+    fn reset(&mut self, n: usize) {
         debug_assert!(n < PARITY as usize);
-        Forest {
-            link: (0..n as u32).collect(),
-            size: vec![1; n],
-        }
+        self.link.clear();
+        self.link.extend(0..n as u32);
+        self.size.clear();
+        self.size.resize(n, 1);
     }
 
     /// The root of x's set and x's parity relative to it (with path compression).
@@ -187,9 +208,14 @@ pub fn orient_components(
     let chunks: Vec<(Vec<u64>, Vec<u32>)> = order
         .par_chunks(CHUNK)
         .enumerate()
-        .map(|(c, members)| {
+        .map_init(Scratch::default, |scratch, (c, members)| {
             let first = c * CHUNK;
-            let mut edges: Vec<(u64, u16)> = Vec::with_capacity(members.len() * TREE_K);
+            let Scratch {
+                edges,
+                sorted,
+                local,
+            } = scratch;
+            edges.clear();
             let mut count = vec![0u32; LEVELS + 1];
             for &i in members {
                 let i = i as usize;
@@ -216,21 +242,21 @@ pub fn orient_components(
                 count[l + 1] += count[l];
             }
             let mut at = count.clone();
-            let mut sorted = vec![0u64; edges.len()];
-            for &(e, l) in &edges {
+            sorted.clear();
+            sorted.resize(edges.len(), 0);
+            for &(e, l) in edges.iter() {
                 sorted[at[l as usize] as usize] = e;
                 at[l as usize] += 1;
             }
-            drop(edges);
             if !spatial {
-                return (sorted, count);
+                return (sorted.clone(), count);
             }
             // Kruskal's loop within the chunk first: an edge between two of its points that
             // closes a cycle of edges taken before it (lighter, or as light and earlier)
             // closes the same cycle in the whole graph, where the serial loop would drop
             // it. So only the chunk's own spanning-forest edges and the edges that leave
             // the chunk go on, in the same order, and the forest is the same.
-            let mut local = Forest::new(members.len());
+            local.reset(members.len());
             let within = |x: usize| {
                 let r = rank[x] as usize;
                 (first..first + members.len())
@@ -255,8 +281,7 @@ pub fn orient_components(
                 }
             }
             start[LEVELS] = kept as u32;
-            sorted.truncate(kept);
-            (sorted, start)
+            (sorted[..kept].to_vec(), start)
         })
         .collect();
     drop(rank);
