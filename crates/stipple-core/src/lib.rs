@@ -10,6 +10,7 @@ pub mod grouping;
 pub mod lookup;
 pub mod mesh;
 pub mod normals;
+pub mod par;
 pub mod rng;
 pub mod sys;
 pub mod volume;
