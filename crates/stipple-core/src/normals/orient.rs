@@ -21,15 +21,17 @@
 //! them by level on its own, and the serial loop takes level after level from every chunk
 //! in turn (no global array of edges). An edge that both of its ends list (each is among
 //! the other's nearest, as most are) is listed once, which halves the serial loop's work.
-//! Where the file's order scatters neighbours (LiDAR flight lines, COPC nodes: the serial
-//! loop's union–find then misses the cache on every edge), chunks are runs of points in a
-//! spatial order (a coarse Morton grid), and each runs Kruskal's loop on its own edges
-//! first: by the cycle property, an edge that closes a cycle within the chunk is dropped by
-//! the serial loop too, so only the chunk's own spanning-forest edges and the edges that
-//! leave it go on (Autzen: 59 M edges → 16 M). Where the file keeps neighbours together
-//! (meshes, most scans), chunks follow the file and nothing is dropped early.
+//! Each chunk runs Kruskal's loop on its own edges first: by the cycle property, an edge
+//! that closes a cycle within the chunk is dropped by the serial loop too, so only the
+//! chunk's own spanning-forest edges and the edges that leave it go on (Autzen: 59 M edges
+//! → 12 M). Where the points' order keeps neighbours together (the neighbour search's
+//! order, in which the estimators run; meshes; most scans) chunks are wide runs of that
+//! order, from which few edges leave. Where it scatters them (LiDAR flight lines, COPC
+//! nodes: the serial loop's union–find would miss the cache on every edge), chunks are
+//! runs of points in a spatial order (a coarse Morton grid).
 //! On the Dragon (437 645 points): 276 ms with Prim, 84 ms with one global counting sort,
-//! 55 ms now; on Autzen (10.65 M), 6.3 → 2.8 → 2.0–2.5 s (BENCHMARKS.md).
+//! 55 ms with chunks in the file's order and no loop of their own, 54 ms now; on Autzen
+//! (10.65 M), 6.3 → 2.8 → 2.0–2.5 → 1.8–2.0 s (BENCHMARKS.md).
 
 use super::{same_layer, Neighbours, TREE_K};
 use crate::cloud::Bounds;
@@ -40,6 +42,9 @@ const LEVELS: usize = 1024;
 
 /// Points per chunk of the parallel edge listing.
 const CHUNK: usize = 1 << 14;
+
+/// Points per chunk at most where the points' own order keeps neighbours together.
+const WIDE: usize = 1 << 18;
 
 /// One thread's buffers for listing a chunk's edges, kept from chunk to chunk: fresh ones
 /// (a few MB a chunk) were mapped and zeroed by the kernel page by page each time, which
@@ -185,18 +190,19 @@ pub fn orient_components(
     // never move into one global array. An edge that both ends list (each is among the
     // other's nearest) is kept once, by the end with the smaller index.
     let nr: &[Vec3] = normals;
-    // Where the file's order scatters neighbours (LiDAR in flight order, COPC in node
-    // order), the serial loop's union–find misses the cache on every edge (Autzen: 37 ns
-    // an edge, against 11 on the Dragon, whose file keeps neighbours together). There the
-    // chunks are runs of points in a spatial order (Morton order of a coarse grid), and
-    // each chunk drops the edges that close a cycle within it (below), which leaves the
-    // serial loop a quarter of the edges. Elsewhere the file's order is kept, and nothing
-    // is dropped: the local loop would cost about what it saves.
-    let spatial = local_fraction(nb, CHUNK / 2) < 0.9;
-    let order: Vec<u32> = if spatial {
-        spatial_order(positions)
+    // Each chunk drops the edges that close a cycle within it (below), which leaves the
+    // serial loop a fifth of the edges. Where the points' order scatters neighbours (LiDAR
+    // in flight order, COPC in node order; the serial loop's union–find would miss the
+    // cache on every edge: Autzen, 37 ns an edge against 11 on the Dragon), chunks are
+    // runs of points in a spatial order (Morton order of a coarse grid). Elsewhere they are
+    // wide runs of the points' own order (up to 2^18 points, at least four a thread): few
+    // edges leave them, and no order or rank is computed (the Dragon: 63 → 54 ms).
+    let wide = (n / (4 * rayon::current_num_threads())).clamp(CHUNK, WIDE);
+    let spatial = local_fraction(nb, wide / 2) < 0.9;
+    let (order, chunk): (Vec<u32>, usize) = if spatial {
+        (spatial_order(positions), CHUNK)
     } else {
-        (0..n as u32).collect()
+        ((0..n as u32).collect(), wide)
     };
     let mut rank = Vec::new();
     if spatial {
@@ -206,10 +212,10 @@ pub fn orient_components(
         }
     }
     let chunks: Vec<(Vec<u64>, Vec<u32>)> = order
-        .par_chunks(CHUNK)
+        .par_chunks(chunk)
         .enumerate()
         .map_init(Scratch::default, |scratch, (c, members)| {
-            let first = c * CHUNK;
+            let first = c * chunk;
             let Scratch {
                 edges,
                 sorted,
@@ -248,9 +254,6 @@ pub fn orient_components(
                 sorted[at[l as usize] as usize] = e;
                 at[l as usize] += 1;
             }
-            if !spatial {
-                return (sorted.clone(), count);
-            }
             // Kruskal's loop within the chunk first: an edge between two of its points that
             // closes a cycle of edges taken before it (lighter, or as light and earlier)
             // closes the same cycle in the whole graph, where the serial loop would drop
@@ -258,7 +261,7 @@ pub fn orient_components(
             // the chunk go on, in the same order, and the forest is the same.
             local.reset(members.len());
             let within = |x: usize| {
-                let r = rank[x] as usize;
+                let r = if spatial { rank[x] as usize } else { x };
                 (first..first + members.len())
                     .contains(&r)
                     .then(|| (r - first) as u32)
