@@ -3,7 +3,7 @@
 //!
 //! The graph joins each point to its [`TREE_K`] nearest neighbours on the same layer
 //! ([`same_layer`]), with edge weight 1 − |nᵢ·nⱼ| in 1024 levels (lower across a sharp
-//! crease where the points' places say clearly how the signs relate: `weight`, `flips`).
+//! crease where the points' places say clearly how the signs relate: `relation`).
 //! Edges are taken in order of
 //! weight (a counting sort over the levels), and each edge that joins two trees of the
 //! forest is a tree edge, as in Kruskal's algorithm. Orientation then propagates along the
@@ -125,22 +125,6 @@ impl Forest {
     }
 }
 
-/// Whether normal j must turn round to agree with normal i. Nearly parallel normals (less
-/// than 60° apart, or more than 120°) agree when they point the same way (Hoppe et al.). At
-/// a sharp crease, normals 60–120° apart (a box's edge; a tetrahedron's, 109°) say little
-/// by their dot product, which the noise of a fit or the crease's angle can turn either
-/// way (a tetrahedron's consistent normals have a negative one). There the points' places
-/// decide: across a convex edge each point lies behind the other's tangent plane, across a
-/// concave one in front of it, so consistent normals put each on opposite sides
-/// ((nᵢ·d)(nⱼ·d) < 0, d = pⱼ − pᵢ), when both points lie clearly off the other's plane.
-pub(super) fn flips(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> bool {
-    let c = normals[i].dot(normals[j]);
-    match crease_sides(positions, normals, i, j) {
-        Some((ha, hb)) => ha * hb > 0.0,
-        None => c < 0.0,
-    }
-}
-
 /// Normals this near parallel (or antiparallel; cosine) go by their dot product.
 const PARALLEL: f32 = 0.5;
 /// A point this far off the other's tangent plane (over their distance) is off it.
@@ -159,20 +143,42 @@ fn crease_sides(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> Opt
     (ha.abs() > OFF * len && hb.abs() > OFF * len).then_some((ha, hb))
 }
 
-/// The spanning tree's edge weight: 1 − |nᵢ·nⱼ| (Hoppe et al.), lowered across a sharp
-/// crease by how clearly the points lie off each other's planes (there [`flips`] decides by
-/// their places, surely when they are far off), so that the tree crosses creases where the
-/// evidence is clear rather than where a point sits on the edge itself.
-pub(super) fn weight(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> f32 {
-    let c = normals[i].dot(normals[j]).abs();
+/// An edge's weight in the spanning tree, and whether normal j must turn round to agree
+/// with normal i (the edge's flip), from one look at the two points. The edge listing,
+/// which runs in parallel, carries the flip to the serial loop in the edge's top bit
+/// ([`FLIP`]), so that loop reads no normals or positions.
+///
+/// The weight is 1 − |nᵢ·nⱼ| (Hoppe et al.), lowered across a sharp crease by how clearly
+/// the points lie off each other's planes (there the flip goes by their places, surely
+/// when they are far off), so that the tree crosses creases where the evidence is clear
+/// rather than where a point sits on the edge itself.
+///
+/// The flip: nearly parallel normals (less than 60° apart, or more than 120°) agree when
+/// they point the same way (Hoppe et al.). At a sharp crease, normals 60–120° apart (a
+/// box's edge; a tetrahedron's, 109°) say little by their dot product, which the noise of
+/// a fit or the crease's angle can turn either way (a tetrahedron's consistent normals have
+/// a negative one). There the points' places decide: across a convex edge each point lies
+/// behind the other's tangent plane, across a concave one in front of it, so consistent
+/// normals put each on opposite sides ((nᵢ·d)(nⱼ·d) < 0, d = pⱼ − pᵢ), when both points lie
+/// clearly off the other's plane.
+#[inline]
+fn relation(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> (f32, bool) {
+    let c = normals[i].dot(normals[j]);
     match crease_sides(positions, normals, i, j) {
         Some((ha, hb)) => {
             let len = (positions[j] - positions[i]).length();
-            1.0 - c.max(ha.abs().min(hb.abs()) / len)
+            (
+                1.0 - c.abs().max(ha.abs().min(hb.abs()) / len),
+                ha * hb > 0.0,
+            )
         }
-        None => 1.0 - c,
+        None => (1.0 - c.abs(), c < 0.0),
     }
 }
+
+/// The top bit of a listed edge (i << 32 | j, i < 2^31): set where j's normal must turn
+/// round to agree with i's.
+const FLIP: u64 = 1 << 63;
 
 /// [`super::orient`], also returning each point's connected component (0, 1, ..., numbered
 /// by their highest points, highest first).
@@ -237,10 +243,11 @@ pub fn orient_components(
                             continue;
                         }
                     }
-                    let w = weight(positions, nr, i, j);
+                    let (w, flip) = relation(positions, nr, i, j);
                     let level =
                         ((w.clamp(0.0, 1.0) * (LEVELS - 1) as f32) as usize).min(LEVELS - 1);
-                    edges.push(((i as u64) << 32 | j as u64, level as u16));
+                    let e = (flip as u64) << 63 | (i as u64) << 32 | j as u64;
+                    edges.push((e, level as u16));
                     count[level + 1] += 1;
                 }
             }
@@ -272,7 +279,7 @@ pub fn orient_components(
                 start[l] = kept as u32;
                 for s in count[l] as usize..count[l + 1] as usize {
                     let e = sorted[s];
-                    let (i, j) = ((e >> 32) as usize, (e as u32) as usize);
+                    let (i, j) = (((e & !FLIP) >> 32) as usize, (e as u32) as usize);
                     let keep = match (within(i), within(j)) {
                         (Some(a), Some(b)) => local.join(a, b, 0),
                         _ => true,
@@ -293,9 +300,8 @@ pub fn orient_components(
     'levels: for l in 0..LEVELS {
         for (sorted, start) in &chunks {
             for &e in &sorted[start[l] as usize..start[l + 1] as usize] {
-                let (i, j) = ((e >> 32) as u32, e as u32);
-                let rel = flips(positions, nr, i as usize, j as usize) as u8;
-                if forest.join(i, j, rel) {
+                let (i, j) = (((e & !FLIP) >> 32) as u32, e as u32);
+                if forest.join(i, j, (e >> 63) as u8) {
                     joined += 1;
                     if joined + 1 == n {
                         break 'levels;
