@@ -2660,6 +2660,31 @@ mod tests {
         assert_brute_force(&sphere(3000, 7), 97);
     }
 
+    /// Two clusters 10⁵ apart: the grid's cells then need about 19 bits an axis, more than
+    /// the 32 the radix sort's packed words hold, and the grid is ordered by the comparison
+    /// sort instead; the neighbours are still brute force's. (The far cluster is ten times
+    /// larger, so that rounding to f32 at 10⁵, steps of 0.008, makes no two of its points
+    /// exact copies, which brute force would count and the search leaves out.) And a flat
+    /// cluster: no bits for z.
+    #[test]
+    fn knn_matches_brute_force_when_cells_do_not_pack() {
+        let mut pts = sphere(1500, 3);
+        pts.extend(sphere(1500, 4).iter().map(|&p| p * 10.0 + Vec3::splat(1e5)));
+        let mut bits: Vec<[u32; 3]> = pts
+            .iter()
+            .map(|p| [p.x.to_bits(), p.y.to_bits(), p.z.to_bits()])
+            .collect();
+        bits.sort_unstable();
+        bits.dedup();
+        assert_eq!(bits.len(), pts.len(), "exact copies");
+        assert_brute_force(&pts, 37);
+        let mut r = Rng::new(9);
+        let flat: Vec<Vec3> = (0..3000)
+            .map(|_| Vec3::new(r.f32() * 10.0, r.f32() * 10.0, 0.0))
+            .collect();
+        assert_brute_force(&flat, 41);
+    }
+
     /// The same, point by point, on a cloud with everything the search special-cases:
     /// exact copies (each takes the neighbours of its first copy; copies are nobody's
     /// neighbours), a lattice (ties, broken by the smaller index), a denser cluster and a
