@@ -1611,7 +1611,26 @@ fn shape_at(
     planes.sort_by(|a, b| a.0.total_cmp(&b.0));
     if let Some(&(_, m0, c0)) = planes.first() {
         out.clip[0] = [m0.x, m0.y, m0.z, c0];
-        if let Some(&(_, m1, c1)) = planes.iter().find(|e| e.1.dot(m0) < CREASE_COS) {
+        // The second plane, across a crease from the first: the one whose trace on the
+        // splat's plane passes nearest the point, that distance weighted by how alike its
+        // cut's direction is to the first's. Where three or more faces meet (an
+        // octahedron's corners, a cone's apex) the nearest such plane may cut from nearly
+        // the first's side (a plane through the vertex itself) and leave the edge on the
+        // other side unclipped (the cone, estimated normals: pixels outside its silhouette
+        // 169 → 133, IoU 0.989 → 0.991; no sparse scene of the splat tests worse).
+        let side = |m: Vec3| m - n * n.dot(m);
+        let u0 = side(m0).normalize_or_zero();
+        let second = planes
+            .iter()
+            .filter(|e| e.1.dot(m0) < CREASE_COS)
+            .map(|e| {
+                let along = side(e.1);
+                let apart = e.0 / along.length().max(1e-6);
+                (apart * (1.0 + 0.5 * u0.dot(along.normalize_or_zero())), e)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map(|(_, e)| e);
+        if let Some(&(_, m1, c1)) = second {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
         }
     } else if let Some(plane) = boundary_plane(positions, normals, nb, i, n) {
