@@ -178,6 +178,18 @@ fn key_of(c: [i64; 3]) -> u64 {
     ((c[0] as u64) << 42) | ((c[1] as u64) << 21) | (c[2] as u64)
 }
 
+/// The runs (key, start, length) of equal keys in a sorted sequence of cell keys.
+fn runs_of(keys: impl Iterator<Item = u64>) -> Vec<(u64, u32, u32)> {
+    let mut runs: Vec<(u64, u32, u32)> = Vec::new();
+    for (s, k) in keys.enumerate() {
+        match runs.last_mut() {
+            Some(r) if r.0 == k => r.2 += 1,
+            _ => runs.push((k, s as u32, 1)),
+        }
+    }
+    runs
+}
+
 /// A cell key's slot in the table, before the mask. A product's bits depend only on the
 /// key's bits below them, so its high half is folded into its low: the product's bits
 /// 20–40 alone (the slot before) held only z and y, and every cell of one (y, z) row across
@@ -236,7 +248,6 @@ impl Grid {
         let top = cell_of(max);
         let width = |m: i64| 64 - (m as u64).leading_zeros();
         let (bx, by, bz) = (width(top[0]), width(top[1]), width(top[2]));
-        let mut runs: Vec<(u64, u32, u32)> = Vec::new();
         if bx + by + bz <= 32 && positions.len() < u32::MAX as usize {
             let mut v: Vec<u64> = positions
                 .par_iter()
@@ -254,23 +265,14 @@ impl Grid {
                 .collect();
             crate::par::sort_bits(&mut v, 32, bx + by + bz);
             let (my, mz) = ((1u64 << by) - 1, (1u64 << bz) - 1);
-            let mut last = u64::MAX;
-            for (s, &e) in v.iter().enumerate() {
+            let runs = runs_of(v.iter().map(|&e| {
                 let packed = e >> 32;
-                if packed == last {
-                    if let Some(r) = runs.last_mut() {
-                        r.2 += 1;
-                    }
-                } else {
-                    last = packed;
-                    let c = [
-                        (packed >> (by + bz)) as i64,
-                        ((packed >> bz) & my) as i64,
-                        (packed & mz) as i64,
-                    ];
-                    runs.push((key_of(c), s as u32, 1));
-                }
-            }
+                key_of([
+                    (packed >> (by + bz)) as i64,
+                    ((packed >> bz) & my) as i64,
+                    (packed & mz) as i64,
+                ])
+            }));
             let ids = v.par_iter().map(|&e| e as u32).collect();
             return (ids, runs);
         }
@@ -280,12 +282,7 @@ impl Grid {
             .map(|(i, &p)| (key_of(cell_of(p)), i as u32))
             .collect();
         keyed.par_sort_unstable();
-        for (s, &(k, _)) in keyed.iter().enumerate() {
-            match runs.last_mut() {
-                Some(r) if r.0 == k => r.2 += 1,
-                _ => runs.push((k, s as u32, 1)),
-            }
-        }
+        let runs = runs_of(keyed.iter().map(|&(k, _)| k));
         (keyed.par_iter().map(|&(_, i)| i).collect(), runs)
     }
 
