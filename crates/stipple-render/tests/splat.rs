@@ -11,7 +11,8 @@
 //! * normal error median ≤ 5°, 90th percentile ≤ 15°.
 //!
 //! `SPLAT_DEBUG=1` prints each scene's surface report and writes depth-error maps (green
-//! within 0.5%, red nearer, blue deeper) beside the renders in `target/test-output/`.
+//! within 0.5%, red nearer, blue deeper) and silhouette maps (red: covered outside the
+//! silhouette; blue: inside it, not covered) beside the renders in `target/test-output/`.
 //!
 //! The GPU twin of the splat pass must agree with the CPU (Voronoi ids on ≥ 99% of pixels:
 //! GPUs may fuse multiply-adds, so a near tie between two splats can go either way).
@@ -96,12 +97,29 @@ fn trace(cam: &Camera, sdf: Sdf, i: u32, j: u32) -> Option<(f64, DVec3)> {
     let (o, d) = cam.pixel_ray(i, j);
     let f = cam.basis().forward;
     let mut t = 0.0;
+    let mut last = 0.0;
     for _ in 0..600 {
         let p = o + d * t;
         let s = sdf(p);
+        if s < -1e-9 {
+            // Stepped through (a distance that is exact only near the surface): bisect
+            // back between the last point outside and this one.
+            let (mut a, mut b) = (last, t);
+            for _ in 0..60 {
+                let m = 0.5 * (a + b);
+                if sdf(o + d * m) > 0.0 {
+                    a = m;
+                } else {
+                    b = m;
+                }
+            }
+            let p = o + d * b;
+            return Some(((p - cam.eye).dot(f), gradient(sdf, p)));
+        }
         if s < 1e-9 {
             return Some(((p - cam.eye).dot(f), gradient(sdf, p)));
         }
+        last = t;
         t += s;
         if t > 100.0 {
             break;
@@ -192,12 +210,17 @@ struct Report {
 
 impl Report {
     fn check(&self, what: &str) {
+        self.check_shape(what);
+        assert!(self.normal_median <= 5.0, "{what}: {self:?}");
+        assert!(self.normal_p90 <= 15.0, "{what}: {self:?}");
+    }
+
+    /// The silhouette and depth bounds of [`Report::check`], not the normals'.
+    fn check_shape(&self, what: &str) {
         eprintln!("{what}: {self:?}");
         assert!(self.iou >= 0.99, "{what}: {self:?}");
         assert!(self.depth_within >= 0.95, "{what}: {self:?}");
         assert!(self.behind <= 0.02, "{what}: {self:?}");
-        assert!(self.normal_median <= 5.0, "{what}: {self:?}");
-        assert!(self.normal_p90 <= 15.0, "{what}: {self:?}");
     }
 }
 
@@ -258,10 +281,13 @@ fn measure(name: &str, cam: &Camera, sdf: Sdf, cloud: PointCloud, mode: SplatMod
         errs.push(n.dot(tn).clamp(-1.0, 1.0).acos().to_degrees());
     }
     if std::env::var("SPLAT_DEBUG").is_ok() {
-        // Depth error map: green within, red nearer, blue deeper than the truth.
+        // Depth error map: green within, red nearer, blue deeper than the truth; and the
+        // silhouette: grey both, red covered outside it, blue inside it not covered.
         let mut img = vec![0u8; w * h * 4];
+        let mut sil = vec![0u8; w * h * 4];
         for k in 0..w * h {
-            if let (Some((td, _)), true) = (truth[k], frame.id[k] != BACKGROUND) {
+            let covered = frame.id[k] != BACKGROUND;
+            if let (Some((td, _)), true) = (truth[k], covered) {
                 let e = (frame.depth[k] as f64 - td) / (0.005 * range);
                 let px = if e.abs() <= 1.0 {
                     [0, 160, 0]
@@ -272,15 +298,25 @@ fn measure(name: &str, cam: &Camera, sdf: Sdf, cloud: PointCloud, mode: SplatMod
                 };
                 img[4 * k..4 * k + 3].copy_from_slice(&px);
             }
+            let px = match (covered, truth[k].is_some()) {
+                (true, true) => [200, 200, 200],
+                (true, false) => [255, 0, 0],
+                (false, true) => [0, 0, 255],
+                _ => [0, 0, 0],
+            };
+            sil[4 * k..4 * k + 3].copy_from_slice(&px);
             img[4 * k + 3] = 255;
+            sil[4 * k + 3] = 255;
         }
         let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/test-output");
-        let _ = stipple_io::image::write_png(
-            &dir.join(format!("{name}-deptherr.png")),
-            w as u32,
-            h as u32,
-            &img,
-        );
+        for (what, px) in [("deptherr", &img), ("silhouette", &sil)] {
+            let _ = stipple_io::image::write_png(
+                &dir.join(format!("{name}-{what}.png")),
+                w as u32,
+                h as u32,
+                px,
+            );
+        }
     }
     errs.sort_by(f64::total_cmp);
     eprintln!("{name}: {over} px covered outside the silhouette, {under} inside not covered");
@@ -609,6 +645,89 @@ fn sparse_polyhedra_cone_and_slab_are_whole_and_accurate() {
             eprintln!("{what} (IoU held at 0.98): {r:?}");
             assert!(r.iou >= 0.98, "{what}: {r:?}");
             Report { iou: 1.0, ..r }.check(what);
+        } else {
+            r.check(what);
+        }
+    });
+}
+
+/// An ellipsoid of semi-axes 1, 0.6 and 0.45 (first-order distance).
+fn ellipsoid_sdf(p: DVec3) -> f64 {
+    let r = DVec3::new(1.0, 0.6, 0.45);
+    let k0 = (p / r).length();
+    let k1 = (p / (r * r)).length();
+    k0 * (k0 - 1.0) / k1
+}
+
+/// A capsule: a segment 1.2 long along x, radius 0.4.
+fn capsule_sdf(p: DVec3) -> f64 {
+    let x = p.x.clamp(-0.6, 0.6);
+    (p - DVec3::new(x, 0.0, 0.0)).length() - 0.4
+}
+
+/// A torus in the xy plane whose tube (radius 0.2) is about two point spacings across its
+/// radius: neighbours' normals differ by up to 45°, as across a crease.
+fn thin_torus_sdf(p: DVec3) -> f64 {
+    let q = ((p.x * p.x + p.y * p.y).sqrt() - 0.9, p.z);
+    (q.0 * q.0 + q.1 * q.1).sqrt() - 0.2
+}
+
+/// A hexagonal prism (half-width 0.7 across flats, half-height 0.5) along z: edges of 120°.
+fn hex_prism_sdf(p: DVec3) -> f64 {
+    let k = DVec3::new(-0.866_025_4, 0.5, 0.577_35);
+    let mut q = p.abs();
+    let d = 2.0 * (k.x * q.x + k.y * q.y).min(0.0);
+    q.x -= d * k.x;
+    q.y -= d * k.y;
+    let h = (0.7, 0.5);
+    let dx = (q.x - q.x.clamp(-k.z * h.0, k.z * h.0), q.y - h.0);
+    let d0 = (dx.0 * dx.0 + dx.1 * dx.1).sqrt() * (q.y - h.0).signum();
+    let d1 = q.z - h.1;
+    d0.max(d1).min(0.0) + (d0.max(0.0).powi(2) + d1.max(0.0).powi(2)).sqrt()
+}
+
+/// Curved surfaces, strongly curved at the point spacing (the thin torus: a tube two
+/// spacings in radius), and a prism of obtuse edges, in every variant and mode: without
+/// normals, a neighbourhood that a quadric fits is smooth however far its neighbours lie
+/// off the tangent plane (`stipple_core::normals::robust_normals`), not a crease whose
+/// faces would be fitted apart (thin torus: IoU 0.981, ellipsoid: 0.992 before). Voronoi
+/// shades each cell with its point's normal (flat cells), so its normal error is not held
+/// on the thin tube (median 5.4° with normals given).
+#[test]
+fn sparse_curved_surfaces_are_whole_and_accurate() {
+    let scenes: [Scene; 4] = [
+        (
+            "ellipsoid",
+            ellipsoid_sdf,
+            DVec3::new(0.9, 1.1, 2.6),
+            1400,
+            1.05,
+        ),
+        (
+            "capsule",
+            capsule_sdf,
+            DVec3::new(0.5, 1.3, 2.6),
+            1400,
+            1.05,
+        ),
+        (
+            "thin-torus",
+            thin_torus_sdf,
+            DVec3::new(0.6, 1.3, 2.6),
+            1500,
+            1.15,
+        ),
+        (
+            "hex-prism",
+            hex_prism_sdf,
+            DVec3::new(1.3, 1.5, 2.2),
+            2000,
+            0.9,
+        ),
+    ];
+    measure_all(&scenes, 70, false, |name, what, r| {
+        if name == "thin-torus" && what.contains("Voronoi") {
+            r.check_shape(what);
         } else {
             r.check(what);
         }
