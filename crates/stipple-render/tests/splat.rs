@@ -733,3 +733,28 @@ fn sparse_curved_surfaces_are_whole_and_accurate() {
         }
     });
 }
+
+/// Two overlapping spheres (radius 0.6, centres 0.81 apart): a concave crease of 85°
+/// between two convex faces.
+fn two_spheres_sdf(p: DVec3) -> f64 {
+    let a = (p - DVec3::new(0.4, 0.0, 0.0)).length() - 0.6;
+    let b = (p - DVec3::new(-0.4, 0.1, 0.0)).length() - 0.6;
+    a.min(b)
+}
+
+/// A union's concave crease without normals: a point beside it takes the face whose
+/// quadric passes nearest it (`stipple_core::normals::robust_normals`); by the faces'
+/// tangent planes alone, the other sphere's (which curve away from the point) looked
+/// nearer, 1–2% of the points took it, and their splats stood in front of it (depth
+/// within 0.5% on 0.937–0.950 of the pixels over three samples).
+#[test]
+fn sparse_union_keeps_its_concave_crease() {
+    let scenes: [Scene; 1] = [(
+        "two-spheres",
+        two_spheres_sdf,
+        DVec3::new(0.3, 1.0, 2.9),
+        2200,
+        1.1,
+    )];
+    measure_all(&scenes, 90, false, |_, what, r| r.check(what));
+}

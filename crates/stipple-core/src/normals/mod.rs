@@ -1957,16 +1957,21 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
         .collect()
 }
 
+/// Per-thread buffers of [`nearest_faces`]: (face, offset, index) of each member, offsets
+/// of one face, indices of one face.
+type FaceScratch = (Vec<(u8, f32, u32)>, Vec<f32>, Vec<u32>);
+
 /// Settles which face a point next to a crease lies on. The re-fit of [`robust_refit`]
 /// decides by the plane through the point that most neighbours lie on, and within about a
 /// spacing of a sharp edge both faces' planes hold about as many, so a third to a half of
 /// those points took the other face (41% of those within a quarter of the 16th-neighbour
 /// distance on a random cube). Here, for each point not `smooth` (see [`robust_refit`]),
 /// the neighbours are grouped into faces by their fitted normals ([`SAME_FACE`]); a face's
-/// offset from the point is the median over its members of the point's distance from the
-/// member's tangent plane (smooth members count twice: their normals are surely the
-/// face's), and the point takes the face with the smallest offset, its members' mean
-/// normal. Only at a crease: another face of at least three members lies more than
+/// offset from the point is its distance from the face's quadric through the members
+/// ([`face_quadric_offset`]), or where that does not fit them, the median over its members
+/// of the point's distance from the member's tangent plane (smooth members count twice:
+/// their normals are surely the face's), and the point takes the face with the smallest
+/// offset, its members' mean normal. Only at a crease: another face of at least three members lies more than
 /// [`CREASE_COS`] away (on a curved surface the groups are bands of one smooth turn, and
 /// the re-fit stands). Two rounds, the second only where a neighbour turned by more than
 /// 5° in the first. Returns which points were set at a crease.
@@ -2002,13 +2007,14 @@ fn nearest_faces(
                 !smooth[*i] && (round == 0 || nb.of(*i).iter().any(|&j| last[j as usize]))
             })
             .for_each_init(
-                || (Vec::new(), Vec::new()),
-                |(members, offs): &mut (Vec<(u8, f32)>, Vec<f32>), (i, (n, (settled, moved)))| {
+                || (Vec::new(), Vec::new(), Vec::new()),
+                |(members, offs, ids): &mut FaceScratch, (i, (n, (settled, moved)))| {
                     let p = positions[i];
                     // Faces: first normal, normal sum, weight.
                     let mut first = [Vec3::ZERO; FACES];
                     let mut sum = [Vec3::ZERO; FACES];
                     let mut count = [0u32; FACES];
+                    let mut centre = [Vec3::ZERO; FACES];
                     let mut nf = 0;
                     members.clear();
                     for &j in nb.of(i) {
@@ -2031,9 +2037,10 @@ fn nearest_faces(
                         let w = if smooth[j] { TRUSTED } else { 1 };
                         sum[f] += m;
                         count[f] += w as u32;
+                        centre[f] += (positions[j] - p) * w as f32;
                         let h = (positions[j] - p).dot(m);
                         for _ in 0..w {
-                            members.push((f as u8, h));
+                            members.push((f as u8, h, j as u32));
                         }
                     }
                     // Two faces with members at a sharp angle, or no crease.
@@ -2046,14 +2053,48 @@ fn nearest_faces(
                     if !crease {
                         return;
                     }
-                    // The face whose members' tangent planes pass nearest the point (the
-                    // median offset: a few members that took the wrong face do not move it).
+                    // A concave crease: a face's members lie on the outer side of another's
+                    // plane (normals turned to the point's side).
+                    let out = |f: usize| {
+                        let m = sum[f].normalize_or_zero();
+                        if m.dot(*n) < 0.0 {
+                            -m
+                        } else {
+                            m
+                        }
+                    };
+                    let concave = (0..nf).any(|a| {
+                        big(a)
+                            && (0..nf).any(|b| {
+                                b != a
+                                    && big(b)
+                                    && first[a].dot(first[b]).abs() < CREASE_COS
+                                    && (centre[b] / count[b] as f32 - centre[a] / count[a] as f32)
+                                        .dot(out(a))
+                                        > 0.0
+                            })
+                    });
+                    // The face whose quadric passes nearest the point, or where it does not
+                    // fit its members, whose members' tangent planes do (the median offset:
+                    // a few members that took the wrong face do not move it).
                     let mut best = (f32::INFINITY, 0);
                     for f in (0..nf).filter(|&f| big(f)) {
-                        offs.clear();
-                        offs.extend(members.iter().filter(|m| m.0 as usize == f).map(|m| m.1));
-                        let mid = offs.len() / 2;
-                        let o = offs.select_nth_unstable_by(mid, f32::total_cmp).1.abs();
+                        ids.clear();
+                        ids.extend(members.iter().filter(|m| m.0 as usize == f).map(|m| m.2));
+                        let fit = concave
+                            .then(|| face_quadric_offset(positions, p, sum[f], ids))
+                            .flatten();
+                        let o = match fit {
+                            Some(o) => o,
+                            None => {
+                                offs.clear();
+                                offs.extend(
+                                    members.iter().filter(|m| m.0 as usize == f).map(|m| m.1),
+                                );
+                                let mid = offs.len() / 2;
+                                offs.select_nth_unstable_by(mid, f32::total_cmp).1.abs()
+                            }
+                        };
                         if o < best.0 {
                             best = (o, f);
                         }
@@ -2074,6 +2115,68 @@ fn nearest_faces(
             );
     }
     at_crease
+}
+
+/// How far a member may lie off its face's quadric in [`face_quadric_offset`], in σ = ¼ of
+/// the members' mean distance.
+const FACE_FIT: f64 = 0.25;
+
+/// How far the point `p` lies off the least-squares quadric height field of a face's
+/// members `ids` (a member listed twice weighs twice) over the plane of the face's normal
+/// sum `m`: the fitted height at the point. On a curved face this is the point's distance
+/// from the surface; the median distance from the members' tangent planes is off by the
+/// bend, d²κ/2, which at a concave crease between two convex faces favours the other face
+/// (two overlapping spheres: 1–2% of points took the other sphere's normal, and their
+/// splats stood up to 0.03 in front of it). None with fewer than eight members, or where
+/// a member lies more than [`FACE_FIT`] σ off the quadric (a member whose fitted normal
+/// took this face wrongly would swing the fit; the median is not moved by one).
+fn face_quadric_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
+    const U: usize = QUADRIC;
+    if ids.len() < 8 {
+        return None;
+    }
+    let m = m.try_normalize()?;
+    let (t1, t2) = tangent_frame(m);
+    let (mut scale, mut mean) = (0.0f32, 0.0f32);
+    for &j in ids {
+        let len = (positions[j as usize] - p).length();
+        scale = scale.max(len);
+        mean += len;
+    }
+    if !(scale > 0.0 && scale.is_finite()) {
+        return None;
+    }
+    // In units of the largest distance, for conditioning.
+    let row = |j: u32| {
+        let d = (positions[j as usize] - p) / scale;
+        let (u, v) = (d.dot(t1) as f64, d.dot(t2) as f64);
+        (
+            [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v],
+            d.dot(m) as f64,
+        )
+    };
+    let mut a = [[0.0f64; U + 1]; U];
+    for &j in ids {
+        let (r, h) = row(j);
+        for x in 0..U {
+            for y in x..U {
+                a[x][y] += r[x] * r[y];
+            }
+            a[x][U] += r[x] * h;
+        }
+    }
+    for x in 1..U {
+        for y in 0..x {
+            a[x][y] = a[y][x];
+        }
+    }
+    let c = solve_quadric(a)?;
+    let limit = FACE_FIT * 0.25 * (mean / ids.len() as f32 / scale) as f64;
+    let fits = ids.iter().all(|&j| {
+        let (r, h) = row(j);
+        (h - (0..U).map(|k| r[k] * c[k]).sum::<f64>()).abs() <= limit
+    });
+    fits.then_some(c[0].abs() as f32 * scale)
 }
 
 /// Turns each normal to the slope of its osculating quadric at the point (`jet`): PCA's
