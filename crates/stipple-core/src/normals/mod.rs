@@ -1706,13 +1706,10 @@ fn jet(
         return None;
     }
     let sigma = 0.25 * (sum / ids.len() as f64) / s;
-    let mut m = [[0.0f64; U + 1]; U];
-    // The point itself anchors the constant term.
-    m[0][0] += 1.0;
-    for &j in ids {
+    let rows = ids.iter().filter_map(|&j| {
         // The other side of a thin sheet (normals facing the other way) is another layer.
         if normals.is_some_and(|(nm, min)| nm[j as usize].dot(n) < min) {
-            continue;
+            return None;
         }
         let d = positions[j as usize] - p;
         let (u, v, h) = (
@@ -1720,23 +1717,10 @@ fn jet(
             d.dot(t2) as f64 / s,
             d.dot(n) as f64 / s,
         );
-        let w = gauss((h / sigma) * (h / sigma));
-        let row = [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v];
-        // The normal equations are symmetric: the upper triangle now, the rest below.
-        for r in 0..U {
-            let wr = w * row[r];
-            for c in r..U {
-                m[r][c] += wr * row[c];
-            }
-            m[r][U] += wr * h;
-        }
-    }
-    for r in 1..U {
-        for c in 0..r {
-            m[r][c] = m[c][r];
-        }
-    }
-    let x = solve_quadric(m)?;
+        Some((quadric_terms(u, v), h, gauss((h / sigma) * (h / sigma))))
+    });
+    // The point itself anchors the constant term.
+    let x = fit_quadric(rows, true)?;
     // Back to world units: h = c₀ + c u + (A/s) u² ... (c₀, a layer's offset, is dropped).
     let out = [x[1], x[2], x[3] / s, x[4] / s, x[5] / s];
     out.iter().all(|v| v.is_finite()).then_some(out)
@@ -1744,6 +1728,48 @@ fn jet(
 
 /// Unknowns of a quadric height field h = c₀ + c₁u + c₂v + ½A u² + B uv + ½C v².
 const QUADRIC: usize = 6;
+
+/// The terms [1, u, v, ½u², uv, ½v²] of a quadric height field at (u, v).
+#[inline]
+fn quadric_terms(u: f64, v: f64) -> [f64; QUADRIC] {
+    [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v]
+}
+
+/// The least-squares quadric height field through weighted rows (terms at (u, v), height,
+/// weight), and, with `anchor`, the origin at height 0 with weight 1 (the point itself);
+/// None where it is ill-conditioned ([`solve_quadric`]).
+fn fit_quadric(
+    rows: impl Iterator<Item = ([f64; QUADRIC], f64, f64)>,
+    anchor: bool,
+) -> Option<[f64; QUADRIC]> {
+    const U: usize = QUADRIC;
+    let mut m = [[0.0f64; U + 1]; U];
+    if anchor {
+        m[0][0] = 1.0;
+    }
+    for (row, h, w) in rows {
+        // The normal equations are symmetric: the upper triangle now, the rest below.
+        for a in 0..U {
+            let wr = w * row[a];
+            for b in a..U {
+                m[a][b] += wr * row[b];
+            }
+            m[a][U] += wr * h;
+        }
+    }
+    for a in 1..U {
+        for b in 0..a {
+            m[a][b] = m[b][a];
+        }
+    }
+    solve_quadric(m)
+}
+
+/// The height of the quadric `c` at terms `row`.
+#[inline]
+fn quadric_at(c: &[f64; QUADRIC], row: &[f64; QUADRIC]) -> f64 {
+    c.iter().zip(row).map(|(c, r)| c * r).sum()
+}
 
 /// Solves the normal equations `m` (the symmetric matrix, full, and the right-hand side in
 /// the last column) of a quadric fit by Gaussian elimination with partial pivoting; None
@@ -1783,41 +1809,28 @@ fn solve_quadric(mut m: [[f64; QUADRIC + 1]; QUADRIC]) -> Option<[f64; QUADRIC]>
 /// percentile; measured on random samples with k = 16). Infinite where the fit is
 /// ill-conditioned.
 fn quadric_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
-    const U: usize = QUADRIC;
     let (t1, t2) = tangent_frame(n.as_vec3());
     let (t1, t2) = (t1.as_dvec3(), t2.as_dvec3());
     // In units of σ, for conditioning.
     let row = |j: u32| {
         let d = (positions[j as usize].as_dvec3() - p0) / sigma;
-        let (u, v) = (d.dot(t1), d.dot(t2));
-        ([1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v], d.dot(n))
+        (quadric_terms(d.dot(t1), d.dot(t2)), d.dot(n))
     };
-    let mut m = [[0.0f64; U + 1]; U];
-    m[0][0] = 1.0;
-    for &j in ids {
-        let (r, h) = row(j);
-        for a in 0..U {
-            for b in a..U {
-                m[a][b] += r[a] * r[b];
-            }
-            m[a][U] += r[a] * h;
-        }
-    }
-    for a in 1..U {
-        for b in 0..a {
-            m[a][b] = m[b][a];
-        }
-    }
-    let Some(x) = solve_quadric(m) else {
+    let Some(c) = fit_quadric(
+        ids.iter().map(|&j| {
+            let (r, h) = row(j);
+            (r, h, 1.0)
+        }),
+        true,
+    ) else {
         return f64::INFINITY;
     };
-    let fit = |r: [f64; U]| (0..U).map(|a| r[a] * x[a]).sum::<f64>();
     ids.iter()
         .map(|&j| {
             let (r, h) = row(j);
-            (h - fit(r)).abs()
+            (h - quadric_at(&c, &r)).abs()
         })
-        .fold(x[0].abs(), f64::max)
+        .fold(c[0].abs(), f64::max)
 }
 
 /// Robust re-fit of each normal (iteratively reweighted PCA, three rounds): neighbours far
@@ -2131,7 +2144,6 @@ const FACE_FIT: f64 = 0.25;
 /// a member lies more than [`FACE_FIT`] σ off the quadric (a member whose fitted normal
 /// took this face wrongly would swing the fit; the median is not moved by one).
 fn face_quadric_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
-    const U: usize = QUADRIC;
     if ids.len() < 8 {
         return None;
     }
@@ -2149,32 +2161,22 @@ fn face_quadric_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Opt
     // In units of the largest distance, for conditioning.
     let row = |j: u32| {
         let d = (positions[j as usize] - p) / scale;
-        let (u, v) = (d.dot(t1) as f64, d.dot(t2) as f64);
         (
-            [1.0, u, v, 0.5 * u * u, u * v, 0.5 * v * v],
+            quadric_terms(d.dot(t1) as f64, d.dot(t2) as f64),
             d.dot(m) as f64,
         )
     };
-    let mut a = [[0.0f64; U + 1]; U];
-    for &j in ids {
-        let (r, h) = row(j);
-        for x in 0..U {
-            for y in x..U {
-                a[x][y] += r[x] * r[y];
-            }
-            a[x][U] += r[x] * h;
-        }
-    }
-    for x in 1..U {
-        for y in 0..x {
-            a[x][y] = a[y][x];
-        }
-    }
-    let c = solve_quadric(a)?;
+    let c = fit_quadric(
+        ids.iter().map(|&j| {
+            let (r, h) = row(j);
+            (r, h, 1.0)
+        }),
+        false,
+    )?;
     let limit = FACE_FIT * 0.25 * (mean / ids.len() as f32 / scale) as f64;
     let fits = ids.iter().all(|&j| {
         let (r, h) = row(j);
-        (h - (0..U).map(|k| r[k] * c[k]).sum::<f64>()).abs() <= limit
+        (h - quadric_at(&c, &r)).abs() <= limit
     });
     fits.then_some(c[0].abs() as f32 * scale)
 }
