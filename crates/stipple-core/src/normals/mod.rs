@@ -1387,10 +1387,10 @@ pub fn shapes(
 
 /// [`refine_normals`] and [`shapes`] from one quadric fit per point (for estimated normals:
 /// the shape is fitted in the frame of the normal before its refinement, which tilts it by
-/// a degree or two, and carried to the refined normal's frame, `reframe`). The fit leaves out neighbours across
-/// a crease from the point ([`CREASE_COS`]; for the points `crease` marks, set at a crease
-/// by [`robust_normals`], all but the point's own face, [`SAME_FACE`]). Clip planes are
-/// made from the refined normals, once all are refined.
+/// a degree or two, and carried to the refined normal's frame, `reframe`). The fit leaves
+/// out neighbours across a crease from the point ([`CREASE_COS`]; for the points `crease`
+/// marks, set at a crease by [`robust_normals`], all but the point's own face,
+/// [`SAME_FACE`]). Clip planes are made from the refined normals, once all are refined.
 pub fn refine_and_shape(
     positions: &[Vec3],
     normals: &mut [Vec3],
@@ -1441,9 +1441,10 @@ type Shaped = (SplatShape, bool);
 /// point one or two rows in from a sheet's rim is not lopsided enough to be a boundary
 /// point itself, but its splat (a radius of about two spacings) reaches past the rim by up
 /// to a spacing. Such a splat is cut by its nearest boundary neighbour's plane when the
-/// point lies inside that plane within two radii, and at least two boundary points are among its neighbours (a rim is a
-/// row of them; a lone one is a false alarm of a random sample). Points beyond a plane keep
-/// their whole splats, so a plane lent inside the surface trims overlaps but opens no hole.
+/// point lies inside that plane within two radii, and at least two boundary points are
+/// among its neighbours (a rim is a row of them; a lone one is a false alarm of a random
+/// sample). Points beyond a plane keep their whole splats, so a plane lent inside the
+/// surface trims overlaps but opens no hole.
 fn share_boundaries(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -1984,10 +1985,13 @@ type FaceScratch = (Vec<(u8, f32, u32)>, Vec<f32>, Vec<u32>);
 /// ([`face_quadric_offset`]), or where that does not fit them, the median over its members
 /// of the point's distance from the member's tangent plane (smooth members count twice:
 /// their normals are surely the face's), and the point takes the face with the smallest
-/// offset, its members' mean normal. Only at a crease: another face of at least three members lies more than
-/// [`CREASE_COS`] away (on a curved surface the groups are bands of one smooth turn, and
-/// the re-fit stands). Two rounds, the second only where a neighbour turned by more than
-/// 5° in the first. Returns which points were set at a crease.
+/// offset, its members' mean normal. The quadric is used at concave creases only (a face's
+/// members on the outer side of another's plane): at convex ones both faces' tangent
+/// planes are off by the same bend, and the median served better (a cone's apex). Only at
+/// a crease: another face of at least three members lies more than [`CREASE_COS`] away (on
+/// a curved surface the groups are bands of one smooth turn, and the re-fit stands). Two
+/// rounds, the second only where a neighbour turned by more than 5° in the first. Returns
+/// which points were set at a crease.
 fn nearest_faces(
     positions: &[Vec3],
     normals: &mut [Vec3],
@@ -2058,11 +2062,10 @@ fn nearest_faces(
                     }
                     // Two faces with members at a sharp angle, or no crease.
                     let big = |f: usize| count[f] >= 3;
-                    let crease = (0..nf).any(|a| {
-                        big(a)
-                            && (a + 1..nf)
-                                .any(|b| big(b) && first[a].dot(first[b]).abs() < CREASE_COS)
-                    });
+                    let sharp = |a: usize, b: usize| {
+                        big(a) && big(b) && first[a].dot(first[b]).abs() < CREASE_COS
+                    };
+                    let crease = (0..nf).any(|a| (a + 1..nf).any(|b| sharp(a, b)));
                     if !crease {
                         return;
                     }
@@ -2076,27 +2079,23 @@ fn nearest_faces(
                             m
                         }
                     };
+                    let mean = |f: usize| centre[f] / count[f] as f32;
                     let concave = (0..nf).any(|a| {
-                        big(a)
-                            && (0..nf).any(|b| {
-                                b != a
-                                    && big(b)
-                                    && first[a].dot(first[b]).abs() < CREASE_COS
-                                    && (centre[b] / count[b] as f32 - centre[a] / count[a] as f32)
-                                        .dot(out(a))
-                                        > 0.0
-                            })
+                        (0..nf)
+                            .any(|b| b != a && sharp(a, b) && (mean(b) - mean(a)).dot(out(a)) > 0.0)
                     });
                     // The face whose quadric passes nearest the point, or where it does not
                     // fit its members, whose members' tangent planes do (the median offset:
                     // a few members that took the wrong face do not move it).
                     let mut best = (f32::INFINITY, 0);
                     for f in (0..nf).filter(|&f| big(f)) {
-                        ids.clear();
-                        ids.extend(members.iter().filter(|m| m.0 as usize == f).map(|m| m.2));
-                        let fit = concave
-                            .then(|| face_quadric_offset(positions, p, sum[f], ids))
-                            .flatten();
+                        let fit = if concave {
+                            ids.clear();
+                            ids.extend(members.iter().filter(|m| m.0 as usize == f).map(|m| m.2));
+                            face_quadric_offset(positions, p, sum[f], ids)
+                        } else {
+                            None
+                        };
                         let o = match fit {
                             Some(o) => o,
                             None => {
