@@ -758,3 +758,54 @@ fn sparse_union_keeps_its_concave_crease() {
     )];
     measure_all(&scenes, 90, false, |_, what, r| r.check(what));
 }
+
+/// A wavy open sheet over the square [-0.9, 0.9]² (the top of a slab 0.01 thick).
+fn sheet_sdf(p: DVec3) -> f64 {
+    let h = 0.2 * (2.0 * p.x).sin() * (1.5 * p.z).cos();
+    let top = (p.y - h) * 0.85;
+    let bottom = (h - 0.01 - p.y) * 0.85;
+    top.max(bottom).max(p.x.abs() - 0.9).max(p.z.abs() - 0.9)
+}
+
+/// A flat open disc of radius 0.9 (the top of a slab 0.01 thick).
+fn disc_sdf(p: DVec3) -> f64 {
+    p.y.max(-0.01 - p.y)
+        .max(DVec3::new(p.x, 0.0, p.z).length() - 0.9)
+}
+
+/// Open surfaces: only the top of each thin slab is sampled, so the cloud ends at a rim.
+/// A splat there must stop just beyond the rim its neighbours trace
+/// (`stipple_core::normals::boundary_planes`) instead of reaching a whole radius past the
+/// surface's end (IoU 0.90–0.94 over five samples before; 0.95–0.98 now). The rim of a
+/// random sample cannot be placed closer than its gaps between points (half the error left
+/// is a chord across a gap in the rim), so IoU is held at 0.945 here, not 0.99.
+#[test]
+fn open_sheets_end_at_their_rims() {
+    let scenes: [Scene; 2] = [
+        ("sheet", sheet_sdf, DVec3::new(0.5, 2.2, 2.0), 1800, 1.0),
+        ("disc", disc_sdf, DVec3::new(0.5, 2.2, 2.0), 1400, 1.0),
+    ];
+    for (k, &(name, sdf, eye, n, lim)) in scenes.iter().enumerate() {
+        let cam = camera(eye, 256);
+        let both = sample_with(sdf, n, lim, 110 + k as u64, true);
+        let normals = both.normals.as_ref().unwrap();
+        let top: Vec<usize> = (0..both.len()).filter(|&i| normals[i].y > 0.3).collect();
+        let pos: Vec<DVec3> = top.iter().map(|&i| both.world(i)).collect();
+        let mut c = PointCloud::from_world(&pos);
+        c.normals = Some(top.iter().map(|&i| normals[i]).collect());
+        for ((what, cloud), mode) in modes(variants(&c, 120 + k as u64)) {
+            let r = measure(
+                &format!("splat-open-{name}-{what}-{mode:?}"),
+                &cam,
+                sdf,
+                cloud,
+                mode,
+            );
+            assert!((3.0..=6.0).contains(&r.spacing_px), "{name}: {r:?}");
+            let what = format!("open {name}, normals {what}, {mode:?}");
+            eprintln!("{what}: IoU {:.4}", r.iou);
+            assert!(r.iou >= 0.945, "{what}: {r:?}");
+            Report { iou: 1.0, ..r }.check(&what);
+        }
+    }
+}
