@@ -1363,7 +1363,8 @@ pub struct SplatShape {
 ///   at an edge of a right angle or more, p on that plane within [`EDGE_SLACK`] of its
 ///   radius either side, cut through p), the
 ///   splat is cut by j's tangent plane, the nearest such plane (and at a corner by a second
-///   one, across a crease from the first). A disc on one face of a box
+///   one, across a crease from the first; along a curved rim, by a second tangent plane of
+///   the same face half a radius along the rim). A disc on one face of a box
 ///   then ends at the edge instead of sticking out of the silhouette by up to its radius.
 ///   Inward normals and concave creases clip nothing (the other face hides the overhang).
 ///   Away from creases, a splat at an open boundary (the rim of a sheet, a scan's edge) is
@@ -1699,7 +1700,7 @@ fn shape_at(
     let mut boundary = false;
     // The nearest crease plane, then the nearest one across another crease from it (a box
     // corner has two).
-    let mut planes = [(f32::INFINITY, Vec3::ZERO, 0.0f32); 64];
+    let mut planes = [(f32::INFINITY, Vec3::ZERO, 0.0f32, Vec3::ZERO); 64];
     let mut np = 0;
     for &j in nb.of(i) {
         let Some(m) = normals[j as usize].try_normalize() else {
@@ -1715,13 +1716,13 @@ fn shape_at(
         let c = n.dot(m);
         let slack = if c > -0.2 { EDGE_SLACK * radii[i] } else { 0.0 };
         if c < CREASE_COS && (s > 0.0 || (slack > 0.0 && s > -slack)) && np < planes.len() {
-            planes[np] = (s.max(0.0), m, m.dot(q).max(m.dot(p)));
+            planes[np] = (s.max(0.0), m, m.dot(q).max(m.dot(p)), q);
             np += 1;
         }
     }
     let planes = &mut planes[..np];
     planes.sort_by(|a, b| a.0.total_cmp(&b.0));
-    if let Some(&(_, m0, c0)) = planes.first() {
+    if let Some(&(_, m0, c0, q0)) = planes.first() {
         out.clip[0] = [m0.x, m0.y, m0.z, c0];
         // The second plane, across a crease from the first: the one whose trace on the
         // splat's plane passes nearest the point, that distance weighted by how alike its
@@ -1742,8 +1743,27 @@ fn shape_at(
             })
             .min_by(|a, b| a.0.total_cmp(&b.0))
             .map(|(_, e)| e);
-        if let Some(&(_, m1, c1)) = second {
+        if let Some(&(_, m1, c1, _)) = second {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
+        } else {
+            // A curved rim (a cylinder's cap meeting its side): the nearest tangent plane
+            // alone leaves the splat sticking out past the rim by about (r + d)²κ/2 at its
+            // far end, d the plane's point's distance along the rim. A second tangent plane
+            // of the same face, from the neighbour nearest half a radius along the rim on
+            // the other side, halves that (a cylinder at 5.4 px spacing: IoU 0.985 → 0.9896,
+            // the cap splats' overshoot at the 90th percentile 0.014 → 0.006). On a flat face
+            // it is the same plane.
+            let w = n.cross(u0);
+            let t0 = (q0 - p).dot(w);
+            let target = if t0 > 0.0 { -0.5 } else { 0.5 } * radii[i];
+            let along = |e: &(f32, Vec3, f32, Vec3)| ((e.3 - p).dot(w) - target).abs();
+            let other = planes[1..]
+                .iter()
+                .filter(|e| e.1.dot(m0) >= CREASE_COS && e.1.dot(m0) < 0.99999)
+                .min_by(|a, b| along(a).total_cmp(&along(b)));
+            if let Some(&(_, m1, c1, _)) = other {
+                out.clip[1] = [m1.x, m1.y, m1.z, c1];
+            }
         }
     } else if let Some(planes) = boundary_planes(positions, normals, nb, i, n) {
         out.clip = planes;
@@ -3827,6 +3847,42 @@ mod boundary_tests {
             }
         }
         (p, nn, d)
+    }
+
+    /// A cylinder's caps end at its curved rims: each cap splat is cut by the side's
+    /// tangent planes, the nearest one and one half a radius along the rim on the other
+    /// side (`shape_at`); the nearest alone left the 90th percentile of the cap splats'
+    /// reach past the rim at 0.12 spacings on this sample (0.064 now).
+    #[test]
+    fn cap_splats_end_at_a_curved_rim() {
+        let (p, normals, _) = cylinder(800, 31);
+        let nb = neighbours(&p, 16).unwrap();
+        let radii = splat_radii(&nb, 1.0);
+        let sh = shapes(&p, &normals, &radii, &nb);
+        let mut reach = Vec::new();
+        for i in (0..p.len()).filter(|&i| normals[i].y.abs() > 0.9) {
+            let r = radii[i];
+            let mut worst = f32::NEG_INFINITY;
+            for gu in -20..=20 {
+                for gv in -20..=20 {
+                    let x = p[i] + Vec3::new(gu as f32, 0.0, gv as f32) * (r / 20.0);
+                    let kept = sh[i]
+                        .clip
+                        .iter()
+                        .all(|c| *c == [0.0; 4] || Vec3::new(c[0], c[1], c[2]).dot(x) <= c[3]);
+                    if (x - p[i]).length() <= r && kept {
+                        worst = worst.max(Vec3::new(x.x, 0.0, x.z).length() - 0.7);
+                    }
+                }
+            }
+            reach.push(worst);
+        }
+        reach.sort_by(f32::total_cmp);
+        let area = std::f32::consts::TAU * 0.7 * (1.2 + 0.7);
+        let spacing = (area / p.len() as f32).sqrt();
+        let q90 = reach[reach.len() * 9 / 10] / spacing;
+        eprintln!("cap splats past the rim, 90th percentile: {q90:.3} spacings");
+        assert!(q90 <= 0.09, "{q90}");
     }
 
     /// Sharp edges without normals: within a spacing of an edge both faces' planes through
