@@ -2776,6 +2776,8 @@ fn estimate_in(
             go_on()?;
             let crease = robust_normals(positions, &mut normals, nb);
             go_on()?;
+            // Points the propagation turned the wrong way one by one at sharp creases.
+            let flipped = flipped + stray_signs(positions, &mut normals, nb);
             let shapes = refine_and_shape(positions, &mut normals, &radii, nb, &crease);
             go_on()?;
             Ok(Estimated {
@@ -2788,6 +2790,50 @@ fn estimate_in(
             })
         }
     }
+}
+
+/// Turns round the normals that disagree in sign with most of their neighbours on the same
+/// face (normals within 37° of parallel, on one layer: [`same_layer`]): points that the
+/// propagated orientation turned the wrong way one by one, where it crossed a sharp crease
+/// through neighbourhoods whose fitted normals were blends of both faces (a cone's base rim
+/// at 4.6 px spacing: 38 of 675 points; 17 after, most in clusters that agree among
+/// themselves). Two rounds, each from the previous one's signs; returns how many turned.
+fn stray_signs(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> usize {
+    let mut turned = 0;
+    for _ in 0..2 {
+        let now: &[Vec3] = normals;
+        let flip: Vec<bool> = (0..now.len())
+            .into_par_iter()
+            .map(|i| {
+                let n = now[i];
+                let (mut agree, mut differ) = (0, 0);
+                for &j in nb.of(i) {
+                    let j = j as usize;
+                    let c = n.dot(now[j]);
+                    if c.abs() < 0.8 || !same_layer(positions, now, i, j) {
+                        continue;
+                    }
+                    if c > 0.0 {
+                        agree += 1;
+                    } else {
+                        differ += 1;
+                    }
+                }
+                differ >= 3 && differ > 2 * agree
+            })
+            .collect();
+        let k = flip.iter().filter(|&&f| f).count();
+        if k == 0 {
+            break;
+        }
+        for (n, f) in normals.iter_mut().zip(flip) {
+            if f {
+                *n = -*n;
+            }
+        }
+        turned += k;
+    }
+    turned
 }
 
 /// Turns round the normals of each component (`label`) where most differ in sign from
@@ -3847,6 +3893,34 @@ mod boundary_tests {
             }
         }
         (p, nn, d)
+    }
+
+    /// Stray signs: on a random square sheet, points turned round one by one (every
+    /// twentieth) turn back, and nothing else does; the two sides of a thin plate (opposite
+    /// normals, each side's points behind the other's plane) are two layers, not strays.
+    #[test]
+    fn stray_signs_turn_back_and_layers_stay() {
+        let mut r = crate::rng::Rng::new(12);
+        let pts: Vec<Vec3> = (0..2000)
+            .map(|_| Vec3::new(r.f32() * 2.0 - 1.0, r.f32() * 2.0 - 1.0, 0.0))
+            .collect();
+        let nb = neighbours(&pts, 16).unwrap();
+        let mut n: Vec<Vec3> = (0..pts.len())
+            .map(|i| if i % 20 == 0 { -Vec3::Z } else { Vec3::Z })
+            .collect();
+        let turned = stray_signs(&pts, &mut n, &nb);
+        assert_eq!(turned, 100);
+        assert!(n.iter().all(|v| *v == Vec3::Z));
+        // A plate 0.004 thick (a tenth of the spacing), both sides sampled.
+        let plate: Vec<Vec3> = (0..4000)
+            .map(|i| {
+                let z = if i % 2 == 0 { 0.002 } else { -0.002 };
+                Vec3::new(r.f32() * 2.0 - 1.0, r.f32() * 2.0 - 1.0, z)
+            })
+            .collect();
+        let nb = neighbours(&plate, 16).unwrap();
+        let mut n: Vec<Vec3> = plate.iter().map(|p| Vec3::Z * p.z.signum()).collect();
+        assert_eq!(stray_signs(&plate, &mut n, &nb), 0);
     }
 
     /// A cylinder's caps end at its curved rims: each cap splat is cut by the side's
