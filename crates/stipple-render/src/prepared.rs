@@ -430,7 +430,28 @@ impl PreparedCloud {
         estimate: bool,
         viewpoint: Option<glam::DVec3>,
     ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
-        if let Some((r, had_normals, k0, vp0)) = &self.surface {
+        self.prepare(k, estimate, viewpoint, true)
+    }
+
+    /// [`PreparedCloud::prepare_surface_from`] for normals and radii alone (`stipple
+    /// normals` writes them out): no splat shapes are kept, so a render prepares them
+    /// afresh (`stipple_core::normals::estimate_normals_from`).
+    pub fn prepare_normals_from(
+        &mut self,
+        k: usize,
+        viewpoint: Option<glam::DVec3>,
+    ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        self.prepare(k, true, viewpoint, false)
+    }
+
+    fn prepare(
+        &mut self,
+        k: usize,
+        estimate: bool,
+        viewpoint: Option<glam::DVec3>,
+        shapes: bool,
+    ) -> Result<SurfaceReport, stipple_core::normals::NormalError> {
+        if let (Some((r, had_normals, k0, vp0)), true) = (&self.surface, shapes) {
             let c = &self.cloud;
             if c.normals.is_some() == *had_normals
                 && (*k0, *vp0) == (k, viewpoint)
@@ -476,13 +497,12 @@ impl PreparedCloud {
                     Towards::Above => Oriented::FromAbove,
                     Towards::Unknown => Oriented::SpanningTree,
                 };
-                stipple_core::normals::estimate_from(
-                    &c.positions,
-                    c.normals.as_deref(),
-                    k,
-                    1.0,
-                    towards,
-                )?
+                let estimate = if shapes {
+                    stipple_core::normals::estimate_from
+                } else {
+                    stipple_core::normals::estimate_normals_from
+                };
+                estimate(&c.positions, c.normals.as_deref(), k, 1.0, towards)?
             }
         };
         if need_normals {
@@ -497,11 +517,16 @@ impl PreparedCloud {
             c.radius = Some(e.radii);
             report.radii = true;
         }
+        report.seconds = t0.elapsed().as_secs_f64();
+        self.key = next_key();
+        if !shapes {
+            self.shapes = None;
+            self.surface = None;
+            return Ok(report);
+        }
         if c.normals.is_some() {
             self.shapes = Some(e.shapes);
         }
-        report.seconds = t0.elapsed().as_secs_f64();
-        self.key = next_key();
         self.surface = Some((report.clone(), self.cloud.normals.is_some(), k, viewpoint));
         Ok(report)
     }

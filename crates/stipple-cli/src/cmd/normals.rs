@@ -61,7 +61,7 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
     // The viewpoint given, else the file's sensor (a PCD's VIEWPOINT).
     let viewpoint = a.viewpoint.or(p.cloud.sensor.map(|s| s.position));
     let r = p
-        .prepare_surface_from(a.k as usize, true, viewpoint)
+        .prepare_normals_from(a.k as usize, viewpoint)
         .with_context(|| a.input.display().to_string())?;
     let s = t0.elapsed().as_secs_f64();
     if had {
