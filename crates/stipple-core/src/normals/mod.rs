@@ -1379,7 +1379,7 @@ pub fn shapes(
 }
 
 /// [`shapes`], or their bends alone without `clips` (for normals that are only written out:
-/// the clip planes are a sixth of the estimate's time).
+/// the clip planes are a quarter of the estimate's time on the Dragon).
 fn shapes_with(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -1795,9 +1795,9 @@ fn shape_at(
             // alone leaves the splat sticking out past the rim by about (r + d)²κ/2 at its
             // far end, d the plane's point's distance along the rim. A second tangent plane
             // of the same face, from the neighbour nearest half a radius along the rim on
-            // the other side, halves that (a cylinder at 5.4 px spacing: IoU 0.985 → 0.9896,
-            // the cap splats' overshoot at the 90th percentile 0.014 → 0.006). On a flat face
-            // it is the same plane.
+            // the other side, halves that (a cylinder at 5.4 px spacing: IoU 0.985 → 0.9896;
+            // the cap splats' reach past the rim at the 90th percentile 0.12 → 0.064
+            // spacings). On a flat face it is the same plane.
             let w = n.cross(u0);
             let t0 = (q0 - p).dot(w);
             let target = if t0 > 0.0 { -0.5 } else { 0.5 } * radii[i];
@@ -2697,7 +2697,7 @@ pub fn estimate_from(
 }
 
 /// [`estimate_from`] for normals and radii alone: the shapes carry their bends but no clip
-/// planes (`stipple normals`, which writes normals and radii; a sixth faster).
+/// planes (`stipple normals`, which writes normals and radii; the Dragon a third faster).
 pub fn estimate_normals_from(
     positions: &[Vec3],
     given: Option<&[Vec3]>,
