@@ -143,8 +143,8 @@ impl SplatGpu {
         }
     }
 
-    /// The uploaded per-chunk shape buffers of `cloud` ((radius, bend…), clip planes: three
-    /// vec4 per point) and whether they hold shapes.
+    /// The uploaded per-chunk shape buffers of `cloud` ((radius, bend…), clip planes, their
+    /// bends: four vec4 per point) and whether they hold shapes.
     pub(crate) fn shapes(&self, cloud: &GpuCloud) -> Result<(&[Buffer], bool), GpuError> {
         match &self.radii {
             Some((k, r, s)) if *k == cloud.key => Ok((r, *s)),
@@ -262,12 +262,14 @@ impl SplatGpu {
             .iter()
             .map(|c| {
                 let range = c.base as usize..(c.base + c.count) as usize;
-                // Three vec4 per point: (r, A, B, C), then the clip planes.
+                // Four vec4 per point: (r, A, B, C), the clip planes, their bends into their
+                // rims (κ₀, s₀, κ₁, s₁).
                 let packed: Vec<[f32; 4]> = range
                     .flat_map(|i| {
                         let s = shapes.map_or_else(Default::default, |s| s[i]);
                         let [a, b, k] = s.bend;
-                        [[radii[i], a, b, k], s.clip[0], s.clip[1]]
+                        let [[k0, s0], [k1, s1]] = s.curve;
+                        [[radii[i], a, b, k], s.clip[0], s.clip[1], [k0, s0, k1, s1]]
                     })
                     .collect();
                 util::storage_init(&ctx.device, "splat shapes", bytemuck::cast_slice(&packed))

@@ -295,6 +295,8 @@ pub struct Disc {
     pub r2: f32,
     pub shape: [f32; 3],
     pub clip: [[f32; 4]; 2],
+    /// The clip planes bent into their rims (`SplatShape::curve`).
+    pub curve: [[f32; 2]; 2],
 }
 
 impl Disc {
@@ -320,6 +322,7 @@ impl Disc {
             r2: r * r,
             shape: shape.bend,
             clip: shape.clip,
+            curve: shape.curve,
         }
     }
 
@@ -374,6 +377,8 @@ pub struct Raster {
     lin: [[f32; 3]; 7],
     /// Per clip plane: m·o, m·dir as [c₀, c_x, c_y], and c.
     clip: [([f32; 3], [f32; 3], f32); 2],
+    /// Per clip plane its bend into the rim: (½κ, w·t₁, w·t₂, s) (`Disc::curve`).
+    rim: [[f32; 4]; 2],
     clips: u8,
     shape: [f32; 3],
     bent: bool,
@@ -404,11 +409,16 @@ impl Raster {
             proj(&[orig[0] - eye, orig[1], orig[2]], f)
         };
         let mut clip = [([0.0; 3], [0.0; 3], 0.0); 2];
+        let mut rim = [[0.0; 4]; 2];
         let mut clips = 0;
-        for c in &s.clip {
+        for (c, k) in s.clip.iter().zip(&s.curve) {
             if *c != [0.0; 4] {
                 let m = Vec3::new(c[0], c[1], c[2]);
                 clip[clips] = (proj(&orig, m), proj(&dir, m), c[3]);
+                if k[0] != 0.0 {
+                    let w = s.n.cross(m).normalize_or_zero();
+                    rim[clips] = [0.5 * k[0], w.dot(s.t1), w.dot(s.t2), k[1]];
+                }
                 clips += 1;
             }
         }
@@ -423,6 +433,7 @@ impl Raster {
                 off,
             ],
             clip,
+            rim,
             clips: clips as u8,
             shape: s.shape,
             bent: s.shape != [0.0; 3],
@@ -473,9 +484,11 @@ impl Raster {
         if !(depth > self.near && d2 < self.r2) {
             return None;
         }
-        for (mo, md, c) in &self.clip[..self.clips as usize] {
+        for ((mo, md, c), [hk, wu, wv, s]) in self.clip[..self.clips as usize].iter().zip(self.rim)
+        {
             let at = |k: &[f32; 3]| k[0] + k[1] * x + k[2] * y;
-            if at(mo) + t * at(md) > *c {
+            let along = wu * u + wv * w - s;
+            if at(mo) + t * at(md) + hk * along * along > *c {
                 return None;
             }
         }
@@ -530,6 +543,7 @@ mod tests {
         let bent = SplatShape {
             bend: [-1.0, 0.0, -1.0],
             clip: [[0.0; 4]; 2],
+            curve: [[0.0; 2]; 2],
         };
         let d = Disc::new(&v, p, Some(n), 0.3, Some(bent));
         let flat = Disc::new(&v, p, Some(n), 0.3, None);
@@ -563,6 +577,7 @@ mod tests {
             0.3,
             Some(SplatShape {
                 clip: [[1.0, 0.0, 0.0, 0.05], [0.0; 4]],
+                curve: [[0.0; 2]; 2],
                 ..bent
             }),
         );

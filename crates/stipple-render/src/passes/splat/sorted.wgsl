@@ -73,7 +73,8 @@ struct SortedComposite {
 fn lit8(sum: u32, s: u32) -> f32 {
     return f32(min((2u * sum + s) / (2u * s), 255u)) / 255.0;
 }
-// (radius, bend…) and the clip planes: three vec4 per point (the splat pass's shapes).
+// (radius, bend…), the clip planes and their bends: four vec4 per point (the splat pass's
+// shapes).
 @group(0) @binding(17) var<storage, read> s_shapes: array<vec4<f32>>;
 // Per point of the cloud, four vec4. Sorted: (centre x, centre y, radius, depth), (linear
 // colour, τ). Transparent: (point, r²), (unit normal, α), (linear colour, group mask's
@@ -181,7 +182,7 @@ fn sorted_points(
     }
     let fx = (nx + 1.0) * 0.5 * f32(view.width);
     let fy = (1.0 - ny) * 0.5 * f32(view.height);
-    let raw = s_shapes[3u * local].x * sc.scale * per;
+    let raw = s_shapes[4u * local].x * sc.scale * per;
     let rho = clamp(raw, SORTED_MIN_RADIUS, MAX_FOOTPRINT / 2.0);
     let st = point_style(local);
     let alpha = f32((st >> 8u) & 0xffu) / 255.0;
@@ -786,7 +787,7 @@ fn transparent_points(
     if ((mask >> 16u) != 0u) {
         factor = f32(mask >> 16u) / 256.0;
     }
-    let r = s_shapes[3u * local].x * sc.scale * T_DRAW_SCALE * factor;
+    let r = s_shapes[4u * local].x * sc.scale * T_DRAW_SCALE * factor;
     var n = -view.forward;
     if (sc.disc_normals == 1u) {
         n = vec3<f32>(s_normals[3u * local], s_normals[3u * local + 1u], s_normals[3u * local + 2u]);

@@ -43,7 +43,8 @@ const MAX_FOOTPRINT: f32 = 256.0;
 @group(0) @binding(1) var<uniform> blk: SplatBlock;
 @group(0) @binding(2) var<storage, read> positions: array<f32>;
 @group(0) @binding(3) var<storage, read> normals: array<f32>;
-// Per point three vec4: (radius, A, B, C) and the two clip planes; see Disc in passes/splat/mod.rs.
+// Per point four vec4: (radius, A, B, C), the two clip planes and their bends into their rims
+// (κ₀, s₀, κ₁, s₁); see Disc in passes/splat/mod.rs.
 @group(0) @binding(4) var<storage, read> shapes: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> zbuf: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> qbuf: array<atomic<u32>>;
@@ -78,6 +79,7 @@ struct Splat {
     shape: vec3<f32>,
     clip0: vec4<f32>,
     clip1: vec4<f32>,
+    curve: vec4<f32>,
     // mod.rs Raster: au, av, ah, du, dv, dh, off as (c0, cx, cy); per clip plane in use m.o,
     // m.dir and c; flat or bent.
     l_au: vec3<f32>,
@@ -92,6 +94,9 @@ struct Splat {
     clip_o1: vec3<f32>,
     clip_d1: vec3<f32>,
     clip_c: vec2<f32>,
+    // Per clip plane in use its bend into the rim (mod.rs Raster::rim): (½κ, w·t1, w·t2, s).
+    rim0: vec4<f32>,
+    rim1: vec4<f32>,
     clips: u32,
     bent: bool,
     r2: f32,
@@ -136,7 +141,7 @@ fn load_splat(local: u32) -> Splat {
         return s;
     }
     let p = vec3<f32>(positions[3u * local], positions[3u * local + 1u], positions[3u * local + 2u]);
-    let sh = shapes[3u * local];
+    let sh = shapes[4u * local];
     let r = sh.x * blk.scale;
     s.p = p;
     s.r2 = r * r;
@@ -144,6 +149,7 @@ fn load_splat(local: u32) -> Splat {
     s.shape = vec3<f32>(0.0);
     s.clip0 = vec4<f32>(0.0);
     s.clip1 = vec4<f32>(0.0);
+    s.curve = vec4<f32>(0.0);
     if (blk.has_normals == 1u) {
         let n = vec3<f32>(normals[3u * local], normals[3u * local + 1u], normals[3u * local + 2u]);
         let l2 = dot3(n, n);
@@ -154,8 +160,9 @@ fn load_splat(local: u32) -> Splat {
         }
         if (blk.has_shapes == 1u) {
             s.shape = sh.yzw;
-            s.clip0 = shapes[3u * local + 1u];
-            s.clip1 = shapes[3u * local + 2u];
+            s.clip0 = shapes[4u * local + 1u];
+            s.clip1 = shapes[4u * local + 2u];
+            s.curve = shapes[4u * local + 3u];
         }
     } else if (view.perspective == 1u) {
         let e = view.eye - p;
@@ -242,6 +249,22 @@ fn proj(v0: vec3<f32>, vx: vec3<f32>, vy: vec3<f32>, axis: vec3<f32>) -> vec3<f3
     return vec3<f32>(dot3(v0, axis), dot3(vx, axis), dot3(vy, axis));
 }
 
+// mod.rs Raster::new's bend of clip plane m into its rim, (κ, s) → (½κ, w·t1, w·t2, s) with
+// w = n × m normalised (all zero for a flat plane).
+fn rim_of(s: Splat, m: vec3<f32>, k: vec2<f32>) -> vec4<f32> {
+    if (k.x == 0.0) {
+        return vec4<f32>(0.0);
+    }
+    let n = s.n;
+    let c = vec3<f32>(n.y * m.z - n.z * m.y, n.z * m.x - n.x * m.z, n.x * m.y - n.y * m.x);
+    let l = dot3(c, c);
+    var w = vec3<f32>(0.0);
+    if (l > 0.0) {
+        w = c * (1.0 / sqrt(l));
+    }
+    return vec4<f32>(0.5 * k.x, dot3(w, s.t1), dot3(w, s.t2), k.y);
+}
+
 // mod.rs Raster::new, operation for operation.
 fn raster_setup(s: ptr<function, Splat>) {
     let w = f32(view.width);
@@ -280,10 +303,13 @@ fn raster_setup(s: ptr<function, Splat>) {
     var clips = 0u;
     let p0 = (*s).clip0;
     let p1 = (*s).clip1;
+    (*s).rim0 = vec4<f32>(0.0);
+    (*s).rim1 = vec4<f32>(0.0);
     if (any(p0 != vec4<f32>(0.0))) {
         (*s).clip_o0 = proj(orig0, orig1, orig2, p0.xyz);
         (*s).clip_d0 = proj(dir0, dir1, dir2, p0.xyz);
         (*s).clip_c.x = p0.w;
+        (*s).rim0 = rim_of(*s, p0.xyz, (*s).curve.xy);
         clips = 1u;
     }
     if (any(p1 != vec4<f32>(0.0))) {
@@ -291,10 +317,12 @@ fn raster_setup(s: ptr<function, Splat>) {
             (*s).clip_o0 = proj(orig0, orig1, orig2, p1.xyz);
             (*s).clip_d0 = proj(dir0, dir1, dir2, p1.xyz);
             (*s).clip_c.x = p1.w;
+            (*s).rim0 = rim_of(*s, p1.xyz, (*s).curve.zw);
         } else {
             (*s).clip_o1 = proj(orig0, orig1, orig2, p1.xyz);
             (*s).clip_d1 = proj(dir0, dir1, dir2, p1.xyz);
             (*s).clip_c.y = p1.w;
+            (*s).rim1 = rim_of(*s, p1.xyz, (*s).curve.zw);
         }
         clips = clips + 1u;
     }
@@ -317,10 +345,12 @@ fn raster_hit(s: Splat, t: f32, au: f32, av: f32, du: f32, dv: f32, dh: f32, off
     if (!(depth > view.near && d2 < s.r2)) {
         return f;
     }
-    if (s.clips > 0u && affine(s.clip_o0, x, y) + t * affine(s.clip_d0, x, y) > s.clip_c.x) {
+    let along0 = s.rim0.y * u + s.rim0.z * w - s.rim0.w;
+    if (s.clips > 0u && affine(s.clip_o0, x, y) + t * affine(s.clip_d0, x, y) + s.rim0.x * along0 * along0 > s.clip_c.x) {
         return f;
     }
-    if (s.clips > 1u && affine(s.clip_o1, x, y) + t * affine(s.clip_d1, x, y) > s.clip_c.y) {
+    let along1 = s.rim1.y * u + s.rim1.z * w - s.rim1.w;
+    if (s.clips > 1u && affine(s.clip_o1, x, y) + t * affine(s.clip_d1, x, y) + s.rim1.x * along1 * along1 > s.clip_c.y) {
         return f;
     }
     f.ok = true;
