@@ -1751,6 +1751,8 @@ fn shape_at(
         ..Default::default()
     };
     let mut boundary = false;
+    // Where the splat stops following its face short of a crease (`mismatch_plane`).
+    let mismatch = mismatch_plane(positions, normals, nb, i, n, bend);
     // The nearest crease plane, then the nearest one across another crease from it (a box
     // corner has two).
     let mut planes = [(f32::INFINITY, Vec3::ZERO, 0.0f32, Vec3::ZERO); 64];
@@ -1799,9 +1801,9 @@ fn shape_at(
         // itself whose normal is the faces' mean: the crease plane of one face cuts it, its
         // other face is within CREASE_COS of it) competes on the same terms.
         let weigh = |apart: f32, m: Vec3| apart * (1.0 + 0.5 * u0.dot(side(m).normalize_or_zero()));
-        let mismatch = mismatch_plane(positions, normals, nb, i, n, bend)
-            .filter(|(apart, m, _)| second.is_none_or(|(w, _)| weigh(*apart, *m) < w));
-        if let Some((_, m1, c1)) = mismatch {
+        let nearer =
+            mismatch.filter(|(apart, m, _)| second.is_none_or(|(w, _)| weigh(*apart, *m) < w));
+        if let Some((_, m1, c1)) = nearer {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
         } else if let Some((_, &(_, m1, c1, _))) = second {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
@@ -1845,7 +1847,7 @@ fn shape_at(
     }
     if !boundary {
         if let Some(free) = out.clip.iter().position(|c| *c == [0.0; 4]) {
-            if let Some((_, m, c)) = mismatch_plane(positions, normals, nb, i, n, bend) {
+            if let Some((_, m, c)) = mismatch {
                 out.clip[free] = [m.x, m.y, m.z, c];
             }
         }
