@@ -59,7 +59,7 @@ fn bench(c: &mut Criterion) {
     });
     let radii = normals::splat_radii(nb, 1.0);
     g.bench_function("shapes", |b| {
-        b.iter(|| normals::shapes(pts, &n, &radii, nb))
+        b.iter(|| normals::shapes(pts, &n, &mut radii.clone(), nb))
     });
     g.bench_function("estimate_all", |b| {
         b.iter(|| normals::estimate(&original, None, 16, 1.0).unwrap())

@@ -92,9 +92,9 @@ fn main() {
     let t = Instant::now();
     let crease = normals::robust_normals(pts, &mut nm, nb);
     stage("robust", t);
-    let radii = normals::splat_radii(nb, 1.0);
+    let mut radii = normals::splat_radii(nb, 1.0);
     let t = Instant::now();
-    normals::refine_and_shape(pts, &mut nm, &radii, nb, &crease);
+    normals::refine_and_shape(pts, &mut nm, &mut radii, nb, &crease);
     stage("refine+shp", t);
     println!(
         "  estimation proper (k-nearest, pca, orient): {:.1} ms, {:.2} M points/s",

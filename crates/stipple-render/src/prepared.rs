@@ -516,6 +516,10 @@ impl PreparedCloud {
         if need_radii {
             c.radius = Some(e.radii);
             report.radii = true;
+        } else if let Some(r) = c.radius.as_mut() {
+            // Radii from the file: a splat whose clip planes leave a third face out (a box's
+            // corner) is held within it all the same.
+            stipple_core::normals::scale_radii(r, &e.radius_factors);
         }
         report.seconds = t0.elapsed().as_secs_f64();
         self.key = next_key();
@@ -779,6 +783,49 @@ mod tests {
             .zip(&inward)
             .all(|(a, b)| (*a - *b).length() < 1e-5));
         assert!(trusted.cloud.radius.is_some() && trusted.shapes.is_some());
+    }
+
+    /// Radii a file gives (`stipple normals` writes the k-th neighbour's) are held within
+    /// the same caps as estimated ones: a box's corner point whose normal is the three
+    /// faces' mean keeps a small splat either way.
+    #[test]
+    fn radii_from_a_file_keep_the_corner_caps() {
+        let mut r = stipple_core::rng::Rng::new(3);
+        let (mut pts, mut nrm) = (Vec::new(), Vec::new());
+        for _ in 0..3000 {
+            let axis = (r.f32() * 3.0) as usize % 3;
+            let s = if r.f32() < 0.5 { 1.0 } else { -1.0 };
+            let mut p = glam::Vec3::new(r.f32(), r.f32(), r.f32()) * 1.6 - 0.8;
+            p[axis] = 0.8 * s;
+            let mut n = glam::Vec3::ZERO;
+            n[axis] = s;
+            pts.push(p);
+            nrm.push(n);
+        }
+        let corner = pts.len();
+        pts.push(glam::Vec3::splat(0.8 - 0.004));
+        nrm.push(glam::Vec3::ONE.normalize());
+        let cloud = PointCloud {
+            normals: Some(nrm),
+            ..PointCloud::from_positions(pts)
+        };
+        let mut estimated = PreparedCloud::new(cloud.clone());
+        estimated.prepare_surface(16, true).unwrap();
+        let capped = estimated.cloud.radius.as_ref().unwrap()[corner];
+        let full = stipple_core::normals::splat_radii(
+            &stipple_core::normals::neighbours(&cloud.positions, 16).unwrap(),
+            1.0,
+        );
+        assert!(capped < 0.5 * full[corner], "{capped} {}", full[corner]);
+        let mut given = PreparedCloud::new(PointCloud {
+            radius: Some(full.clone()),
+            ..cloud
+        });
+        given.prepare_surface(16, true).unwrap();
+        let kept = given.cloud.radius.as_ref().unwrap();
+        assert_eq!(kept[corner], capped);
+        let changed = kept.iter().zip(&full).filter(|(a, b)| a != b).count();
+        assert!(changed < 100, "{changed} radii changed");
     }
 }
 

@@ -98,7 +98,11 @@ fn trace(cam: &Camera, sdf: Sdf, i: u32, j: u32) -> Option<(f64, DVec3)> {
     let f = cam.basis().forward;
     let mut t = 0.0;
     let mut last = 0.0;
-    for _ in 0..600 {
+    // Rays that graze a face (a box's side seen edge-on) step along it in tiny steps: with
+    // 600 steps they ran out before reaching the surface and counted as misses, so splats
+    // that covered such pixels rightly counted as outside the silhouette (a box 4.8 px
+    // apart: 678 such pixels, IoU 0.983 instead of 0.996).
+    for _ in 0..20_000 {
         let p = o + d * t;
         let s = sdf(p);
         if s < -1e-9 {
@@ -855,9 +859,9 @@ fn open_sheets_end_at_their_rims() {
 /// a box's or cylinder's edge whose normals are the faces' mean rose in front of one face
 /// (box view 4: IoU 0.989; `stipple_core::normals::shapes`' planes where a splat stops
 /// following its face), and cap splats past a curved rim (cylinder view 4: 0.988; clip
-/// planes bent into the rim). Known gaps left out: the torus of view 4 (6.2 px apart) at
-/// IoU 0.9897, and the box of view 2 (5.3 px), whose far faces show through 1.9% of it
-/// (3.1% estimated).
+/// planes bent into the rim). Known gap left out: the box of view 2 (5.3 px apart) without
+/// normals, whose far faces show through 3.4% of it (front points next to an edge that take
+/// the other face's normal).
 #[test]
 fn random_views_of_basic_shapes() {
     let shapes: [(&str, Sdf, usize, f64, f64); 4] = [
@@ -866,13 +870,13 @@ fn random_views_of_basic_shapes() {
         ("box", box_sdf, 3600, 0.85, 3.4),
         ("cylinder", cylinder_sdf, 1800, 0.8, 3.0),
     ];
-    for v in [0u64, 1, 3, 4, 5] {
+    for v in 0u64..6 {
         for (si, &(name, sdf, n, lim, dist)) in shapes.iter().enumerate() {
-            if name == "torus" && v == 4 {
-                continue;
-            }
             let (cam, cloud) = random_view(sdf, n, lim, dist, 500 + v, si as u64);
             for (what, cloud) in variants(&cloud, 507 + v) {
+                if (name, v, what) == ("box", 2, "estimated") {
+                    continue;
+                }
                 let r = measure(
                     &format!("random-view-{name}-{v}-{what}"),
                     &cam,
