@@ -204,3 +204,73 @@ fn the_default_framing_finds_the_front() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A decimated scan (the Dragon at a quarter of its points, 2 px apart at 768²) rendered
+/// with estimated normals shows the normals of the full scan at the same camera: the
+/// quadric fits that bend its splats follow the surface's own curvature where it changes
+/// within a neighbourhood (`stipple_core::normals`, the local fit). Median angle between
+/// the two images' normals over the pixels both cover: 1.5° with the broad fit alone.
+#[test]
+fn a_decimated_scan_shows_the_full_scans_normals() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if !data.exists() {
+        eprintln!("skipping: {} is absent", data.display());
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("stipple-decimated-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cam = dir.join("c.json");
+    let normals = |name: &str, camera: &[&str]| -> Vec<f32> {
+        let out = dir.join("n.npy");
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
+            .args(["render", data.join(name).to_str().unwrap()])
+            .args(["--size", "768", "--backend", "cpu"])
+            .args(camera)
+            .arg("--normal-out")
+            .arg(&out)
+            .arg("-o")
+            .arg(dir.join("x.png"))
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let b = std::fs::read(&out).unwrap();
+        std::fs::remove_file(&out).unwrap();
+        let header = u16::from_le_bytes([b[8], b[9]]) as usize;
+        b[10 + header..]
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect()
+    };
+    let full = normals(
+        "stanford/dragon/dragon_vrip.ply.gz",
+        &["--camera-out", cam.to_str().unwrap()],
+    );
+    let part = normals(
+        "stanford/dragon/dragon_vrip_res2.ply.gz",
+        &["--camera", cam.to_str().unwrap()],
+    );
+    assert_eq!(full.len(), part.len());
+    let mut off: Vec<f32> = full
+        .chunks_exact(3)
+        .zip(part.chunks_exact(3))
+        .filter(|(a, b)| !a[0].is_nan() && !b[0].is_nan())
+        .map(|(a, b)| {
+            let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+            d.clamp(-1.0, 1.0).acos().to_degrees()
+        })
+        .collect();
+    off.sort_by(f32::total_cmp);
+    let (med, p90) = (off[off.len() / 2], off[off.len() * 9 / 10]);
+    eprintln!(
+        "Dragon res2 against the full scan: normals {med:.2}° apart (median), {p90:.2}° (90th), \
+         over {} pixels",
+        off.len()
+    );
+    assert!(off.len() > 100_000, "{} pixels", off.len());
+    assert!(med <= 1.2 && p90 <= 4.5, "{med} {p90}");
+    std::fs::remove_dir_all(&dir).ok();
+}
