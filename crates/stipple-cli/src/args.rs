@@ -477,7 +477,8 @@ pub struct SplatArgs {
     /// splats' normals, colours and depths, shaded per pixel: smooth shading that averages
     /// out the noise of scanned normals; two passes over the splats), voronoi (the splat
     /// whose centre is nearest the pixel, relative to its radius, wins: sharp cells, each
-    /// shaded with its point's normal) or deferred (Zhang & Pajarola's single-pass deferred
+    /// pixel shaded with the winning splat's normal where it meets the pixel's ray; a
+    /// scan's normal noise shows cell by cell) or deferred (Zhang & Pajarola's single-pass deferred
     /// blending: splats graph-coloured into groups, one pass, per-pixel compositing; see
     /// --splat-c) or sorted (Gunjee et al.: every splat bucket-sorted back to front and
     /// blended over the ones behind it with its own opacity: volumes through --transfer,

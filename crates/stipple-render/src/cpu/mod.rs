@@ -356,15 +356,16 @@ impl crate::schedule::PassExec for CpuExec<'_> {
                 quant,
                 epsilon,
             };
-            let blend = sp.mode != crate::SplatMode::Voronoi;
+            // Every mode leaves a per-pixel normal and albedo (Voronoi: the winner's bent
+            // splat at the hit).
             let lut = shade::srgb_to_linear_table();
-            let albedo = blend.then(|| (cloud.albedo(pipe), &lut));
-            let blended = blend.then_some(&mut r.blended);
+            let albedo = Some((cloud.albedo(pipe), &lut));
+            let blended = Some(&mut r.blended);
             let kept = timed(stats, PassId::Splat, || {
                 let k = crate::passes::splat::cpu::splat(v, &input, sp.mode, albedo, ga, blended);
                 (k, 1, k)
             });
-            r.blended_valid = blend;
+            r.blended_valid = true;
             return Ok(Some(kept));
         }
         let planes = match c.normals.as_deref() {

@@ -31,7 +31,9 @@ pub struct SplatInput<'a> {
     pub epsilon: f32,
 }
 
-/// Per-pixel surface of the blend mode: unit normal facing the eye and linear albedo.
+/// Per-pixel surface the splat pass leaves: unit normal facing the eye and linear albedo
+/// (blending: the blended ones; Voronoi: the winning splat's, its normal where the pixel's
+/// ray meets it).
 #[derive(Clone, Debug, Default)]
 pub struct Blended {
     pub normal: Vec<Vec3>,
@@ -78,8 +80,8 @@ struct TileOut {
     albedo: Vec<[f32; 3]>,
 }
 
-/// Rasterizes the splats into `g` (depth and point id per pixel). In blend mode `blended`
-/// receives the blended normal and albedo (`albedo` gives a point's linear albedo).
+/// Rasterizes the splats into `g` (depth and point id per pixel). `blended` receives the
+/// per-pixel normal and albedo ([`Blended`]; `albedo` gives a point's linear albedo).
 /// Returns the splats with a footprint on screen.
 pub fn splat(
     v: &ViewParams,
@@ -137,7 +139,6 @@ pub fn splat(
             }
         }
     });
-    let blend = mode != SplatMode::Voronoi;
     let srgb_lut = srgb_to_linear_table();
     let lut_albedo = |id: usize| -> [f32; 3] {
         match albedo {
@@ -259,14 +260,38 @@ pub fn splat(
                     fr.depth <= z + s.epsilon && (fr.front || !front_only)
                 };
                 if mode == SplatMode::Voronoi {
+                    // Per pixel the counting fragment of smallest (d/r)² (ties: the first,
+                    // of the smaller point index), in `frags`.
                     let mut best = vec![f32::INFINITY; m];
-                    each(&mut |k, fr, _, sid| {
+                    let mut win = vec![u32::MAX; m];
+                    for (fi, &(k, _, fr)) in frags.iter().enumerate() {
+                        let k = k as usize;
                         if counts(k, &fr) && fr.q < best[k] {
                             best[k] = fr.q;
-                            out.depth[k] = fr.depth;
-                            out.id[k] = sid as u32;
+                            win[k] = fi as u32;
                         }
-                    });
+                    }
+                    // The winner's depth and point, and its bent splat's normal at the hit
+                    // (turned to the eye) and albedo: the pixel is shaded as the surface
+                    // there, not as the point's flat disc.
+                    out.normal = vec![Vec3::ZERO; m];
+                    out.albedo = vec![[0.0; 3]; m];
+                    for (k, &fi) in win.iter().enumerate() {
+                        if fi == u32::MAX {
+                            continue;
+                        }
+                        let (_, li, fr) = frags[fi as usize];
+                        let sid = ids[li as usize] as usize;
+                        out.depth[k] = fr.depth;
+                        out.id[k] = sid as u32;
+                        let mut nrm = discs[li as usize].normal_at(fr.u, fr.v);
+                        if nrm.dot(ray(k).2) > 0.0 {
+                            nrm = -nrm;
+                        }
+                        out.normal[k] = nrm;
+                        out.albedo[k] =
+                            lut_albedo(sid).map(|c| srgb_lut[linear_to_srgb8(c) as usize]);
+                    }
                     return out;
                 }
                 each(&mut |k, fr, dsc, sid| {
@@ -307,7 +332,7 @@ pub fn splat(
             let src = r * tile_w;
             g.depth[dst..dst + tile_w].copy_from_slice(&o.depth[src..src + tile_w]);
             g.id[dst..dst + tile_w].copy_from_slice(&o.id[src..src + tile_w]);
-            if let (Some(b), true) = (blended.as_deref_mut(), blend) {
+            if let Some(b) = blended.as_deref_mut() {
                 b.normal[dst..dst + tile_w].copy_from_slice(&o.normal[src..src + tile_w]);
                 b.albedo[dst..dst + tile_w].copy_from_slice(&o.albedo[src..src + tile_w]);
             }

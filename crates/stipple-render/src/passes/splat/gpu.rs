@@ -171,7 +171,7 @@ impl SplatGpu {
             d,
             "splat accum",
             &[
-                UNIFORM, DYNAMIC, READ, READ, READ, WRITE, NO, NO, NO, NO, READ, READ, WRITE,
+                UNIFORM, DYNAMIC, READ, READ, READ, WRITE, NO, WRITE, NO, NO, READ, READ, WRITE,
             ],
             ShaderStages::COMPUTE,
         );
@@ -511,6 +511,10 @@ impl SplatGpu {
                 ));
             }
         }
+        // Voronoi's per-pixel normals (the winner's bent splat at the hit) use the sums too;
+        // where they do not fit, its pixels show their points' normals.
+        let blend =
+            blend.filter(|_| mode != crate::SplatMode::Voronoi || 4 * ACC_WORDS * pixels <= max);
         if blend.is_some() {
             let bytes = 4 * ACC_WORDS * pixels;
             if bytes > max {
@@ -666,7 +670,7 @@ impl SplatGpu {
                         Res::Buf(r),
                         Res::Buf(&s.z),
                         Res::Skip,
-                        Res::Skip,
+                        Res::Buf(&s.i),
                         Res::Skip,
                         Res::Skip,
                         Res::Buf(c.albedo.as_ref().unwrap_or(&cloud.dummy)),
@@ -789,7 +793,7 @@ pub(crate) fn record_step(
         (s.epsilon.unwrap_or(0.0), s.scale),
         (&f.depth[0], &f.id[0]),
         (s.mode, s.quant()),
-        (s.mode != crate::SplatMode::Voronoi).then_some(BlendTargets {
+        Some(BlendTargets {
             attr_pos: &f.attr_pos,
             attr_normal: &f.attr_normal,
             to_linear: &b.shared.to_linear,

@@ -15,8 +15,10 @@
 //! 3. a choice among them, by mode ([`SplatMode`]):
 //!    - **Voronoi rasterization** (§5.1): the fragment with the smallest d/r wins the pixel
 //!      (ties: the smaller point index). The pixel shows that point, at the depth where its
-//!      disc meets the pixel's ray: sharp, hole-free surfaces with no blending. The result
-//!      is a visibility G-buffer (depth + point id), so shading, smoothing and antialiasing
+//!      disc meets the pixel's ray, shaded with the bent splat's normal there (not the
+//!      point's flat normal, which gave sparse curved surfaces a faceted look, 3° off):
+//!      sharp, hole-free surfaces with no blending. The result is a visibility G-buffer
+//!      (depth + point id) with a per-pixel normal, so shading, smoothing and antialiasing
 //!      are the same passes as Dobrev's pipeline on both backends.
 //!    - **Blend** (§3.1, Eq. 1; the default): the Gaussian-weighted mean
 //!      w = exp(−3 (d/r)²) of the counting fragments' albedo, normal (the bent splat's normal

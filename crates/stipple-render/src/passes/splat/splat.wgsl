@@ -10,9 +10,11 @@
 // Blend mode adds two:
 //   splat_accum  : per splat, the fragments that count add their Gaussian weight, weighted
 //                  depth offset, eye-facing normal and linear albedo into per-pixel
-//                  fixed-point sums (integer atomics: exact and order-independent)
+//                  fixed-point sums (integer atomics: exact and order-independent); in
+//                  Voronoi mode the winner alone adds its normal and albedo with weight 1
 //   splat_resolve: per pixel, after shade's gather, the normalised sums replace the pixel's
-//                  depth, normal and albedo (the albedo as 8-bit sRGB, as the CPU stores it)
+//                  depth (blend only), normal and albedo (the albedo as 8-bit sRGB, as the
+//                  CPU stores it)
 // Deferred mode (Zhang & Pajarola §3.2) replaces all but the resolve:
 //   splat_group_key      : ONE pass over the splats: per group and pixel the smallest Eq. 10
 //                          key (atomicMax of its complement)
@@ -587,16 +589,25 @@ fn splat_accum(
         let a = albedo[local];
         c = vec3<f32>(to_linear[a & 0xffu], to_linear[(a >> 8u) & 0xffu], to_linear[(a >> 16u) & 0xffu]);
     }
+    let id = blk.base + local;
     for (var y = s.y0; y <= s.y1; y++) {
         for (var x = s.x0; x <= s.x1; x++) {
-            let f = fragment(s, x, y);
             let k = y * view.width + x;
+            // Voronoi: the pixel's winner alone, weight 1 (its normal at the hit and its
+            // albedo; the depth is splat_write's).
+            if (blk.mode == 0u && ~atomicLoad(&ibuf[k]) != id) {
+                continue;
+            }
+            let f = fragment(s, x, y);
             if (!counts(f, k)) {
                 continue;
             }
             let z0 = reference(k).x;
             // mod.rs weight
-            let wt = exp(-3.0 * f.q);
+            var wt = exp(-3.0 * f.q);
+            if (blk.mode == 0u) {
+                wt = 1.0;
+            }
             let n = blend_normal(s, f, x, y);
             var dz = 0.0;
             if (blk.epsilon > 0.0) {
@@ -645,7 +656,7 @@ fn splat_resolve(
         return;
     }
     let wf = f32(w);
-    if (blk.mode != 2u) {
+    if (blk.mode == 1u) {
         depth_out[k] = reference(k).x + blk.epsilon * (f32(atomicLoad(&acc[b + 1u])) / wf);
     }
     let n = vec3<f32>(
