@@ -653,6 +653,23 @@ fn splats_match_on_both_backends(name: &str, prepared: &PreparedCloud, cam: &Cam
             close as f64 >= 0.98 * n as f64,
             "{name}, {mode:?}: colour agrees on {close} of {n}"
         );
+        // The per-pixel normals the pixels were shaded with (`--normal-out`) come back from
+        // both backends and agree where the pixels show the same point.
+        let (Some(na), Some(nb)) = (&a.normals, &b.normals) else {
+            panic!("{name}, {mode:?}: a splat frame keeps its per-pixel normals on both backends");
+        };
+        let (mut shown, mut near) = (0, 0);
+        for k in 0..n {
+            if a.id[k] == b.id[k] && a.id[k] != BACKGROUND {
+                shown += 1;
+                let (u, v) = (glam::Vec3::from(na[k]), glam::Vec3::from(nb[k]));
+                near += (u.dot(v) >= 0.9998) as usize;
+            }
+        }
+        assert!(
+            near as f64 >= 0.99 * shown as f64,
+            "{name}, {mode:?}: normals within 1.1° on {near} of {shown} pixels"
+        );
     }
 }
 

@@ -177,6 +177,8 @@ pub(crate) struct FrameBuffers {
     pub(crate) acc: Buffer,
     /// Each layer's image when the pipeline keeps them (made on demand).
     pub(crate) layers_read: Option<Buffer>,
+    /// The splat pass's per-pixel normals, read back with a splat frame (made on demand).
+    pub(crate) normals_read: Option<Buffer>,
     pub(crate) colour: [Buffer; 2],
     pub(crate) surface: Buffer,
     /// The anisotropic fill's second depth image; the depiction's level images and term.
@@ -213,6 +215,7 @@ impl FrameBuffers {
             peel_ref: s("peel reference", 32 * n),
             acc: s("blend accumulator", 16 * n),
             layers_read: None,
+            normals_read: None,
             colour: [s("colour a", 16 * n), s("colour b", 16 * n)],
             surface: s("surface depth", 4 * n),
             surface_b: s("surface depth b", 4 * n),

@@ -209,6 +209,19 @@ impl GpuRenderer {
                 }));
             }
         }
+        // A splat frame's per-pixel normals (blended, or the Voronoi winner's at the hit) are
+        // what its pixels were shaded with: read back with the frame, as the CPU keeps them
+        // (`Frame::normals`, `--normal-out`).
+        let want_normals =
+            read && layers == 1 && pipe.splat.as_ref().is_some_and(|s| !s.mode.is_ordered());
+        if want_normals && f.normals_read.as_ref().map(|b| b.size()) != Some(16 * n) {
+            f.normals_read = Some(self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("normals readback"),
+                size: 16 * n,
+                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
         let result = (|| {
             let shared = &self.shared;
             let rec = recorder(&self.ctx, shared, &mut self.arena, self.sync_timing);
@@ -229,7 +242,11 @@ impl GpuRenderer {
                 Some(shading),
             );
             crate::schedule::frame(&mut x, pipe, gap)?;
-            let rec = x.rec;
+            let mut rec = x.rec;
+            if let (true, Some(nr)) = (want_normals, &f.normals_read) {
+                rec.enc
+                    .copy_buffer_to_buffer(&f.attr_normal, 0, nr, 0, 16 * n);
+            }
             let t_record = Instant::now();
             let sections = finish(rec, shared)?;
             let t_wait = Instant::now();
@@ -244,6 +261,15 @@ impl GpuRenderer {
                 })?
             } else {
                 Default::default()
+            };
+            let normals = match (want_normals, &f.normals_read) {
+                (true, Some(nr)) => Some(read_back_with(&self.ctx, nr, 16 * n, |b| {
+                    bytemuck::pod_collect_to_vec::<u8, f32>(b)
+                        .chunks_exact(4)
+                        .map(|v| [v[0], v[1], v[2]])
+                        .collect::<Vec<[f32; 3]>>()
+                })?),
+                _ => None,
             };
             let t_read = Instant::now();
             let stats = stats(&self.ctx, shared, &sections)?;
@@ -270,7 +296,7 @@ impl GpuRenderer {
                 stats,
                 layers: layer_images,
                 layers_peeled: if layers > 1 { peeled } else { 1 },
-                normals: None,
+                normals,
                 host_ms: {
                     let ms = |a: Instant, b: Instant| (b - a).as_secs_f64() * 1e3;
                     let t_end = Instant::now();
