@@ -3258,7 +3258,13 @@ fn estimate_in(
 /// propagated orientation turned the wrong way one by one, where it crossed a sharp crease
 /// through neighbourhoods whose fitted normals were blends of both faces (a cone's base rim
 /// at 4.6 px spacing: 38 of 675 points; 17 after, most in clusters that agree among
-/// themselves). Two rounds, each from the previous one's signs; returns how many turned.
+/// themselves). Neighbours across a crease (37° to 143° apart) vote too, by convexity: with
+/// both normals facing out (or both in) each lies behind the other's tangent plane at a
+/// convex edge and in front at a concave one; one behind and one in front, both well off
+/// the planes, is a vote against the sign (a cone's base point at its rim whose neighbours
+/// are nearly all on the side: one cap point turned in made its splat's neighbours clip
+/// away their inner halves, IoU 0.978 → 0.987). Two rounds, each from the previous one's
+/// signs; returns how many turned.
 fn stray_signs(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> usize {
     let mut turned = 0;
     for _ in 0..2 {
@@ -3271,7 +3277,24 @@ fn stray_signs(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> usi
                 for &j in nb.of(i) {
                     let j = j as usize;
                     let c = n.dot(now[j]);
-                    if c.abs() < 0.8 || !same_layer(positions, now, i, j) {
+                    if c.abs() < 0.8 {
+                        // Across a crease: each lies behind the other's tangent plane (a
+                        // convex edge) or each in front (a concave one) when both normals
+                        // face out, or both in; one behind and one in front, well off the
+                        // planes, is one of them turned.
+                        let d = positions[j] - positions[i];
+                        let tol = 0.1 * d.length();
+                        let (a, b) = (d.dot(n), -d.dot(now[j]));
+                        if a.abs() > tol && b.abs() > tol {
+                            if (a > 0.0) == (b > 0.0) {
+                                agree += 1;
+                            } else {
+                                differ += 1;
+                            }
+                        }
+                        continue;
+                    }
+                    if !same_layer(positions, now, i, j) {
                         continue;
                     }
                     if c > 0.0 {
@@ -3385,6 +3408,28 @@ pub(crate) fn random_sphere(n: usize, seed: u64) -> Vec<Vec3> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A cap point at a sharp convex edge (118°, a cone's base rim) whose 16 neighbours are
+    /// all but one on the other face, its normal turned inward: same-face votes alone (one
+    /// neighbour) left it; the neighbours across the crease say it (each lies in front of
+    /// its turned plane while it lies behind theirs), and it turns back. Nothing else turns.
+    #[test]
+    fn a_lone_point_turned_at_a_sharp_edge_turns_back() {
+        let m = Vec3::new(0.88, 0.47, 0.0).normalize();
+        let t = Vec3::new(-m.y, m.x, 0.0);
+        let mut r = crate::rng::Rng::new(4);
+        let mut p = vec![Vec3::new(-0.02, 0.0, 0.0), Vec3::new(-0.05, 0.0, 0.05)];
+        let mut nn = vec![Vec3::Y, -Vec3::Y];
+        for _ in 0..600 {
+            p.push(t * (r.f32() * 1.2) + Vec3::Z * (r.f32() * 2.0 - 1.0));
+            nn.push(m);
+        }
+        let nb = neighbours(&p, 16).unwrap();
+        let turned = stray_signs(&p, &mut nn, &nb);
+        assert!(nn[0].dot(-Vec3::Y) > 0.99, "{:?}", nn[0]);
+        assert!(nn[1].dot(-Vec3::Y) > 0.99 && nn[2..].iter().all(|n| n.dot(m) > 0.99));
+        assert_eq!(turned, 1);
+    }
     use crate::rng::Rng;
 
     fn sphere(n: usize, seed: u64) -> Vec<Vec3> {
