@@ -3258,10 +3258,10 @@ fn estimate_in(
 /// propagated orientation turned the wrong way one by one, where it crossed a sharp crease
 /// through neighbourhoods whose fitted normals were blends of both faces (a cone's base rim
 /// at 4.6 px spacing: 38 of 675 points; 17 after, most in clusters that agree among
-/// themselves). Neighbours across a crease (37° to 143° apart) vote too, by convexity: with
-/// both normals facing out (or both in) each lies behind the other's tangent plane at a
-/// convex edge and in front at a concave one; one behind and one in front, both well off
-/// the planes, is a vote against the sign (a cone's base point at its rim whose neighbours
+/// themselves). Neighbours across a sharp crease (60° to 120° apart) vote too, by convexity
+/// (`orient::crease_sides`): with both normals facing out (or both in) each lies behind the
+/// other's tangent plane at a convex edge and in front at a concave one; one behind and one
+/// in front, both well off the planes, is a vote against the sign (a cone's base point at its rim whose neighbours
 /// are nearly all on the side: one cap point turned in made its splat's neighbours clip
 /// away their inner halves, IoU 0.978 → 0.987). Two rounds, each from the previous one's
 /// signs; returns how many turned.
@@ -3278,15 +3278,11 @@ fn stray_signs(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> usi
                     let j = j as usize;
                     let c = n.dot(now[j]);
                     if c.abs() < 0.8 {
-                        // Across a crease: each lies behind the other's tangent plane (a
-                        // convex edge) or each in front (a concave one) when both normals
-                        // face out, or both in; one behind and one in front, well off the
-                        // planes, is one of them turned.
-                        let d = positions[j] - positions[i];
-                        let tol = 0.1 * d.length();
-                        let (a, b) = (d.dot(n), -d.dot(now[j]));
-                        if a.abs() > tol && b.abs() > tol {
-                            if (a > 0.0) == (b > 0.0) {
+                        // Across a sharp crease: consistent normals put each point on the
+                        // other side of the other's tangent plane (`orient::crease_sides`,
+                        // the rule the spanning tree's flips follow).
+                        if let Some((ha, hb)) = orient::crease_sides(positions, now, i, j) {
+                            if ha * hb < 0.0 {
                                 agree += 1;
                             } else {
                                 differ += 1;

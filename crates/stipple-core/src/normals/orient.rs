@@ -132,7 +132,12 @@ const OFF: f32 = 0.1;
 
 /// At a sharp crease (normals 60–120° apart), each point's offset from the other's tangent
 /// plane (nᵢ·d, nⱼ·d), when both are clearly off it; None elsewhere.
-fn crease_sides(positions: &[Vec3], normals: &[Vec3], i: usize, j: usize) -> Option<(f32, f32)> {
+pub(super) fn crease_sides(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    i: usize,
+    j: usize,
+) -> Option<(f32, f32)> {
     let (a, b) = (normals[i], normals[j]);
     if a.dot(b).abs() >= PARALLEL {
         return None;
