@@ -2197,69 +2197,16 @@ struct JetRow {
 }
 
 /// Weighted least squares of a quadric over `rows` (weights `r.w`, or `r.wl` for the local
-/// fit; the point itself anchors the constant term), by Cholesky; `loo` gets each row's
-/// leave-one-out residual e / (1 − leverage). None where the fit is ill-conditioned.
+/// fit; the point itself anchors the constant term); `loo` gets each row's leave-one-out
+/// residual e / (1 − leverage). None where the fit is ill-conditioned.
 fn fit_loo(rows: &[JetRow], local: bool, loo: &mut [f64]) -> Option<[f64; QUADRIC]> {
-    const U: usize = QUADRIC;
-    let mut a = [[0.0f64; U]; U];
-    let mut b = [0.0f64; U];
-    a[0][0] = 1.0;
-    for r in rows {
-        let w = if local { r.wl } else { r.w };
-        for i in 0..U {
-            let wr = w * r.terms[i];
-            for j in 0..=i {
-                a[i][j] += wr * r.terms[j];
-            }
-            b[i] += wr * r.h;
-        }
-    }
-    let scale = (0..U).map(|i| a[i][i]).fold(0.0, f64::max);
-    // Cholesky: a = L Lᵀ (lower triangle in place).
-    for i in 0..U {
-        for j in 0..=i {
-            let mut acc = a[i][j];
-            for k in 0..j {
-                acc -= a[i][k] * a[j][k];
-            }
-            if i == j {
-                if acc.partial_cmp(&(1e-12 * scale)) != Some(std::cmp::Ordering::Greater) {
-                    return None;
-                }
-                a[i][i] = acc.sqrt();
-            } else {
-                a[i][j] = acc / a[j][j];
-            }
-        }
-    }
-    let inv: [f64; U] = std::array::from_fn(|i| 1.0 / a[i][i]);
-    let fwd = |v: &[f64; U]| {
-        let mut z = [0.0f64; U];
-        for i in 0..U {
-            let mut acc = v[i];
-            for k in 0..i {
-                acc -= a[i][k] * z[k];
-            }
-            z[i] = acc * inv[i];
-        }
-        z
-    };
-    let z = fwd(&b);
-    let mut x = [0.0f64; U];
-    for i in (0..U).rev() {
-        let mut acc = z[i];
-        for k in i + 1..U {
-            acc -= a[k][i] * x[k];
-        }
-        x[i] = acc * inv[i];
-    }
+    let weight = |r: &JetRow| if local { r.wl } else { r.w };
+    let fit = QuadricFit::new(rows.iter().map(|r| (r.terms, r.h, weight(r))), true)?;
     for (r, e) in rows.iter().zip(loo.iter_mut()) {
-        let w = if local { r.wl } else { r.w };
-        let zr = fwd(&r.terms);
-        let lev = (w * zr.iter().map(|v| v * v).sum::<f64>()).min(0.999);
-        *e = (r.h - quadric_at(&x, &r.terms)) / (1.0 - lev);
+        let lev = fit.leverage(weight(r), &r.terms).min(0.999);
+        *e = (r.h - quadric_at(&fit.x, &r.terms)) / (1.0 - lev);
     }
-    Some(x)
+    Some(fit.x)
 }
 
 /// The local quadric fit's reach (`jet`): a neighbour at distance d in the tangent plane
@@ -2284,68 +2231,103 @@ fn quadric_terms(u: f64, v: f64) -> [f64; QUADRIC] {
 
 /// The least-squares quadric height field through weighted rows (terms at (u, v), height,
 /// weight), and, with `anchor`, the origin at height 0 with weight 1 (the point itself);
-/// None where it is ill-conditioned ([`solve_quadric`]).
+/// None where it is ill-conditioned ([`QuadricFit`]).
 fn fit_quadric(
     rows: impl Iterator<Item = ([f64; QUADRIC], f64, f64)>,
     anchor: bool,
 ) -> Option<[f64; QUADRIC]> {
-    const U: usize = QUADRIC;
-    let mut m = [[0.0f64; U + 1]; U];
-    if anchor {
-        m[0][0] = 1.0;
-    }
-    for (row, h, w) in rows {
-        // The normal equations are symmetric: the upper triangle now, the rest below.
-        for a in 0..U {
-            let wr = w * row[a];
-            for b in a..U {
-                m[a][b] += wr * row[b];
+    QuadricFit::new(rows, anchor).map(|f| f.x)
+}
+
+/// A weighted least-squares quadric fit: its coefficients, and the Cholesky factor L of its
+/// normal equations (M = L Lᵀ), which gives each row's leverage.
+struct QuadricFit {
+    x: [f64; QUADRIC],
+    /// L in its lower triangle.
+    l: [[f64; QUADRIC]; QUADRIC],
+    /// 1 / L's diagonal.
+    inv: [f64; QUADRIC],
+}
+
+impl QuadricFit {
+    /// The fit of [`fit_quadric`]; None where the normal equations are ill-conditioned (a
+    /// pivot under 1e-9 of the largest diagonal entry: a line, duplicates).
+    fn new(
+        rows: impl Iterator<Item = ([f64; QUADRIC], f64, f64)>,
+        anchor: bool,
+    ) -> Option<QuadricFit> {
+        const U: usize = QUADRIC;
+        let mut l = [[0.0f64; U]; U];
+        let mut b = [0.0f64; U];
+        if anchor {
+            l[0][0] = 1.0;
+        }
+        for (row, h, w) in rows {
+            // The normal equations are symmetric: the lower triangle alone.
+            for i in 0..U {
+                let wr = w * row[i];
+                for j in 0..=i {
+                    l[i][j] += wr * row[j];
+                }
+                b[i] += wr * h;
             }
-            m[a][U] += wr * h;
         }
-    }
-    for a in 1..U {
-        for b in 0..a {
-            m[a][b] = m[b][a];
+        let scale = (0..U).map(|i| l[i][i]).fold(0.0, f64::max);
+        for i in 0..U {
+            for j in 0..=i {
+                let mut acc = l[i][j];
+                for k in 0..j {
+                    acc -= l[i][k] * l[j][k];
+                }
+                if i == j {
+                    if acc.partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
+                        return None;
+                    }
+                    l[i][i] = acc.sqrt();
+                } else {
+                    l[i][j] = acc / l[j][j];
+                }
+            }
         }
+        let mut fit = QuadricFit {
+            x: [0.0; U],
+            l,
+            inv: std::array::from_fn(|i| 1.0 / l[i][i]),
+        };
+        let z = fit.forward(&b);
+        for i in (0..U).rev() {
+            let mut acc = z[i];
+            for k in i + 1..U {
+                acc -= fit.l[k][i] * fit.x[k];
+            }
+            fit.x[i] = acc * fit.inv[i];
+        }
+        Some(fit)
     }
-    solve_quadric(m)
+
+    /// L⁻¹ v.
+    fn forward(&self, v: &[f64; QUADRIC]) -> [f64; QUADRIC] {
+        let mut z = [0.0f64; QUADRIC];
+        for i in 0..QUADRIC {
+            let mut acc = v[i];
+            for k in 0..i {
+                acc -= self.l[i][k] * z[k];
+            }
+            z[i] = acc * self.inv[i];
+        }
+        z
+    }
+
+    /// The leverage of a row of weight `w` and terms `row`: w · rowᵀ M⁻¹ row.
+    fn leverage(&self, w: f64, row: &[f64; QUADRIC]) -> f64 {
+        w * self.forward(row).iter().map(|v| v * v).sum::<f64>()
+    }
 }
 
 /// The height of the quadric `c` at terms `row`.
 #[inline]
 fn quadric_at(c: &[f64; QUADRIC], row: &[f64; QUADRIC]) -> f64 {
     c.iter().zip(row).map(|(c, r)| c * r).sum()
-}
-
-/// Solves the normal equations `m` (the symmetric matrix, full, and the right-hand side in
-/// the last column) of a quadric fit by Gaussian elimination with partial pivoting; None
-/// where they are ill-conditioned (a line, duplicates).
-fn solve_quadric(mut m: [[f64; QUADRIC + 1]; QUADRIC]) -> Option<[f64; QUADRIC]> {
-    const U: usize = QUADRIC;
-    let scale = (0..U).map(|r| m[r][r]).fold(0.0, f64::max);
-    for col in 0..U {
-        let piv = (col..U).max_by(|&a, &b| m[a][col].abs().total_cmp(&m[b][col].abs()))?;
-        if m[piv][col].abs().partial_cmp(&(1e-9 * scale)) != Some(std::cmp::Ordering::Greater) {
-            return None;
-        }
-        m.swap(col, piv);
-        for r in col + 1..U {
-            let f = m[r][col] / m[col][col];
-            for c in col..=U {
-                m[r][c] -= f * m[col][c];
-            }
-        }
-    }
-    let mut x = [0.0f64; U];
-    for r in (0..U).rev() {
-        let mut acc = m[r][U];
-        for c in r + 1..U {
-            acc -= m[r][c] * x[c];
-        }
-        x[r] = acc / m[r][r];
-    }
-    Some(x)
 }
 
 /// How far the point at `p0` and its neighbours `ids` lie off their least-squares quadric
