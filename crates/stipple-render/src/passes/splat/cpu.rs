@@ -56,10 +56,7 @@ impl Acc {
     #[inline]
     fn add(&mut self, fr: super::Frag, dsc: &Disc, sid: usize, dir: Vec3, albedo: [f32; 3]) {
         let wt = weight(fr.q);
-        let mut nrm = dsc.normal_at(fr.u, fr.v);
-        if nrm.dot(dir) > 0.0 {
-            nrm = -nrm;
-        }
+        let nrm = dsc.normal_facing(&fr, dir);
         self.w += wt;
         self.d += wt * fr.depth;
         self.n += wt * nrm;
@@ -284,11 +281,7 @@ pub fn splat(
                         let sid = ids[li as usize] as usize;
                         out.depth[k] = fr.depth;
                         out.id[k] = sid as u32;
-                        let mut nrm = discs[li as usize].normal_at(fr.u, fr.v);
-                        if nrm.dot(ray(k).2) > 0.0 {
-                            nrm = -nrm;
-                        }
-                        out.normal[k] = nrm;
+                        out.normal[k] = discs[li as usize].normal_facing(&fr, ray(k).2);
                         out.albedo[k] =
                             lut_albedo(sid).map(|c| srgb_lut[linear_to_srgb8(c) as usize]);
                     }

@@ -334,6 +334,18 @@ impl Disc {
         let [a, b, c] = self.shape;
         (self.n - (a * u + b * w) * self.t1 - (b * u + c * w) * self.t2).normalize_or_zero()
     }
+
+    /// The patch's unit normal at fragment `fr`, turned against the pixel ray's direction
+    /// `dir` (towards the eye), as blending and Voronoi shade it (splat.wgsl `blend_normal`).
+    #[inline]
+    pub fn normal_facing(&self, fr: &Frag, dir: Vec3) -> Vec3 {
+        let n = self.normal_at(fr.u, fr.v);
+        if n.dot(dir) > 0.0 {
+            -n
+        } else {
+            n
+        }
+    }
 }
 
 /// A ray's hit on a splat: view depth, (d/r)² and the hit's tangent coordinates, and whether
