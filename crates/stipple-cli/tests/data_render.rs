@@ -35,13 +35,22 @@ const FILES: &[&str] = &[
     "volume/tooth_103x94x161_uint8.raw",
 ];
 
+/// `../shared/data`, or None (the reason printed) where it is absent.
+fn data_dir() -> Option<std::path::PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        eprintln!("skipped: {} is absent", dir.display());
+        None
+    }
+}
+
 #[test]
 fn every_covered_data_file_renders() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if !dir.is_dir() {
-        eprintln!("skipped: {} is absent", dir.display());
+    let Some(dir) = data_dir() else {
         return;
-    }
+    };
     // Every cloud, mesh and volume file in the data folder is in the list.
     let mut found = Vec::new();
     let mut stack = vec![dir.clone()];
@@ -161,11 +170,9 @@ fn lidar_colours_by_return_number() {
 /// Buddha face +Z; `--view` still names the side.
 #[test]
 fn the_default_framing_finds_the_front() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if !data.exists() {
-        eprintln!("skipping: {} is absent", data.display());
+    let Some(data) = data_dir() else {
         return;
-    }
+    };
     let dir = std::env::temp_dir().join(format!("stipple-front-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let side = |name: &str, extra: &[&str]| {
@@ -212,11 +219,9 @@ fn the_default_framing_finds_the_front() {
 /// the two images' normals over the pixels both cover: 1.5° with the broad fit alone.
 #[test]
 fn a_decimated_scan_shows_the_full_scans_normals() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if !data.exists() {
-        eprintln!("skipping: {} is absent", data.display());
+    let Some(data) = data_dir() else {
         return;
-    }
+    };
     let dir = std::env::temp_dir().join(format!("stipple-decimated-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let cam = dir.join("c.json");
