@@ -579,6 +579,85 @@ struct Nearby {
     last: Option<(Vec3, f32)>,
 }
 
+impl Nearby {
+    /// The squared distances from q to the candidates into `d2`, and into `bits` which of
+    /// them lie within `bound` ([`within`]).
+    #[inline(always)]
+    fn distances(&mut self, q: Vec3, bound: f32) {
+        self.bits.clear();
+        let (x, y, z) = (&self.x, &self.y, &self.z);
+        for (c, d2) in self.d2.chunks_mut(64).enumerate() {
+            let mut w = 0u64;
+            for (j, d) in d2.iter_mut().enumerate() {
+                let u = c * 64 + j;
+                let (dx, dy, dz) = (x[u] - q.x, y[u] - q.y, z[u] - q.z);
+                *d = dx * dx + dy * dy + dz * dz;
+                w |= ((*d <= bound && *d > 0.0) as u64) << j;
+            }
+            self.bits.push(w);
+        }
+    }
+
+    /// [`Nearby::distances`], eight at a time.
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn distances_avx2(&mut self, q: Vec3, bound: f32) {
+        use std::arch::x86_64::*;
+        self.bits.clear();
+        let (qx, qy, qz) = (
+            _mm256_set1_ps(q.x),
+            _mm256_set1_ps(q.y),
+            _mm256_set1_ps(q.z),
+        );
+        let (b, zero) = (_mm256_set1_ps(bound), _mm256_setzero_ps());
+        let m = self.d2.len();
+        assert!(self.x.len() >= m && self.y.len() >= m && self.z.len() >= m);
+        for c in 0..m.div_ceil(64) {
+            let (start, end) = (c * 64, (c * 64 + 64).min(m));
+            let mut w = 0u64;
+            let mut u = start;
+            while u + 8 <= end {
+                // SAFETY: u + 8 ≤ m ≤ each array's length (asserted above).
+                let (x, y, z) = unsafe {
+                    (
+                        _mm256_loadu_ps(self.x.as_ptr().add(u)),
+                        _mm256_loadu_ps(self.y.as_ptr().add(u)),
+                        _mm256_loadu_ps(self.z.as_ptr().add(u)),
+                    )
+                };
+                let (dx, dy, dz) = (
+                    _mm256_sub_ps(x, qx),
+                    _mm256_sub_ps(y, qy),
+                    _mm256_sub_ps(z, qz),
+                );
+                // (x² + y²) + z², as `length_squared` and the scalar path add them.
+                let d = _mm256_add_ps(
+                    _mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                    _mm256_mul_ps(dz, dz),
+                );
+                // SAFETY: as above.
+                unsafe { _mm256_storeu_ps(self.d2.as_mut_ptr().add(u), d) };
+                let inside = _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(d, b),
+                    _mm256_cmp_ps::<_CMP_GT_OQ>(d, zero),
+                );
+                w |= (_mm256_movemask_ps(inside) as u64) << (u - start);
+                u += 8;
+            }
+            for u in u..end {
+                let (dx, dy, dz) = (self.x[u] - q.x, self.y[u] - q.y, self.z[u] - q.z);
+                let d = dx * dx + dy * dy + dz * dz;
+                self.d2[u] = d;
+                w |= ((d <= bound && d > 0.0) as u64) << (u - start);
+            }
+            self.bits.push(w);
+        }
+    }
+}
+
 impl Grid {
     /// [`Grid::knn`] of the point at grid position `t` (queried in grid order), from the
     /// points of the 27 cells around its cell: the distances to all of them at once, then
@@ -590,7 +669,7 @@ impl Grid {
     /// the 27 cells' reach): [`Grid::knn`] then searches outwards. Points are distinct
     /// (see [`neighbours`]), so distance 0 is the query itself. Same answer as `knn`.
     #[inline(always)]
-    fn knn_nearby(
+    fn knn_nearby<const AVX2: bool>(
         &self,
         t: usize,
         k: usize,
@@ -621,11 +700,6 @@ impl Grid {
         if m <= k {
             return Nearest::Unknown;
         }
-        near.d2.resize(m, 0.0);
-        for (((d, &x), &y), &z) in near.d2.iter_mut().zip(&near.x).zip(&near.y).zip(&near.z) {
-            let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
-            *d = dx * dx + dy * dy + dz * dz;
-        }
         // Distance from q to the outside of the 27 cells: nothing nearer lies beyond them.
         let base = self.min + Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) * self.cell;
         let local = q - base;
@@ -637,17 +711,33 @@ impl Grid {
         // are the k nearest of all the candidates, whatever the guess. Else the bound that
         // must hold, the previous k-th distance plus the distance between the queries.
         let mut kept = 0;
-        for bound in match near.last {
+        let bounds = match near.last {
             Some((p, kth)) => {
                 let sure = (kth + (q - p).length()) * (1.0 + 1e-5);
                 [(GUESS * kth).min(sure).powi(2), sure * sure]
             }
             None => [f32::INFINITY; 2],
-        } {
-            // Which candidates lie within the bound, a bit each (four compared at once), and
-            // then keys for those alone: about one in six on Autzen, where a key written for
-            // every candidate and counted or not was a third of the search's time.
-            within(&near.d2, bound, &mut near.bits);
+        };
+        for (pass, bound) in bounds.into_iter().enumerate() {
+            // Which candidates lie within the bound, a bit each, and then keys for those
+            // alone: about one in six on Autzen, where a key written for every candidate and
+            // counted or not was a third of the search's time. The first bound's bits come
+            // with the distances, in one pass (eight at a time with AVX2).
+            if pass == 0 {
+                near.d2.resize(m, 0.0);
+                #[cfg(target_arch = "x86_64")]
+                if AVX2 {
+                    // SAFETY: `AVX2` is set only by `knn_nearby_avx2`, whose callers
+                    // checked that the processor has it.
+                    unsafe { near.distances_avx2(q, bound) };
+                } else {
+                    near.distances(q, bound);
+                }
+                #[cfg(not(target_arch = "x86_64"))]
+                near.distances(q, bound);
+            } else {
+                within(&near.d2, bound, &mut near.bits);
+            }
             kept = near.bits.iter().map(|w| w.count_ones() as usize).sum();
             if kept >= k {
                 near.keys.clear();
@@ -710,7 +800,7 @@ impl Grid {
         cache: &mut CellCache,
         near: &mut Nearby,
     ) -> Nearest {
-        self.knn_nearby(t, k, out, cache, near)
+        self.knn_nearby::<true>(t, k, out, cache, near)
     }
 }
 
@@ -884,10 +974,10 @@ fn query(mut grid: Grid, all: usize, k: usize) -> Result<Neighbours, NormalError
                     // SAFETY: the processor has AVX2 (checked for this block).
                     unsafe { grid.knn_nearby_avx2(t, k, &mut buf, &mut cache, &mut near) }
                 } else {
-                    grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near)
+                    grid.knn_nearby::<false>(t, k, &mut buf, &mut cache, &mut near)
                 };
                 #[cfg(not(target_arch = "x86_64"))]
-                let found = grid.knn_nearby(t, k, &mut buf, &mut cache, &mut near);
+                let found = grid.knn_nearby::<false>(t, k, &mut buf, &mut cache, &mut near);
                 let m = match found {
                     Nearest::Found(m) => m,
                     _ => {
@@ -946,27 +1036,36 @@ fn query(mut grid: Grid, all: usize, k: usize) -> Result<Neighbours, NormalError
 /// the others: nearly every call), else from the trigonometric formula for all three: its
 /// arc cosine and two cosines in double precision were 70% of the PCA stage's time.
 pub fn smallest_eigenvector(a: [[f64; 3]; 3]) -> Vec3 {
-    if let Some(v) = smallest_eigenvalue(&a).and_then(|l| null_vector(&a, l)) {
-        return v.as_vec3();
-    }
-    let (vals, ok) = eigenvalues(a);
-    if !ok {
-        return Vec3::Z;
-    }
-    if let Some(v) = null_vector(&a, vals[0]) {
-        return v.as_vec3();
-    }
-    // The two smallest eigenvalues coincide (points on a line): any direction
-    // perpendicular to the largest eigenvector.
-    if let Some(line) = null_vector(&a, vals[2]) {
-        let other = if line.x.abs() < 0.9 {
-            DVec3::X
-        } else {
-            DVec3::Y
-        };
-        return line.cross(other).normalize().as_vec3();
-    }
-    Vec3::Z
+    smallest_eigenvectors(&[a])[0]
+}
+
+/// [`smallest_eigenvector`] of L matrices at once ([`smallest_eigenvalues`]).
+pub fn smallest_eigenvectors<const L: usize>(a: &[[[f64; 3]; 3]; L]) -> [Vec3; L] {
+    let ls = smallest_eigenvalues(a);
+    std::array::from_fn(|j| {
+        let a = a[j];
+        if let Some(v) = ls[j].and_then(|l| null_vector(&a, l)) {
+            return v.as_vec3();
+        }
+        let (vals, ok) = eigenvalues(a);
+        if !ok {
+            return Vec3::Z;
+        }
+        if let Some(v) = null_vector(&a, vals[0]) {
+            return v.as_vec3();
+        }
+        // The two smallest eigenvalues coincide (points on a line): any direction
+        // perpendicular to the largest eigenvector.
+        if let Some(line) = null_vector(&a, vals[2]) {
+            let other = if line.x.abs() < 0.9 {
+                DVec3::X
+            } else {
+                DVec3::Y
+            };
+            return line.cross(other).normalize().as_vec3();
+        }
+        Vec3::Z
+    })
 }
 
 /// The unit vector that `a − l·I` maps to zero (the eigenvector of eigenvalue `l`): the
@@ -981,48 +1080,84 @@ fn null_vector(a: &[[f64; 3]; 3], l: f64) -> Option<DVec3> {
         )
     };
     let (r0, r1, r2) = (m(0), m(1), m(2));
-    let cands = [r0.cross(r1), r0.cross(r2), r1.cross(r2)];
-    let best = cands
-        .into_iter()
-        .max_by(|x, y| x.length_squared().total_cmp(&y.length_squared()))?;
+    let (c0, c1, c2) = (r0.cross(r1), r0.cross(r2), r1.cross(r2));
+    let (l0, l1, l2) = (
+        c0.length_squared(),
+        c1.length_squared(),
+        c2.length_squared(),
+    );
+    // The longest (the last of equals), chosen by selects rather than branches: which one
+    // it is varies from point to point, and mispredicted branches and a second square root
+    // made it a third of the PCA stage's time (Autzen: 0.23 s of 0.62).
+    let (c01, l01) = if l1 >= l0 { (c1, l1) } else { (c0, l0) };
+    let (best, len2) = if l2 >= l01 { (c2, l2) } else { (c01, l01) };
     let scale = (a[0][0].abs() + a[1][1].abs() + a[2][2].abs()).max(1e-300);
-    (best.length() > 1e-9 * scale * scale).then(|| best.normalize())
+    let min = 1e-9 * scale * scale;
+    (len2 > min * min).then(|| best / len2.sqrt())
 }
 
-/// The smallest eigenvalue of a symmetric positive semi-definite 3×3 matrix by Newton's
-/// method on its characteristic polynomial f(λ) = λ³ − tr·λ² + c·λ − det, from λ = 0.
-/// Below its smallest root f rises and is concave (f'' = 6λ − 2·tr < 0 there, as the
+/// Newton's steps for the smallest eigenvalue stop when a step is this small, over the
+/// trace.
+const SETTLED: f64 = 1e-13;
+
+/// The smallest eigenvalue of each of L symmetric positive semi-definite 3×3 matrices by
+/// Newton's method on its characteristic polynomial f(λ) = λ³ − tr·λ² + c·λ − det, from
+/// λ = 0. Below its smallest root f rises and is concave (f'' = 6λ − 2·tr < 0 there, as the
 /// smallest root is at most tr/3), so the steps climb to the root without passing it,
 /// quadratically where the root is simple. None when the slope is too flat to step on (two
-/// eigenvalues near 0, as for points on a line), when ten steps do not settle it to 1e-13
-/// of the trace (the two smallest eigenvalues nearly equal, where convergence is linear), or
-/// when the matrix is not finite or has no positive trace.
-fn smallest_eigenvalue(a: &[[f64; 3]; 3]) -> Option<f64> {
-    let tr = a[0][0] + a[1][1] + a[2][2];
-    let c = a[0][0] * a[1][1] - a[0][1] * a[0][1] + a[0][0] * a[2][2] - a[0][2] * a[0][2]
-        + a[1][1] * a[2][2]
-        - a[1][2] * a[1][2];
-    let det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[1][2])
-        - a[0][1] * (a[0][1] * a[2][2] - a[1][2] * a[0][2])
-        + a[0][2] * (a[0][1] * a[1][2] - a[1][1] * a[0][2]);
-    if !(tr > 0.0 && tr.is_finite() && c.is_finite() && det.is_finite()) {
-        return None;
+/// eigenvalues near 0, as for points on a line), when ten steps do not settle it to
+/// [`SETTLED`] of the trace (the two smallest eigenvalues nearly equal, where convergence is
+/// linear), or when the matrix is not finite or has no positive trace.
+///
+/// The L chains of dependent steps (a division each, about five steps a matrix) go side by
+/// side, without branches, so that they overlap and vectorise; the results are those of
+/// one matrix at a time. (The PCA stage on Autzen, four at once, with [`null_vector`]'s
+/// selects: 0.75 → 0.55–0.63 s.)
+fn smallest_eigenvalues<const L: usize>(a: &[[[f64; 3]; 3]; L]) -> [Option<f64>; L] {
+    let mut out = [None; L];
+    let (mut tr, mut c, mut det) = ([0.0f64; L], [0.0f64; L], [0.0f64; L]);
+    // Lanes still stepping.
+    let mut live = [false; L];
+    for (j, a) in a.iter().enumerate() {
+        tr[j] = a[0][0] + a[1][1] + a[2][2];
+        c[j] = a[0][0] * a[1][1] - a[0][1] * a[0][1] + a[0][0] * a[2][2] - a[0][2] * a[0][2]
+            + a[1][1] * a[2][2]
+            - a[1][2] * a[1][2];
+        det[j] = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[1][2])
+            - a[0][1] * (a[0][1] * a[2][2] - a[1][2] * a[0][2])
+            + a[0][2] * (a[0][1] * a[1][2] - a[1][1] * a[0][2]);
+        live[j] = tr[j] > 0.0 && tr[j].is_finite() && c[j].is_finite() && det[j].is_finite();
     }
-    let tol = 1e-13 * tr;
-    let mut l = 0.0f64;
+    // Branch-free lanes (a lane that has settled or failed keeps its value), so that the
+    // steps vectorise.
+    let mut l = [0.0f64; L];
+    let mut done = [false; L];
     for _ in 0..10 {
-        let f = ((l - tr) * l + c) * l - det;
-        let slope = (3.0 * l - 2.0 * tr) * l + c;
-        if slope.is_nan() || slope <= 1e-10 * tr * tr {
-            return None;
+        let mut any = false;
+        for j in 0..L {
+            let (tr, lj) = (tr[j], l[j]);
+            let f = ((lj - tr) * lj + c[j]) * lj - det[j];
+            let slope = (3.0 * lj - 2.0 * tr) * lj + c[j];
+            let flat = slope.is_nan() || slope <= 1e-10 * tr * tr;
+            let step = f / slope;
+            let settled = step.abs() <= SETTLED * tr;
+            let stepping = live[j] && !flat;
+            l[j] = if stepping { lj - step } else { lj };
+            done[j] |= stepping && settled;
+            live[j] = stepping && !settled;
+            any |= live[j];
         }
-        let step = f / slope;
-        l -= step;
-        if step.abs() <= tol {
-            return (l <= tr / 3.0 + tol).then_some(l);
+        if !any {
+            break;
         }
     }
-    None
+    for j in 0..L {
+        let tol = SETTLED * tr[j];
+        if done[j] && l[j] <= tr[j] / 3.0 + tol {
+            out[j] = Some(l[j]);
+        }
+    }
+    out
 }
 
 /// Eigenvalues of a symmetric 3×3 matrix in ascending order (trigonometric method).
@@ -1051,36 +1186,49 @@ fn eigenvalues(a: [[f64; 3]; 3]) -> ([f64; 3], bool) {
 
 /// PCA normals (unoriented) from the neighbourhoods.
 pub fn pca_normals(positions: &[Vec3], nb: &Neighbours) -> Vec<Vec3> {
-    (0..positions.len())
-        .into_par_iter()
-        .map(|i| {
-            // One pass: the sums of the offsets d from the point and of their products,
-            // then Σ(d − c)(d − c)ᵀ = Σddᵀ − m·ccᵀ. Offsets from the point itself are a
-            // neighbourhood's size, so nothing large cancels.
-            let p0 = positions[i].as_dvec3();
-            let ids = nb.of(i);
-            let m = ids.len() as f64 + 1.0;
-            let mut sum = DVec3::ZERO;
-            let (mut xx, mut xy, mut xz, mut yy, mut yz, mut zz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-            for &j in ids {
-                let d = positions[j as usize].as_dvec3() - p0;
-                sum += d;
-                xx += d.x * d.x;
-                xy += d.x * d.y;
-                xz += d.x * d.z;
-                yy += d.y * d.y;
-                yz += d.y * d.z;
-                zz += d.z * d.z;
-            }
-            let c = sum / m;
-            let (xy, xz, yz) = (xy - m * c.x * c.y, xz - m * c.x * c.z, yz - m * c.y * c.z);
-            smallest_eigenvector([
-                [xx - m * c.x * c.x, xy, xz],
-                [xy, yy - m * c.y * c.y, yz],
-                [xz, yz, zz - m * c.z * c.z],
-            ])
-        })
-        .collect()
+    // Four points at a time: their eigenvalues' Newton steps interleave
+    // ([`smallest_eigenvalues`]).
+    const L: usize = 4;
+    let mut out = vec![Vec3::ZERO; positions.len()];
+    out.par_chunks_mut(L).enumerate().for_each(|(at, dst)| {
+        let mut cov = [[[0.0f64; 3]; 3]; L];
+        for (j, a) in cov.iter_mut().enumerate().take(dst.len()) {
+            *a = covariance(positions, nb, at * L + j);
+        }
+        let v = smallest_eigenvectors(&cov);
+        dst.copy_from_slice(&v[..dst.len()]);
+    });
+    out
+}
+
+/// The covariance of point i and its neighbours.
+#[inline]
+fn covariance(positions: &[Vec3], nb: &Neighbours, i: usize) -> [[f64; 3]; 3] {
+    // One pass: the sums of the offsets d from the point and of their products, then
+    // Σ(d − c)(d − c)ᵀ = Σddᵀ − m·ccᵀ. Offsets from the point itself are a neighbourhood's
+    // size, so nothing large cancels.
+    let p0 = positions[i].as_dvec3();
+    let ids = nb.of(i);
+    let m = ids.len() as f64 + 1.0;
+    let mut sum = DVec3::ZERO;
+    let (mut xx, mut xy, mut xz, mut yy, mut yz, mut zz) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for &j in ids {
+        let d = positions[j as usize].as_dvec3() - p0;
+        sum += d;
+        xx += d.x * d.x;
+        xy += d.x * d.y;
+        xz += d.x * d.z;
+        yy += d.y * d.y;
+        yz += d.y * d.z;
+        zz += d.z * d.z;
+    }
+    let c = sum / m;
+    let (xy, xz, yz) = (xy - m * c.x * c.y, xz - m * c.x * c.z, yz - m * c.y * c.z);
+    [
+        [xx - m * c.x * c.x, xy, xz],
+        [xy, yy - m * c.y * c.y, yz],
+        [xz, yz, zz - m * c.z * c.z],
+    ]
 }
 
 /// The share of neighbour pairs on smooth surface (|nᵢ·nⱼ| > 0.5) whose normals point
@@ -3500,7 +3648,7 @@ mod tests {
                 assert!(v.dot(line).abs() < 1e-6, "{lam:?}: not across the line");
             }
             if gap > 0.1 {
-                let l = smallest_eigenvalue(&a).expect("a separated eigenvalue converges");
+                let l = smallest_eigenvalues(&[a])[0].expect("a separated eigenvalue converges");
                 assert!(
                     (l - lam[0] * scale).abs() <= 1e-12 * scale,
                     "{l} vs {lam:?}"
