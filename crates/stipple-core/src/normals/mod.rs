@@ -1040,7 +1040,7 @@ pub fn smallest_eigenvector(a: [[f64; 3]; 3]) -> Vec3 {
 }
 
 /// [`smallest_eigenvector`] of L matrices at once ([`smallest_eigenvalues`]).
-pub fn smallest_eigenvectors<const L: usize>(a: &[[[f64; 3]; 3]; L]) -> [Vec3; L] {
+fn smallest_eigenvectors<const L: usize>(a: &[[[f64; 3]; 3]; L]) -> [Vec3; L] {
     let ls = smallest_eigenvalues(a);
     std::array::from_fn(|j| {
         let a = a[j];
