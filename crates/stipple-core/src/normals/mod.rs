@@ -4428,6 +4428,53 @@ mod tests {
 mod boundary_tests {
     use super::*;
 
+    /// `normal_spread`: about 0 over a smooth surface and along an edge (normals of one or
+    /// two directions), over 0.1 next to a cone's apex (normals all round the cone).
+    #[test]
+    fn normals_spread_every_way_only_at_an_apex() {
+        let sphere = random_sphere(3000, 5);
+        let nb = neighbours(&sphere, 16).unwrap();
+        let worst = (0..sphere.len())
+            .map(|i| normal_spread(&sphere, &nb, i))
+            .fold(0.0f64, f64::max);
+        assert!(worst < 0.02, "sphere: {worst}");
+        // Two faces of a box meeting at x = 0 (the edge along z).
+        let mut r = crate::rng::Rng::new(3);
+        let mut pts = Vec::new();
+        let mut nm = Vec::new();
+        for _ in 0..3000 {
+            let (a, z) = (r.f32() * 2.0 - 1.0, r.f32() * 4.0 - 2.0);
+            if a < 0.0 {
+                pts.push(Vec3::new(a, 0.0, z));
+                nm.push(Vec3::Y);
+            } else {
+                pts.push(Vec3::new(0.0, -a, z));
+                nm.push(Vec3::X);
+            }
+        }
+        let nb = neighbours(&pts, 16).unwrap();
+        let worst = (0..pts.len())
+            .map(|i| normal_spread(&nm, &nb, i))
+            .fold(0.0f64, f64::max);
+        assert!(worst < 0.02, "edge: {worst}");
+        // A cone y = −2ρ, its apex at the origin, its normals (2 cos θ, 1, 2 sin θ) / √5.
+        let (mut pts, mut nm) = (vec![Vec3::ZERO], vec![Vec3::Y]);
+        for _ in 0..3000 {
+            let (rho, t) = (r.f32().sqrt(), r.f32() * std::f32::consts::TAU);
+            pts.push(Vec3::new(rho * t.cos(), -2.0 * rho, rho * t.sin()));
+            nm.push(Vec3::new(2.0 * t.cos(), 1.0, 2.0 * t.sin()) / 5f32.sqrt());
+        }
+        let nb = neighbours(&pts, 16).unwrap();
+        let apex = normal_spread(&nm, &nb, 0);
+        assert!(apex > 0.1, "apex: {apex}");
+        // Far from the apex the normals turn little within a neighbourhood.
+        let far = (1..pts.len())
+            .filter(|&i| pts[i].y < -1.6)
+            .map(|i| normal_spread(&nm, &nb, i))
+            .fold(0.0f64, f64::max);
+        assert!(far < 0.02, "side: {far}");
+    }
+
     /// Mean width (in point spacings) of the band beyond the rim of a randomly sampled
     /// square that the splats cover, and of the band inside it that they miss.
     fn rim_errors(
