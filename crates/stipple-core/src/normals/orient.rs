@@ -92,23 +92,15 @@ impl Forest {
 
     /// The root of x's set and x's parity relative to it (with path compression).
     fn find(&mut self, x: u32) -> (u32, u8) {
-        let (mut r, mut p) = (x, 0u32);
-        loop {
-            let l = self.link[r as usize];
-            if l & !PARITY == r {
-                break;
-            }
-            p ^= l & PARITY;
-            r = l & !PARITY;
-        }
-        let (mut y, mut py) = (x, p);
+        let (r, parity) = self.root(x);
+        let (mut y, mut py) = (x, (parity as u32) << 31);
         while y != r {
             let l = self.link[y as usize];
             self.link[y as usize] = r | py;
             py ^= l & PARITY;
             y = l & !PARITY;
         }
-        (r, (p >> 31) as u8)
+        (r, parity)
     }
 
     /// Asks the processor to bring x's link into the cache.
