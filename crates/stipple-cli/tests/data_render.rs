@@ -46,6 +46,18 @@ fn data_dir() -> Option<std::path::PathBuf> {
     }
 }
 
+/// Runs `stipple` with `args`, asserting that it succeeds; returns its stderr and stdout.
+fn stipple<S: AsRef<std::ffi::OsStr>>(args: impl IntoIterator<Item = S>) -> String {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args(args)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    text
+}
+
 #[test]
 fn every_covered_data_file_renders() {
     let Some(dir) = data_dir() else {
@@ -116,36 +128,26 @@ fn every_covered_data_file_renders() {
 /// first colour, and some pixels (canopy) show later returns.
 #[test]
 fn lidar_colours_by_return_number() {
-    let laz =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/lidar/autzen_trim.laz");
-    if !laz.exists() {
-        eprintln!("skipping: {} is absent", laz.display());
+    let Some(data) = data_dir() else {
         return;
-    }
+    };
+    let laz = data.join("lidar/autzen_trim.laz");
     let out = std::env::temp_dir().join(format!("stipple-returns-{}.png", std::process::id()));
-    let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
-        .args([
-            "render",
-            laz.to_str().unwrap(),
-            "--colour-by",
-            "return",
-            "--no-lighting",
-        ])
-        .args([
-            "--pipeline",
-            "dobrev",
-            "--size",
-            "256x192",
-            "--backend",
-            "cpu",
-            "-o",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
-    let text =
-        String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{text}");
+    let text = stipple([
+        "render",
+        laz.to_str().unwrap(),
+        "--colour-by",
+        "return",
+        "--no-lighting",
+        "--pipeline",
+        "dobrev",
+        "--size",
+        "256x192",
+        "--backend",
+        "cpu",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert!(text.contains("colouring by return number"), "{text}");
     let (_, _, rgba) = stipple_io::image::read_png(&out).unwrap();
     std::fs::remove_file(&out).ok();
@@ -177,20 +179,12 @@ fn the_default_framing_finds_the_front() {
     std::fs::create_dir_all(&dir).unwrap();
     let side = |name: &str, extra: &[&str]| {
         let cam = dir.join("c.json");
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
-            .args(["render", data.join(name).to_str().unwrap()])
-            .args(["--size", "48", "--backend", "cpu", "--pipeline", "dobrev"])
-            .args(["--camera-out", cam.to_str().unwrap()])
-            .arg("-o")
-            .arg(dir.join("x.png"))
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let (file, cam_s, png) = (data.join(name), cam.to_str().unwrap(), dir.join("x.png"));
+        let mut args = vec!["render", file.to_str().unwrap(), "--size", "48"];
+        args.extend(["--backend", "cpu", "--pipeline", "dobrev"]);
+        args.extend(["--camera-out", cam_s, "-o", png.to_str().unwrap()]);
+        args.extend(extra);
+        stipple(args);
         let v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&cam).unwrap()).unwrap();
         let z = |k: &str| v[k][2].as_f64().unwrap();
@@ -226,29 +220,21 @@ fn a_decimated_scan_shows_the_full_scans_normals() {
     std::fs::create_dir_all(&dir).unwrap();
     let cam = dir.join("c.json");
     let normals = |name: &str, camera: &[&str]| -> Vec<f32> {
-        let out = dir.join("n.npy");
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_stipple"))
-            .args(["render", data.join(name).to_str().unwrap()])
-            .args(["--size", "768", "--backend", "cpu"])
-            .args(camera)
-            .arg("--normal-out")
-            .arg(&out)
-            .arg("-o")
-            .arg(dir.join("x.png"))
-            .output()
-            .unwrap();
-        assert!(
-            o.status.success(),
-            "{name}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        let b = std::fs::read(&out).unwrap();
+        let (file, out, png) = (data.join(name), dir.join("n.npy"), dir.join("x.png"));
+        let mut args = vec!["render", file.to_str().unwrap(), "--size", "768"];
+        args.extend(["--backend", "cpu"]);
+        args.extend(camera);
+        args.extend([
+            "--normal-out",
+            out.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ]);
+        stipple(args);
+        let (shape, n) = stipple_io::image::read_npy_shaped(&out).unwrap();
         std::fs::remove_file(&out).unwrap();
-        let header = u16::from_le_bytes([b[8], b[9]]) as usize;
-        b[10 + header..]
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect()
+        assert_eq!(shape, [768, 768, 3], "{name}");
+        n
     };
     let full = normals(
         "stanford/dragon/dragon_vrip.ply.gz",
