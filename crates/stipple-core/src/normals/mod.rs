@@ -1480,6 +1480,29 @@ pub const EDGE_SLACK: f32 = 0.05;
 pub const CREASE_COS: f32 = 0.8;
 /// Neighbours whose normals are within this (cosine: 18°) lie on one face of a crease.
 pub const SAME_FACE: f32 = 0.95;
+/// The tangent planes of neighbours whose normals differ by more than this (cosine: 26°)
+/// cut a splat too, not only those across a crease ([`CREASE_COS`]), where the splat's own
+/// surface is convex ([`CONVEX_BEND`]) and its rim rises out of the plane by more than
+/// [`CONVEX_RISE`] of its radius. A convex surface lies inside each of its tangent planes,
+/// so such a plane cuts only what sticks out. Where a flat face turns into a rounding about
+/// two spacings in radius (a rounded box), the face's flat splats and the rounding's bent
+/// ones had run on to the planes of neighbours 37° round it and stuck out of the silhouette
+/// by a pixel all along it; the nearer planes stop them. Ten unseen analytic shapes 3–6 px
+/// apart, seeds 74–91, every mode: 885 → 929 of 963 cases pass, one that passed fails (a
+/// rounded box, estimated normals, deferred blending: depth within 0.5% of the range on
+/// 0.951 → 0.948 of the pixels). The rounded box with normals given: IoU 0.985–0.991 →
+/// 0.988–0.993 (nine seeds of ten now pass); a cone without normals at one seed 0.982 →
+/// 0.990. Random views of a sphere, a torus, a box and a cylinder (720 cases): unchanged.
+pub const CONVEX_CUT_COS: f32 = 0.9;
+/// A bend (A, B, C) is convex for [`CONVEX_CUT_COS`] where its largest principal curvature
+/// towards the normal times the splat's radius is at most this: a flat splat's fit has a
+/// little of either sign; a torus's inner side (a saddle) is cut by none of the nearer
+/// planes.
+pub const CONVEX_BEND: f32 = 0.1;
+/// How far (in radii) a splat's rim must rise out of a nearer neighbour's tangent plane for
+/// that plane to cut it ([`CONVEX_CUT_COS`]): a bent splat that follows a sphere or a torus
+/// stays within them, and is cut by none.
+pub const CONVEX_RISE: f32 = 0.1;
 
 /// The largest principal curvature magnitude of a bend (A, B, C):
 /// |A + C|/2 + √(((A − C)/2)² + B²).
@@ -1970,7 +1993,27 @@ fn boundary_planes(
     }
 }
 
-/// The shape of point i's splat from its unit normal `n` and quadric fit (see [`shapes`]).
+/// How far the rim of a splat at `p` (unit normal `n`, bend (A, B, C) in
+/// [`tangent_frame`]`(n)`, radius `r`) rises in front of the plane through `q` with unit
+/// normal `m`, at its highest of 16 points round the rim.
+fn rim_rise(p: Vec3, n: Vec3, bend: [f32; 3], r: f32, m: Vec3, q: Vec3) -> f32 {
+    let (t1, t2) = tangent_frame(n);
+    let [a, b, c] = bend;
+    let base = (p - q).dot(m);
+    let (m1, m2, mn) = (t1.dot(m), t2.dot(m), n.dot(m));
+    (0..16)
+        .map(|k| {
+            let (sn, cs) = (k as f32 * std::f32::consts::TAU / 16.0).sin_cos();
+            let (u, v) = (r * cs, r * sn);
+            let h = 0.5 * (a * u * u + 2.0 * b * u * v + c * v * v);
+            base + u * m1 + v * m2 + h * mn
+        })
+        .fold(f32::NEG_INFINITY, f32::max)
+}
+
+/// The shape of point i's splat from its unit normal `n` and quadric fit (see [`shapes`]):
+/// the tangent planes of neighbours across a crease ([`CREASE_COS`]) cut it, and those of
+/// nearer neighbours ([`CONVEX_CUT_COS`]) where it is convex and its rim rises out of them.
 fn shape_at(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -1988,6 +2031,13 @@ fn shape_at(
     let mut boundary = false;
     // Where the splat stops following its face short of a crease (`mismatch_plane`).
     let mismatch = mismatch_plane(positions, normals, nb, i, n, bend);
+    // Whether the splat's own surface curves nowhere towards its normal (a saddle or a
+    // concave patch crosses its neighbours' tangent planes, which must not cut it there).
+    let convex = {
+        let [a, b, c] = bend;
+        let most = 0.5 * (a + c) + (0.25 * (a - c) * (a - c) + b * b).sqrt();
+        most * radii[i] <= CONVEX_BEND
+    };
     // The nearest crease plane, then the nearest one across another crease from it (a box
     // corner has two).
     let mut planes = [(f32::INFINITY, Vec3::ZERO, 0.0f32, Vec3::ZERO); 64];
@@ -2005,7 +2055,15 @@ fn shape_at(
         // edges sharper than a right angle, where the faces' splats then overlap too little.
         let c = n.dot(m);
         let slack = if c > -0.2 { EDGE_SLACK * radii[i] } else { 0.0 };
-        if c < CREASE_COS && (s > 0.0 || (slack > 0.0 && s > -slack)) && np < planes.len() {
+        let near_plane = || {
+            c < CONVEX_CUT_COS
+                && convex
+                && rim_rise(p, n, bend, radii[i], m, q) > CONVEX_RISE * radii[i]
+        };
+        if (c < CREASE_COS || near_plane())
+            && (s > 0.0 || (slack > 0.0 && s > -slack))
+            && np < planes.len()
+        {
             planes[np] = (s.max(0.0), m, m.dot(q).max(m.dot(p)), q);
             np += 1;
         }
