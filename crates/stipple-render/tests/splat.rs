@@ -738,11 +738,14 @@ fn sparse_polyhedra_cone_and_slab_are_whole_and_accurate() {
 /// A cone without normals, at three samplings whose point next to the apex got an estimated
 /// normal 50° off (its neighbours' normals point all round the cone) and a splat curled out
 /// past the silhouette (IoU 0.9865–0.9883 before its splat was shrunk:
-/// `stipple_core::normals::normal_spread`). Every bound holds.
+/// `stipple_core::normals::normal_spread`), and one (110) whose point a quarter of a
+/// spacing from the apex got one 15° off, averaged all round, that spread too little for
+/// the first threshold (IoU 0.9862 before `SINGULAR_SPREAD` went from 0.1 to 0.05). Every
+/// bound holds.
 #[test]
 fn a_cone_without_normals_keeps_its_apex_inside_the_silhouette() {
     let cone: Scene = ("cone", cone_sdf, DVec3::new(1.5, 1.2, 2.4), 1500, 0.9);
-    for seed in [109, 123, 125] {
+    for seed in [109, 110, 123, 125] {
         measure_all(std::slice::from_ref(&cone), seed, false, |_, what, r| {
             if what.contains("estimated") {
                 r.check(&format!("seed {seed}, {what}"));
