@@ -2104,10 +2104,41 @@ fn shape_at(
         let weigh = |apart: f32, m: Vec3| apart * (1.0 + 0.5 * u0.dot(side(m).normalize_or_zero()));
         let nearer =
             mismatch.filter(|(apart, m, _)| second.is_none_or(|(w, _)| weigh(*apart, *m) < w));
+        // A chosen plane of a curved face bent into the rim's circle, from a second contact
+        // on that face about half a radius along the rim, as the curved rim below does with
+        // its two planes. Where a cylinder's cap meets its side, the first plane can be a
+        // point's on the rim itself (its normal between the faces) and the second the
+        // side's, left straight: the cap's splats stuck out past the rim at both ends of
+        // that chord (random views of the four basic shapes, 720 cases: 709 → 713, every
+        // cylinder with normals given now passes; ten unseen shapes, seeds 74–97: the same
+        // 1 305 of 1 341).
+        let rim_curve = |m: Vec3, q: Vec3| -> Option<[f32; 2]> {
+            let w = n.cross(m).normalize_or_zero();
+            let t = (q - p).dot(w);
+            let target = if t > 0.0 { -0.5 } else { 0.5 } * radii[i];
+            let (_, mp, _, qp) = *planes
+                .iter()
+                .filter(|e| e.1.dot(m) >= CREASE_COS && e.1.dot(m) < 0.99999)
+                .min_by(|a, b| {
+                    let d = |e: &(f32, Vec3, f32, Vec3)| ((e.3 - p).dot(w) - target).abs();
+                    d(a).total_cmp(&d(b))
+                })?;
+            let along = (qp - q).dot(w);
+            let kappa = (mp - m).dot(w) / along;
+            (along.abs() > 1e-6 && kappa > 0.0 && kappa.is_finite()).then_some([kappa, t])
+        };
         if let Some((_, m1, c1)) = nearer {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
-        } else if let Some((_, &(_, m1, c1, _))) = second {
+        } else if let Some((_, &(_, m1, c1, q1))) = second {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
+            // The second plane only, and not next to an apex (there neighbouring side
+            // planes turn about the apex, not along a rim): bending the first as well, or
+            // next to an apex, cut a cone's splats into holes (unseen shapes: −3 to −6).
+            if normal_spread(normals, nb, i) <= SINGULAR_SPREAD {
+                if let Some(k) = rim_curve(m1, q1) {
+                    out.curve[1] = k;
+                }
+            }
         } else {
             // A curved rim (a cylinder's cap meeting its side): the nearest tangent plane
             // alone leaves the splat sticking out past the rim by about (r + d)²κ/2 at its
