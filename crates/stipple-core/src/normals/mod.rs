@@ -2104,73 +2104,60 @@ fn shape_at(
         let weigh = |apart: f32, m: Vec3| apart * (1.0 + 0.5 * u0.dot(side(m).normalize_or_zero()));
         let nearer =
             mismatch.filter(|(apart, m, _)| second.is_none_or(|(w, _)| weigh(*apart, *m) < w));
-        // A chosen plane of a curved face bent into the rim's circle, from a second contact
-        // on that face about half a radius along the rim, as the curved rim below does with
-        // its two planes. Where a cylinder's cap meets its side, the first plane can be a
-        // point's on the rim itself (its normal between the faces) and the second the
-        // side's, left straight: the cap's splats stuck out past the rim at both ends of
-        // that chord (random views of the four basic shapes, 720 cases: 709 → 713, every
-        // cylinder with normals given now passes; ten unseen shapes, seeds 74–97: the same
-        // 1 305 of 1 341).
-        let rim_curve = |m: Vec3, q: Vec3| -> Option<[f32; 2]> {
+        // The contact of another plane of the same face as plane m (through q), the
+        // neighbour's nearest half a radius along the rim on the other side, and the rim's
+        // curvature in the splat's plane from the two contacts: the planes' normals turn
+        // along the rim as their points move along it (convex; a rim curving the other way
+        // keeps flat planes, None). A plane is bent into that circle through its own
+        // contact, [κ, its contact's place along the rim] (`SplatShape::curve`).
+        let along_rim = |m: Vec3, q: Vec3| n.cross(m).normalize_or_zero().dot(q - p);
+        let rim_partner = |m: Vec3, q: Vec3| {
             let w = n.cross(m).normalize_or_zero();
-            let t = (q - p).dot(w);
-            let target = if t > 0.0 { -0.5 } else { 0.5 } * radii[i];
-            let (_, mp, _, qp) = *planes
+            let target = if (q - p).dot(w) > 0.0 { -0.5 } else { 0.5 } * radii[i];
+            let from_target = |e: &(f32, Vec3, f32, Vec3)| ((e.3 - p).dot(w) - target).abs();
+            let other = planes
                 .iter()
                 .filter(|e| e.1.dot(m) >= CREASE_COS && e.1.dot(m) < 0.99999)
-                .min_by(|a, b| {
-                    let d = |e: &(f32, Vec3, f32, Vec3)| ((e.3 - p).dot(w) - target).abs();
-                    d(a).total_cmp(&d(b))
-                })?;
-            let along = (qp - q).dot(w);
-            let kappa = (mp - m).dot(w) / along;
-            (along.abs() > 1e-6 && kappa > 0.0 && kappa.is_finite()).then_some([kappa, t])
+                .min_by(|a, b| from_target(a).total_cmp(&from_target(b)))?;
+            let along = (other.3 - q).dot(w);
+            let kappa = (other.1 - m).dot(w) / along;
+            Some((
+                *other,
+                (along.abs() > 1e-6 && kappa > 0.0 && kappa.is_finite()).then_some(kappa),
+            ))
         };
         if let Some((_, m1, c1)) = nearer {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
         } else if let Some((_, &(_, m1, c1, q1))) = second {
             out.clip[1] = [m1.x, m1.y, m1.z, c1];
-            // The second plane only, and not next to an apex (there neighbouring side
-            // planes turn about the apex, not along a rim): bending the first as well, or
-            // next to an apex, cut a cone's splats into holes (unseen shapes: −3 to −6).
+            // A second plane of a curved face is bent into the rim's circle too. Where a
+            // cylinder's cap meets its side, the first plane can be a point's on the rim
+            // itself (its normal between the faces) and the second the side's, left
+            // straight: the cap's splats stuck out past the rim at both ends of that chord
+            // (random views of the four basic shapes, 720 cases: 709 → 713, every cylinder
+            // with normals given now passes; ten unseen shapes, seeds 74–97: the same 1 305
+            // of 1 341). The second plane only, and not next to an apex (there neighbouring
+            // side planes turn about the apex, not along a rim): bending the first as well,
+            // or next to an apex, cut a cone's splats into holes (unseen shapes: −3 to −6).
             if normal_spread(normals, nb, i) <= SINGULAR_SPREAD {
-                if let Some(k) = rim_curve(m1, q1) {
-                    out.curve[1] = k;
+                if let Some((_, Some(kappa))) = rim_partner(m1, q1) {
+                    out.curve[1] = [kappa, along_rim(m1, q1)];
                 }
             }
-        } else {
+        } else if let Some(((_, m1, c1, q1), kappa)) = rim_partner(m0, q0) {
             // A curved rim (a cylinder's cap meeting its side): the nearest tangent plane
             // alone leaves the splat sticking out past the rim by about (r + d)²κ/2 at its
             // far end, d the plane's point's distance along the rim. A second tangent plane
             // of the same face, from the neighbour nearest half a radius along the rim on
             // the other side, halves that (a cylinder at 5.4 px spacing: IoU 0.985 → 0.9896;
             // the cap splats' reach past the rim at the 90th percentile 0.12 → 0.064
-            // spacings). On a flat face it is the same plane.
-            let w = n.cross(u0);
-            let t0 = (q0 - p).dot(w);
-            let target = if t0 > 0.0 { -0.5 } else { 0.5 } * radii[i];
-            let along = |e: &(f32, Vec3, f32, Vec3)| ((e.3 - p).dot(w) - target).abs();
-            let other = planes[1..]
-                .iter()
-                .filter(|e| e.1.dot(m0) >= CREASE_COS && e.1.dot(m0) < 0.99999)
-                .min_by(|a, b| along(a).total_cmp(&along(b)));
-            if let Some(&(_, m1, c1, q1)) = other {
-                out.clip[1] = [m1.x, m1.y, m1.z, c1];
-                // The rim's curvature in the splat's plane from the two contacts: the
-                // planes' normals turn along the rim as their points move along it (convex;
-                // a rim curving the other way keeps flat planes), and each plane is bent
-                // into that circle through its own contact (six random views of a
-                // cylinder 3–6 px apart: IoU +0.0005 to +0.004; view 1, estimated normals,
-                // 0.9896 → 0.9933).
-                let along = (q1 - q0).dot(w);
-                let kappa = (m1 - m0).dot(w) / along;
-                if along.abs() > 1e-6 && kappa > 0.0 && kappa.is_finite() {
-                    for (k, (m, q)) in [(m0, q0), (m1, q1)].into_iter().enumerate() {
-                        let wk = n.cross(m).normalize_or_zero();
-                        out.curve[k] = [kappa, wk.dot(q - p)];
-                    }
-                }
+            // spacings). On a flat face it is the same plane. Both are bent into the rim's
+            // circle (six random views of a cylinder 3–6 px apart: IoU +0.0005 to +0.004;
+            // view 1, estimated normals, 0.9896 → 0.9933).
+            out.clip[1] = [m1.x, m1.y, m1.z, c1];
+            if let Some(kappa) = kappa {
+                out.curve[0] = [kappa, along_rim(m0, q0)];
+                out.curve[1] = [kappa, along_rim(m1, q1)];
             }
         }
     } else if let Some(planes) = boundary_planes(positions, normals, nb, i, n) {
