@@ -40,7 +40,9 @@
 //!    largest gaps of a random sampling (0.5: 0.8% of pixels on a unit sphere sampled 4 px
 //!    apart; 0.6: 0.05%). Flat discs that large would stick out of curved silhouettes by
 //!    r²κ/2 and off the surface between samples; the splats are bent and clipped instead
-//!    (step 6), so the silhouette stays within a pixel (IoU 0.999 on that sphere).
+//!    (step 6), so the silhouette stays within a pixel (IoU 0.999 on that sphere). The
+//!    largest holes of a random sample are wider still; the splats around each grow to
+//!    cover it (step 6, `grow_into_holes`).
 //! 6. **Splat shapes** ([`shapes`]): each splat is bent to the surface's second fundamental
 //!    form (a quadric fitted to the neighbourhood) and, at a crease, cut by the tangent
 //!    planes of the neighbours across it. Estimated normals are first made robust at creases
@@ -48,7 +50,8 @@
 //!    ([`refine_normals`]). Two clip planes hold a splat at an edge or at a corner of two
 //!    edges; where a third face's plane would cut it too (a box's corner, a point on the
 //!    corner whose normal is the three faces' mean), its radius shrinks to stop there
-//!    (`radius_cap`, [`Estimated::radius_factors`]).
+//!    (`radius_cap`, [`Estimated::radius_factors`]). Next to a hole of the sample, away
+//!    from creases and rims, it grows to reach the hole's centre (`grow_into_holes`).
 
 use crate::cloud::Bounds;
 use glam::{DVec3, Vec3};
@@ -1599,13 +1602,14 @@ fn shapes_with(
             .collect();
         return (shapes, Vec::new());
     }
-    let shapes = (0..positions.len())
+    let mut shapes: Vec<Shaped> = (0..positions.len())
         .into_par_iter()
         .map(|i| {
             let n = normals[i].try_normalize().unwrap_or(Vec3::Z);
             shape_at(positions, normals, radii, nb, i, n, bend(i, n))
         })
         .collect();
+    grow_into_holes(positions, normals, radii, nb, &mut shapes);
     share_boundaries(positions, normals, radii, nb, shapes)
 }
 
@@ -1671,7 +1675,7 @@ fn refine_and_shape_with(
     // Clip planes from the refined normals: a crease plane tilted by a few degrees would
     // put a point a hair off its edge on the wrong side, and clip nothing.
     let normals = &*normals;
-    let shapes = bends
+    let mut shapes: Vec<Shaped> = bends
         .into_par_iter()
         .enumerate()
         .map(|(i, bend)| {
@@ -1683,7 +1687,333 @@ fn refine_and_shape_with(
             shaped
         })
         .collect();
+    grow_into_holes(positions, normals, radii, nb, &mut shapes);
     share_boundaries(positions, normals, radii, nb, shapes)
+}
+
+/// The most a splat grows to cover a hole in a random sample (`grow_into_holes`), as a factor
+/// of its radius.
+pub const HOLE_GROW: f32 = 1.6;
+
+/// Scales each point's radius factor by 1 to [`HOLE_GROW`] so that its splat covers
+/// the holes of a random sample next to it. A random sample leaves holes: the largest empty
+/// circle among N uniform points of density ρ has a radius of about √(ln N / πρ), 1.5
+/// spacings for a thousand points, more than a radius of 0.6 × the 16th neighbour's
+/// distance (1.35 spacings); the surface behind, or the background, shows through.
+///
+/// The points' Delaunay triangulation, in each point's tangent plane, covers the surface
+/// between them; each part of a triangle is nearest one of its corners, and that corner's
+/// splat must reach it: to the triangle's circumcentre where it is acute, less where it is
+/// obtuse ([`cover`]). A point's triangles are those of its Voronoi cell's corners
+/// (`cell_triangles`); where a hole's far side lies beyond the neighbourhood, one corner
+/// may miss a triangle its other two corners find, so each triangle found raises all three
+/// (the 5% margin is for pixels' rays meeting the surface a hair away). Only needs beyond
+/// r / 1.05 grow a splat.
+///
+/// Points at an open boundary, or next to one, do not grow (the triangles along a random
+/// rim span its bays, and a grown splat would reach past the rim all round), nor do points
+/// next to a crease or an apex ([`smooth_around`]).
+///
+/// Measured (2 cores, 256², default settings): twelve unseen analytic shapes 3–6 px
+/// apart, seeds 74–97, every variant and mode: 1 305 → 1 307 of 1 341 cases pass, none that
+/// passed fails; surfaces behind showing through 0.32% → 0.26% of the pixels on average,
+/// depth within 0.5% of the range on 98.72% → 98.79%, IoU 0.99683 → 0.99680. Random views
+/// of the four basic shapes: 713 → 714 of 720, surfaces behind 0.28% → 0.19%. On the
+/// Dragon (437 k points) one point in twenty grows; the shapes take 0.53 → 0.70 s.
+fn grow_into_holes(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    radii: &[f32],
+    nb: &Neighbours,
+    shaped: &mut [Shaped],
+) {
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let rims: Vec<bool> = shaped.iter().map(|s| s.1).collect();
+    let n = |i: usize| normals[i].try_normalize();
+    let eligible: Vec<bool> = (0..positions.len())
+        .into_par_iter()
+        .map(|i| {
+            let r = radii[i];
+            !rims[i]
+                && r.is_finite()
+                && r > 0.0
+                && !nb.of(i).iter().any(|&j| rims[j as usize])
+                && n(i).is_some_and(|n| smooth_around(positions, normals, nb, i, n))
+        })
+        .collect();
+    // Per point the farthest any triangle asks it to reach (f32 bits: non-negative floats
+    // order as their bits do).
+    let need: Vec<AtomicU32> = (0..positions.len()).map(|_| AtomicU32::new(0)).collect();
+    (0..positions.len())
+        .into_par_iter()
+        .filter(|&i| eligible[i])
+        .for_each_init(Vec::new, |near, i| {
+            let Some(normal) = n(i) else {
+                return;
+            };
+            let raise = |j: usize, d: Option<f32>| {
+                if let (true, Some(d)) = (eligible[j], d) {
+                    need[j].fetch_max(d.to_bits(), Ordering::Relaxed);
+                }
+            };
+            let r = radii[i];
+            // Corners within r / 1.05 ask nothing of this point; its neighbours' own
+            // cells ask what theirs need.
+            let (half, least) = (2.0 * r, r / 1.05);
+            cell_triangles(
+                positions,
+                normals,
+                nb,
+                i,
+                (positions[i], normal),
+                (half, least),
+                near,
+                |ja, jb, a, b| {
+                    let minus = |x: (f32, f32), y: (f32, f32)| (x.0 - y.0, x.1 - y.1);
+                    raise(i, cover(a, b));
+                    raise(ja as usize, cover(minus((0.0, 0.0), a), minus(b, a)));
+                    raise(jb as usize, cover(minus((0.0, 0.0), b), minus(a, b)));
+                },
+            );
+        });
+    shaped.par_iter_mut().enumerate().for_each(|(i, s)| {
+        let d = f32::from_bits(need[i].load(Ordering::Relaxed));
+        if d > 0.0 {
+            s.2 *= (1.05 * d / radii[i]).clamp(1.0, HOLE_GROW);
+        }
+    });
+}
+
+/// Whether point i's neighbours on its side (normals within 90°) lie on one smooth patch:
+/// none turned more than a crease ([`CREASE_COS`]) or lying well off the tangent plane
+/// (30°). Next to a crease, an apex or a tight bend the Voronoi cell in the tangent plane
+/// says nothing of the surface, and a grown splat would reach past the edge.
+fn smooth_around(positions: &[Vec3], normals: &[Vec3], nb: &Neighbours, i: usize, n: Vec3) -> bool {
+    let p = positions[i];
+    nb.of(i).iter().all(|&j| {
+        let (m, d) = (normals[j as usize], positions[j as usize] - p);
+        let (c, h) = (m.dot(n), d.dot(n));
+        c <= 0.0 || (c >= CREASE_COS * m.length() && h * h <= 0.25 * d.length_squared())
+    })
+}
+
+/// The owner of a [`Cell`]'s edge on the starting square.
+const SQUARE: u32 = u32::MAX;
+/// Corners a [`Cell`] holds at most (a cell of a random sample has about six; more is
+/// given up on).
+const CELL_CAP: usize = 40;
+
+/// A convex polygon around the origin, each edge's owner the point whose bisector it lies
+/// on ([`cell_reach`]); edge k runs from corner k to corner k + 1.
+struct Cell {
+    vert: [(f32, f32); CELL_CAP],
+    owner: [u32; CELL_CAP],
+    count: usize,
+    /// The squared distance of the farthest corner.
+    far2: f32,
+    // The next polygon, while one is cut.
+    next_vert: [(f32, f32); CELL_CAP],
+    next_owner: [u32; CELL_CAP],
+}
+
+impl Cell {
+    fn square(half: f32) -> Cell {
+        let mut cell = Cell {
+            vert: [(0.0, 0.0); CELL_CAP],
+            owner: [SQUARE; CELL_CAP],
+            count: 4,
+            far2: 2.0 * half * half,
+            next_vert: [(0.0, 0.0); CELL_CAP],
+            next_owner: [SQUARE; CELL_CAP],
+        };
+        cell.vert[..4].copy_from_slice(&[
+            (-half, -half),
+            (half, -half),
+            (half, half),
+            (-half, half),
+        ]);
+        cell
+    }
+
+    /// The squared distance of the farthest corner from the origin.
+    fn far2(&self) -> f32 {
+        self.far2
+    }
+
+    /// Keeps the origin's side of the bisector between it and (a, b), owned by `s`; false
+    /// when less than a triangle is left, or more corners than the cell holds.
+    fn clip(&mut self, s: u32, (a, b): (f32, f32)) -> bool {
+        // The bisector lies half the point's distance out: beyond every corner, it cuts
+        // nothing.
+        let l2 = a * a + b * b;
+        if 0.25 * l2 >= self.far2 {
+            return true;
+        }
+        let c = 0.5 * l2;
+        let side = |v: (f32, f32)| a * v.0 + b * v.1 - c;
+        let count = self.count;
+        if self.vert[..count].iter().all(|&v| side(v) <= 0.0) {
+            return true;
+        }
+        let mut k2 = 0;
+        for k in 0..count {
+            let (x, y) = (self.vert[k], self.vert[(k + 1) % count]);
+            let (sx, sy) = (side(x), side(y));
+            let cut = (sx <= 0.0) != (sy <= 0.0);
+            if k2 + usize::from(sx <= 0.0) + usize::from(cut) > CELL_CAP {
+                return false;
+            }
+            if sx <= 0.0 {
+                self.next_vert[k2] = x;
+                self.next_owner[k2] = self.owner[k];
+                k2 += 1;
+            }
+            if cut {
+                let t = sx / (sx - sy);
+                self.next_vert[k2] = (x.0 + t * (y.0 - x.0), x.1 + t * (y.1 - x.1));
+                // Leaving the kept side, the next edge runs along the bisector; entering
+                // it, along the old edge.
+                self.next_owner[k2] = if sx <= 0.0 { s } else { self.owner[k] };
+                k2 += 1;
+            }
+        }
+        if k2 < 3 {
+            return false;
+        }
+        self.count = k2;
+        std::mem::swap(&mut self.vert, &mut self.next_vert);
+        std::mem::swap(&mut self.owner, &mut self.next_owner);
+        self.far2 = self.vert[..k2]
+            .iter()
+            .map(|v| v.0 * v.0 + v.1 * v.1)
+            .fold(0.0, f32::max);
+        true
+    }
+}
+
+/// The farthest corner of point i's Voronoi cell (among the points on its layer, in its
+/// tangent plane, within a square of half-width `half`) that is the centre of an acute
+/// triangle's circumcircle; None without one, or where no corner lies beyond `least`.
+/// The cell is cut by the neighbours first; where a corner lies over half the k-th
+/// neighbour's distance out (a hole, or a rim), points beyond the neighbourhood may cut it
+/// too, and the neighbours' neighbours do.
+#[allow(clippy::too_many_arguments)]
+fn cell_triangles(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    nb: &Neighbours,
+    i: usize,
+    (p, n): (Vec3, Vec3),
+    (half, least): (f32, f32),
+    near: &mut Vec<((f32, f32), u32)>,
+    mut emit: impl FnMut(u32, u32, (f32, f32), (f32, f32)),
+) {
+    let (t1, t2) = tangent_frame(n);
+    // A point on the layer, in the tangent plane's coordinates; None for points well off
+    // the plane (another face or layer).
+    let flat = |j: usize| {
+        if normals[j].dot(n) <= 0.0 {
+            return None;
+        }
+        let d = positions[j] - p;
+        let (h, l2) = (d.dot(n), d.length_squared());
+        (l2 > 0.0 && h * h <= 0.25 * l2).then(|| (d.dot(t1), d.dot(t2)))
+    };
+    // The points cutting the cell, in the tangent plane, with their indices.
+    near.clear();
+    near.extend(
+        nb.of(i)
+            .iter()
+            .filter_map(|&j| flat(j as usize).map(|v| (v, j))),
+    );
+    if near.len() < 3 {
+        return;
+    }
+    let mut cell = Cell::square(half);
+    for (s, &(q, _)) in near.iter().enumerate() {
+        if !cell.clip(s as u32, q) {
+            return;
+        }
+    }
+    // Up to two rings more, while the cell reaches past `least` (cutting only shrinks it,
+    // so a cell within `least` asks for nothing) and over half the k-th neighbour's
+    // distance out, where points beyond the neighbours may cut it: the neighbours of the
+    // points whose bisectors bound the cell. A hole's far side is not among the neighbours
+    // of the points on its near side, but among theirs (or the next ring's).
+    let reach = least.max(0.5 * nb.kth[i]);
+    let mut expanded = Vec::new();
+    for _ in 0..2 {
+        if cell.far2() <= reach * reach {
+            break;
+        }
+        let mut bounding: Vec<u32> = cell.owner[..cell.count]
+            .iter()
+            .filter(|&&o| o != SQUARE)
+            .map(|&o| near[o as usize].1)
+            .filter(|j| !expanded.contains(j))
+            .collect();
+        bounding.sort_unstable();
+        bounding.dedup();
+        for &j in &bounding {
+            for &q in nb.of(j as usize) {
+                if let Some(v) = flat(q as usize).filter(|_| q as usize != i) {
+                    near.push((v, q));
+                    if !cell.clip(near.len() as u32 - 1, v) {
+                        return;
+                    }
+                }
+            }
+        }
+        expanded.extend_from_slice(&bounding);
+    }
+    if cell.far2() <= least * least {
+        return;
+    }
+    // Each corner's two owners a and b make a Delaunay triangle (0, a, b) with the point.
+    let (count, owner) = (cell.count, cell.owner);
+    for k in 0..count {
+        // Corner k lies between edge k − 1 (ending there) and edge k (starting there).
+        let (ea, eb) = (owner[(k + count - 1) % count], owner[k]);
+        if ea == SQUARE || eb == SQUARE || ea == eb {
+            continue;
+        }
+        let ((a, ja), (b, jb)) = (near[ea as usize], near[eb as usize]);
+        emit(ja, jb, a, b);
+    }
+}
+
+/// How far from the origin o the part of the triangle (o, a, b) nearer o than a and b
+/// reaches: the circumradius where the triangle is acute (its centre inside); where it is
+/// obtuse at o, the farther of the points on ab as near o as a (or b); where obtuse at a,
+/// the point on ob as near o as a (and so for b). None for a degenerate triangle.
+fn cover(a: (f32, f32), b: (f32, f32)) -> Option<f32> {
+    let dot = |x: (f32, f32), y: (f32, f32)| x.0 * y.0 + x.1 * y.1;
+    let (aa, bb, ab) = (dot(a, a), dot(b, b), dot(a, b));
+    let cross = a.0 * b.1 - a.1 * b.0;
+    if cross.abs() <= 1e-6 * aa.max(bb) || aa <= 0.0 || bb <= 0.0 {
+        return None;
+    }
+    // The angles' cosines' signs at o, a and b.
+    let (at_o, at_a, at_b) = (ab, aa - ab, bb - ab);
+    let d = if at_o < 0.0 {
+        // On ab, x = a + s (b − a) with |x| = |x − a|, and likewise from b's end.
+        let on = |p: (f32, f32), q: (f32, f32), pp: f32, pq: f32| {
+            let s = pp / (2.0 * (pp - pq));
+            let x = (p.0 + s * (q.0 - p.0), p.1 + s * (q.1 - p.1));
+            dot(x, x).sqrt()
+        };
+        on(a, b, aa, ab).max(on(b, a, bb, ab))
+    } else if at_a < 0.0 {
+        // On ob, where the bisector of o and a crosses it.
+        aa * bb.sqrt() / (2.0 * ab)
+    } else if at_b < 0.0 {
+        bb * aa.sqrt() / (2.0 * ab)
+    } else {
+        // The circumradius: |a| |b| |a − b| / (2 |a × b|).
+        let (dx, dy) = (a.0 - b.0, a.1 - b.1);
+        (aa * bb * (dx * dx + dy * dy)).sqrt() / (2.0 * cross.abs())
+    };
+    d.is_finite().then_some(d)
 }
 
 /// Neighbourhoods whose normals spread this much in all three directions (the smallest
@@ -1739,7 +2069,8 @@ pub fn normal_spread(normals: &[Vec3], nb: &Neighbours, i: usize) -> f64 {
 }
 
 /// Shapes with whether their clip planes are an open boundary's (`boundary_planes`) and the
-/// factor their radii are scaled by ([`radius_cap`] over the radius, at most 1).
+/// factor their radii are scaled by ([`radius_cap`] over the radius, at most 1; then grown
+/// over holes of the sample by `grow_into_holes`, up to [`HOLE_GROW`]).
 type Shaped = (SplatShape, bool, f32);
 
 /// Lends the clip planes of open-boundary points to their neighbours on the same layer: a
@@ -3022,8 +3353,8 @@ pub struct Estimated {
     /// Surface shape per point relative to its normal (see [`shapes`]).
     pub shapes: Vec<SplatShape>,
     /// Per point the factor its splat's radius is scaled by (`radius_cap`: 1 for nearly
-    /// all, less where the clip planes leave a face out; empty where the shapes have no clip
-    /// planes). Radii from elsewhere (a file's) are scaled by these too ([`scale_radii`]).
+    /// all, less where the clip planes leave a face out, more next to a hole of the sample
+    /// (`grow_into_holes`); empty where the shapes have no clip planes). Radii from elsewhere (a file's) are scaled by these too ([`scale_radii`]).
     pub radius_factors: Vec<f32>,
     /// Normals whose sign orientation changed (from PCA's arbitrary sign, or from the given
     /// normals' sign).
@@ -4433,6 +4764,90 @@ mod tests {
         }
     }
 
+    /// How far the probe points on a surface lie beyond the splats: the largest, over the
+    /// probes x, of the least |x − pᵢ| / rᵢ over the points near x (≤ 1: every probe
+    /// covered), with the radii [`estimate_from`] gives (normals given, so that the samples
+    /// alone decide).
+    fn shortfall(pts: &[Vec3], normals: &[Vec3], probes: &[Vec3]) -> f32 {
+        let e = estimate_from(pts, Some(normals), 16, 1.0, Towards::Unknown).unwrap();
+        let cell = |x: Vec3| (x / 0.06).floor().as_ivec3();
+        let mut grid = std::collections::HashMap::<glam::IVec3, Vec<usize>>::new();
+        for (i, &p) in pts.iter().enumerate() {
+            grid.entry(cell(p)).or_default().push(i);
+        }
+        probes
+            .par_iter()
+            .map(|&x| {
+                let c = cell(x);
+                let mut best = f32::INFINITY;
+                for a in -1..=1 {
+                    for b in -1..=1 {
+                        for d in -1..=1 {
+                            for &i in grid
+                                .get(&(c + glam::IVec3::new(a, b, d)))
+                                .into_iter()
+                                .flatten()
+                            {
+                                best = best.min(pts[i].distance(x) / e.radii[i]);
+                            }
+                        }
+                    }
+                }
+                best
+            })
+            .reduce(|| 0.0, f32::max)
+    }
+
+    #[test]
+    fn a_triangle_covers_its_points_nearest_parts() {
+        // Equilateral, side √3: the circumradius, 1.
+        let s3 = 3f32.sqrt();
+        let c = cover((s3, 0.0), (0.5 * s3, 1.5)).unwrap();
+        assert!((c - 1.0).abs() < 1e-5, "{c}");
+        // A right angle at a: the hypotenuse's midpoint, from either formula's side.
+        let (a, b) = ((1.0, 0.0), (1.0, 1.0));
+        let right = 0.5 * 2f32.sqrt();
+        assert!((cover(a, b).unwrap() - right).abs() < 1e-5);
+        assert!((cover(a, (1.0 - 1e-3, 1.0)).unwrap() - right).abs() < 1e-3);
+        assert!((cover(a, (1.0 + 1e-3, 1.0)).unwrap() - right).abs() < 1e-3);
+        // Obtuse at the origin (120°, sides 1): the points on ab as near o as a or b lie
+        // at 1/√3 from o; the circumcentre (1 away) is outside the triangle.
+        let c = cover((1.0, 0.0), (-0.5, 0.5 * s3)).unwrap();
+        assert!((c - 1.0 / s3).abs() < 1e-5, "{c}");
+        // Obtuse at a = (1, 0) with b = (3, 1): the bisector of o and a (x = ½) meets ob
+        // at (½, ⅙).
+        let c = cover((1.0, 0.0), (3.0, 1.0)).unwrap();
+        assert!((c - (0.25f32 + 1.0 / 36.0).sqrt()).abs() < 1e-5, "{c}");
+        // Degenerate: collinear.
+        assert_eq!(cover((1.0, 0.0), (2.0, 0.0)), None);
+    }
+
+    #[test]
+    fn splats_cover_the_holes_of_a_random_sample() {
+        // A random sample leaves empty circles wider than the splats' radius (0.6 × the
+        // 16th neighbour's distance): 20 000 points on a tilted square and on a sphere,
+        // probed at 200 000 spots away from the square's rim. Without the growth the worst
+        // probes lie 1.14 (square) and 1.25 (sphere) radii from the nearest splat's centre.
+        let mut r = crate::rng::Rng::new(7);
+        let (u, v) = (Vec3::new(0.8, 0.6, 0.0), Vec3::new(-0.36, 0.48, 0.8));
+        let n = u.cross(v).normalize();
+        let on_square = |r: &mut crate::rng::Rng, w: f32| {
+            (r.f32() * 2.0 - 1.0) * w * u + (r.f32() * 2.0 - 1.0) * w * v
+        };
+        let square: Vec<Vec3> = (0..20_000).map(|_| on_square(&mut r, 1.0)).collect();
+        let probes: Vec<Vec3> = (0..200_000).map(|_| on_square(&mut r, 0.9)).collect();
+        let flat = shortfall(&square, &vec![n; square.len()], &probes);
+        let sphere = random_sphere(20_000, 11);
+        let probes = random_sphere(200_000, 12);
+        let round = shortfall(&sphere, &sphere, &probes);
+        // A hair over 1: the growth is 5% past the hole's centre, and the probes on the
+        // sphere lie off the tangent planes the holes are measured in.
+        assert!(
+            flat <= 1.02 && round <= 1.02,
+            "shortfall: square {flat}, sphere {round}"
+        );
+    }
+
     #[test]
     fn radii_cover_the_spacing() {
         // A regular grid of spacing 0.01: the 16th neighbour is at √5 × 0.01 = 0.0224, so
@@ -4711,7 +5126,8 @@ mod boundary_tests {
 
     /// Normals alone (`estimate_normals_from`, for `stipple normals`) are the normals, radii
     /// and bends of the whole estimate, without its clip planes; and without the radius
-    /// caps that come with them (`radius_cap`), which only shorten clipped splats.
+    /// caps that come with them (`radius_cap`), which only shorten clipped splats, or the
+    /// growth over holes of the sample.
     #[test]
     fn normals_alone_match_the_whole_estimate() {
         let (p, truth, _) = cube(1500, 0.8, 4);
@@ -4719,11 +5135,14 @@ mod boundary_tests {
             let all = estimate_from(&p, given, 16, 1.0, Towards::Unknown).unwrap();
             let alone = estimate_normals_from(&p, given, 16, 1.0, Towards::Unknown).unwrap();
             assert_eq!(all.normals, alone.normals);
-            for ((a, b), s) in all.radii.iter().zip(&alone.radii).zip(&all.shapes) {
+            // Splats next to a hole of the sample grow (`grow_into_holes`), the others keep
+            // their radii unless clipped.
+            let grown = |a: f32, b: f32| a > b && a <= b * HOLE_GROW * 1.0001;
+            for ((&a, &b), s) in all.radii.iter().zip(&alone.radii).zip(&all.shapes) {
                 if s.clip == [[0.0; 4]; 2] {
-                    assert_eq!(a, b);
+                    assert!(a == b || grown(a, b), "{a} {b}");
                 } else {
-                    assert!(a <= b);
+                    assert!(a <= b || grown(a, b), "{a} {b}");
                 }
             }
             let capped = all
