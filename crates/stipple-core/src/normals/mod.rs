@@ -73,6 +73,14 @@ pub const RADIUS_FACTOR: f32 = 0.6;
 pub const RADIUS_CAP: f32 = 4.0;
 /// Share of inconsistent neighbour pairs above which given normals are re-oriented.
 pub const INCONSISTENT: f32 = 0.02;
+/// Share of inconsistent neighbour pairs ([`inconsistency`]) at or above which the given
+/// signs are taken as random (random signs give 0.5; reversed patches, only the pairs along
+/// their borders): they carry no orientation, neither a component's majority nor a region
+/// facing outwards. A cone sampled with random signs (seed 92 of the unseen shapes) kept
+/// them all: the propagation had turned it inwards by the majority of its random signs,
+/// and the region of the signs that differed from that faced outwards at four of its six
+/// extreme points, so it was kept as given.
+pub const RANDOM_SIGNS: f32 = 0.25;
 /// Given normals are re-oriented when at least this share of them disagree with the
 /// orientation of step 4 (reversed patches); below, they are kept (noise, thin sheets).
 pub const REPATCH: f32 = 0.01;
@@ -1315,9 +1323,16 @@ pub fn orient_above(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -
 /// propagated by [`orient_components`] is turned to agree with the majority of the given
 /// signs (so reversed patches are repaired and open surfaces keep their side), then a
 /// component whose six extreme points (along ±x, ±y, ±z) all face inwards, as only a closed
-/// surface with inward normals can, is turned round. Returns how many normals changed sign,
-/// and each point's component.
-fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> (usize, Vec<u32>) {
+/// surface with inward normals can, is turned round. Signs that are `random` (see
+/// [`RANDOM_SIGNS`]) have no majority to agree with: the propagation's own orientation
+/// stands, as for estimated normals. Returns how many normals changed sign, and each
+/// point's component.
+fn orient_given(
+    positions: &[Vec3],
+    normals: &mut [Vec3],
+    nb: &Neighbours,
+    random: bool,
+) -> (usize, Vec<u32>) {
     let given = normals.to_vec();
     let (_, label) = orient_components(positions, normals, nb);
     let m = label.iter().copied().max().map_or(0, |x| x as usize + 1);
@@ -1335,7 +1350,7 @@ fn orient_given(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> (u
     }
     let mut flip = vec![false; m];
     for c in 0..m {
-        let majority = agree[c] < 0;
+        let majority = !random && agree[c] < 0;
         let (out, inward) =
             facing_at_extremes(normals, &extreme[c], if majority { -1.0 } else { 1.0 });
         flip[c] = majority ^ (inward >= 3 && out == 0);
@@ -1384,6 +1399,10 @@ fn facing_at_extremes(normals: &[Vec3], e: &Extremes, sign: f32) -> (u32, u32) {
     (out, inward)
 }
 
+/// The mean cosine between a region's given normals and the directions from its
+/// component's centroid above which [`keep_outward_regions`] keeps them.
+const AWAY: f64 = 0.25;
+
 /// Where the propagated orientation turned given normals round, region by region (connected
 /// over the neighbour graph): a region whose given normals face outwards at its extreme
 /// points (along ±x, ±y, ±z: at least three outwards, none inwards), as those of a closed
@@ -1396,8 +1415,16 @@ fn keep_outward_regions(
     given: &[Vec3],
     oriented: &mut [Vec3],
     nb: &Neighbours,
+    label: &[u32],
 ) -> usize {
     let n = positions.len();
+    // Each component's centroid.
+    let m = label.iter().copied().max().map_or(0, |x| x as usize + 1);
+    let mut centre = vec![(DVec3::ZERO, 0usize); m];
+    for (p, &l) in positions.iter().zip(label) {
+        centre[l as usize].0 += p.as_dvec3();
+        centre[l as usize].1 += 1;
+    }
     let differs: Vec<bool> = (0..n).map(|i| oriented[i].dot(given[i]) < 0.0).collect();
     let mut seen = vec![false; n];
     let mut restored = 0;
@@ -1426,7 +1453,21 @@ fn keep_outward_regions(
             widen_extremes(&mut extreme, positions[i as usize], i as usize);
         }
         let (out, inward) = facing_at_extremes(given, &extreme, 1.0);
-        if out >= 3 && inward == 0 {
+        // Or the region faces away from its component's centroid on the whole (the flat
+        // base of a cone: its extreme points along ±x and ±z face neither way, along +y
+        // inwards, but every normal points away from the cone).
+        let (sum, count) = centre[label[region[0] as usize] as usize];
+        let c = sum / count.max(1) as f64;
+        let away = region
+            .iter()
+            .map(|&i| {
+                let i = i as usize;
+                let d = (positions[i].as_dvec3() - c).normalize_or_zero();
+                given[i].as_dvec3().normalize_or_zero().dot(d)
+            })
+            .sum::<f64>()
+            / region.len() as f64;
+        if (out >= 3 && inward == 0) || away > AWAY {
             for &i in &region {
                 oriented[i as usize] = given[i as usize];
             }
@@ -3786,9 +3827,17 @@ fn estimate_in(
             let mut normals = given_or_pca(positions, g, nb);
             go_on()?;
             let bad = inconsistency(positions, &normals, nb);
+            let random = bad >= RANDOM_SIGNS;
             let mut oriented = normals.clone();
-            let (turned, label) = orient_given(positions, &mut oriented, nb);
-            let differ = turned - keep_outward_regions(positions, &normals, &mut oriented, nb);
+            let (turned, label) = orient_given(positions, &mut oriented, nb, random);
+            // Random signs face outwards at a region's extremes as often as not: nothing
+            // of them is kept.
+            let kept = if random {
+                0
+            } else {
+                keep_outward_regions(positions, &normals, &mut oriented, nb, &label)
+            };
+            let differ = turned - kept;
             // A consistent field differs from the propagated one only by noise (thin parts,
             // creases): keep it as given then, unless whole components turned round.
             let share = differ as f32 / normals.len() as f32;
@@ -4376,6 +4425,59 @@ mod tests {
         // Consistent and outward: untouched.
         let e = estimate(&pts, Some(&pts), 16, 1.0).unwrap();
         assert_eq!(e.flipped, 0);
+    }
+
+    /// 1 500 random points on a cone, apex up (base radius 0.8, height 1.2: the side's
+    /// normals and the base's are 124° apart across the rim), with their outward normals.
+    fn sharp_cone(seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+        let (rad, h) = (0.8f32, 1.2f32);
+        let slant = (rad * rad + h * h).sqrt();
+        let tau = std::f32::consts::TAU;
+        let (side, base) = (0.5 * tau * rad * slant, 0.5 * tau * rad * rad);
+        let mut r = Rng::new(seed);
+        let (mut p, mut truth) = (Vec::new(), Vec::new());
+        while p.len() < 1500 {
+            let a = r.f32() * tau;
+            if r.f32() * (side + base) < side {
+                // Uniform on the side: the distance from the apex grows as √u.
+                let t = r.f32().sqrt();
+                p.push(Vec3::new(
+                    t * rad * a.cos(),
+                    h * (1.0 - t),
+                    t * rad * a.sin(),
+                ));
+                truth.push(Vec3::new(h * a.cos(), rad, h * a.sin()).normalize());
+            } else {
+                let t = r.f32().sqrt() * rad;
+                p.push(Vec3::new(t * a.cos(), 0.0, t * a.sin()));
+                truth.push(Vec3::NEG_Y);
+            }
+        }
+        (p, truth)
+    }
+
+    /// Consistent outward normals on a cone whose rim is sharper than a right angle are
+    /// kept. The propagation crosses that rim with the wrong sign, and a handful of pairs
+    /// at the rim count as inconsistent, so the propagated field replaced the given one:
+    /// the base (about 530 points) turned inwards at every seed. The base faces away from
+    /// the cone's centroid, so it keeps its given side (`keep_outward_regions`).
+    #[test]
+    fn a_sharp_cone_keeps_its_given_normals() {
+        for seed in 0..20 {
+            let (p, truth) = sharp_cone(seed);
+            let e = estimate(&p, Some(&truth), 16, 1.0).unwrap();
+            let inward = e
+                .normals
+                .iter()
+                .zip(&truth)
+                .filter(|(a, t)| a.dot(**t) < 0.0)
+                .count();
+            assert_eq!(
+                inward, 0,
+                "seed {seed}: {inward} inward, {} flipped",
+                e.flipped
+            );
+        }
     }
 
     #[test]
