@@ -30,7 +30,8 @@
 //!    point opposite ways ([`inconsistency`]: random signs), or at least [`REPATCH`] of the
 //!    normals change (reversed patches, as in scans merged from several views, or a whole
 //!    closed surface facing inwards). A region the propagation turned round whose given
-//!    normals face outwards at its extreme points keeps them (a ball resting on a floor:
+//!    normals face outwards at its extreme points, or away from its component's centroid,
+//!    keeps them (a ball resting on a floor:
 //!    propagation crosses the contact and would turn the ball inside out).
 //! 5. **Splat radii** (Zhang & Pajarola §3.1 ask for radii "such that splats overlap"):
 //!    r = [`RADIUS_FACTOR`] × the distance to the 16th nearest neighbour (with k ≠ 16 the k-th
@@ -1406,7 +1407,9 @@ const AWAY: f64 = 0.25;
 /// Where the propagated orientation turned given normals round, region by region (connected
 /// over the neighbour graph): a region whose given normals face outwards at its extreme
 /// points (along ±x, ±y, ±z: at least three outwards, none inwards), as those of a closed
-/// object do, keeps them. Propagation crosses where two surfaces touch (a ball resting on
+/// object do, or away from its component's centroid on the whole (the mean cosine over
+/// [`AWAY`]: a cone's flat base, whose extreme points along ±x and ±z face neither way),
+/// keeps them. Propagation crosses where two surfaces touch (a ball resting on
 /// a floor: the ball's underside faces down, the floor up) and would turn the whole ball
 /// inside out to agree with the floor; a reversed patch of a scan faces inwards at its
 /// extremes, or neither way, and stays repaired. Returns how many normals were restored.
