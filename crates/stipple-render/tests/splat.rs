@@ -954,6 +954,18 @@ fn disc_sdf(p: DVec3) -> f64 {
         .max(DVec3::new(p.x, 0.0, p.z).length() - 0.9)
 }
 
+/// The points of a thin slab's sample (`n` in all, edges skipped) on its top side: an
+/// open sheet.
+fn top_side(sdf: Sdf, n: usize, lim: f64, seed: u64) -> PointCloud {
+    let both = sample_with(sdf, n, lim, seed, true);
+    let normals = both.normals.as_ref().unwrap();
+    let top: Vec<usize> = (0..both.len()).filter(|&i| normals[i].y > 0.3).collect();
+    let pos: Vec<DVec3> = top.iter().map(|&i| both.world(i)).collect();
+    let mut c = PointCloud::from_world(&pos);
+    c.normals = Some(top.iter().map(|&i| normals[i]).collect());
+    c
+}
+
 /// Open surfaces: only the top of each thin slab is sampled, so the cloud ends at a rim.
 /// A splat there must stop just beyond the rim its neighbours trace
 /// (`stipple_core::normals::boundary_planes`) instead of reaching a whole radius past the
@@ -968,12 +980,7 @@ fn open_sheets_end_at_their_rims() {
     ];
     for (k, &(name, sdf, eye, n, lim)) in scenes.iter().enumerate() {
         let cam = camera(eye, 256);
-        let both = sample_with(sdf, n, lim, 110 + k as u64, true);
-        let normals = both.normals.as_ref().unwrap();
-        let top: Vec<usize> = (0..both.len()).filter(|&i| normals[i].y > 0.3).collect();
-        let pos: Vec<DVec3> = top.iter().map(|&i| both.world(i)).collect();
-        let mut c = PointCloud::from_world(&pos);
-        c.normals = Some(top.iter().map(|&i| normals[i]).collect());
+        let c = top_side(sdf, n, lim, 110 + k as u64);
         for ((what, cloud), mode) in modes(variants(&c, 120 + k as u64)) {
             let r = measure(
                 &format!("splat-open-{name}-{what}-{mode:?}"),
@@ -1005,12 +1012,7 @@ fn square_sdf(p: DVec3) -> f64 {
 #[test]
 fn holes_in_a_random_sample_are_covered() {
     let cam = camera(DVec3::new(0.5, 2.2, 2.0), 256);
-    let both = sample_with(square_sdf, 2600, 1.0, 70, true);
-    let normals = both.normals.as_ref().unwrap();
-    let top: Vec<usize> = (0..both.len()).filter(|&i| normals[i].y > 0.3).collect();
-    let pos: Vec<DVec3> = top.iter().map(|&i| both.world(i)).collect();
-    let mut c = PointCloud::from_world(&pos);
-    c.normals = Some(top.iter().map(|&i| normals[i]).collect());
+    let c = top_side(square_sdf, 2600, 1.0, 70);
     for ((what, cloud), mode) in modes(variants(&c, 80)) {
         let r = measure(
             &format!("splat-holes-{what}-{mode:?}"),
