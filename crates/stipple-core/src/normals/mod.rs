@@ -1738,6 +1738,12 @@ fn refine_and_shape_with(
 /// The most a splat grows to cover a hole in a random sample (`grow_into_holes`), as a factor
 /// of its radius.
 pub const HOLE_GROW: f32 = 1.6;
+/// How far past a triangle's need a grown splat reaches (pixels' rays meet the surface a
+/// hair away from the point the need is measured at); needs within r / this ask nothing.
+const HOLE_MARGIN: f32 = 1.05;
+/// The squared sine of the angle (30°) within which a neighbour lies in a point's tangent
+/// plane, for the holes' Voronoi cells.
+const IN_TANGENT_PLANE: f32 = 0.25;
 
 /// Scales each point's radius factor by 1 to [`HOLE_GROW`] so that its splat covers
 /// the holes of a random sample next to it. A random sample leaves holes: the largest empty
@@ -1752,7 +1758,7 @@ pub const HOLE_GROW: f32 = 1.6;
 /// (`cell_triangles`); where a hole's far side lies beyond the neighbourhood, one corner
 /// may miss a triangle its other two corners find, so each triangle found raises all three
 /// (the 5% margin is for pixels' rays meeting the surface a hair away). Only needs beyond
-/// r / 1.05 grow a splat.
+/// r / [`HOLE_MARGIN`] grow a splat.
 ///
 /// Points at an open boundary, or next to one, do not grow (the triangles along a random
 /// rim span its bays, and a grown splat would reach past the rim all round), nor do points
@@ -1801,9 +1807,9 @@ fn grow_into_holes(
                 }
             };
             let r = radii[i];
-            // Corners within r / 1.05 ask nothing of this point; its neighbours' own
-            // cells ask what theirs need.
-            let (half, least) = (2.0 * r, r / 1.05);
+            // Corners within r / HOLE_MARGIN ask nothing of this point; its neighbours'
+            // own cells ask what theirs need.
+            let (half, least) = (2.0 * r, r / HOLE_MARGIN);
             cell_triangles(
                 positions,
                 normals,
@@ -1823,7 +1829,7 @@ fn grow_into_holes(
     shaped.par_iter_mut().enumerate().for_each(|(i, s)| {
         let d = f32::from_bits(need[i].load(Ordering::Relaxed));
         if d > 0.0 {
-            s.2 *= (1.05 * d / radii[i]).clamp(1.0, HOLE_GROW);
+            s.2 *= (HOLE_MARGIN * d / radii[i]).clamp(1.0, HOLE_GROW);
         }
     });
 }
@@ -1837,7 +1843,7 @@ fn smooth_around(positions: &[Vec3], normals: &[Vec3], nb: &Neighbours, i: usize
     nb.of(i).iter().all(|&j| {
         let (m, d) = (normals[j as usize], positions[j as usize] - p);
         let (c, h) = (m.dot(n), d.dot(n));
-        c <= 0.0 || (c >= CREASE_COS * m.length() && h * h <= 0.25 * d.length_squared())
+        c <= 0.0 || (c >= CREASE_COS * m.length() && h * h <= IN_TANGENT_PLANE * d.length_squared())
     })
 }
 
@@ -1877,11 +1883,6 @@ impl Cell {
             (-half, half),
         ]);
         cell
-    }
-
-    /// The squared distance of the farthest corner from the origin.
-    fn far2(&self) -> f32 {
-        self.far2
     }
 
     /// Keeps the origin's side of the bisector between it and (a, b), owned by `s`; false
@@ -1961,7 +1962,7 @@ fn cell_triangles(
         }
         let d = positions[j] - p;
         let (h, l2) = (d.dot(n), d.length_squared());
-        (l2 > 0.0 && h * h <= 0.25 * l2).then(|| (d.dot(t1), d.dot(t2)))
+        (l2 > 0.0 && h * h <= IN_TANGENT_PLANE * l2).then(|| (d.dot(t1), d.dot(t2)))
     };
     // The points cutting the cell, in the tangent plane, with their indices.
     near.clear();
@@ -1987,7 +1988,7 @@ fn cell_triangles(
     let reach = least.max(0.5 * nb.kth[i]);
     let mut expanded = Vec::new();
     for _ in 0..2 {
-        if cell.far2() <= reach * reach {
+        if cell.far2 <= reach * reach {
             break;
         }
         let mut bounding: Vec<u32> = cell.owner[..cell.count]
@@ -2010,7 +2011,7 @@ fn cell_triangles(
         }
         expanded.extend_from_slice(&bounding);
     }
-    if cell.far2() <= least * least {
+    if cell.far2 <= least * least {
         return;
     }
     // Each corner's two owners a and b make a Delaunay triangle (0, a, b) with the point.
