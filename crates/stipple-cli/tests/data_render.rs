@@ -265,3 +265,46 @@ fn a_decimated_scan_shows_the_full_scans_normals() {
     assert!(med <= 1.2 && p90 <= 4.5, "{med} {p90}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A placeholder intensity is not shown: the Stanford bunny's zipper reconstruction writes
+/// intensity 0.5 for three quarters of its points and lower values at scattered others, and
+/// showing it as grey speckled the bunny white and grey. Its default frame is the frame of
+/// the same points without intensity (the material's colour). A LiDAR scan's intensity
+/// (lone-star, no RGB) still shows as grey.
+#[test]
+fn a_placeholder_intensity_is_not_shown() {
+    let Some(data) = data_dir() else {
+        return;
+    };
+    let frames = |name: &str| {
+        let cloud = stipple_io::read_cloud(&data.join(name)).unwrap();
+        assert!(
+            cloud.intensity.is_some() && cloud.colors.is_none(),
+            "{name}"
+        );
+        let (lo, hi) = cloud.world_bounds();
+        let cam = Camera::framing_up(lo, hi, 160, 120, 45.0, cloud.z_up);
+        let mut plain = cloud.clone();
+        plain.intensity = None;
+        let [with, without] = [cloud, plain].map(|c| {
+            let p = PreparedCloud::new(c);
+            let shown = p.intensity_scale.is_some();
+            let f = render(&p, &cam, &Pipeline::default(), Backend::Cpu).unwrap();
+            (shown, f.rgba)
+        });
+        (with, without)
+    };
+    let ((shown, with), (_, without)) = frames("stanford/bunny/bun_zipper.ply");
+    assert!(!shown);
+    assert!(
+        with == without,
+        "the bunny's placeholder intensity changed its frame"
+    );
+    let ((shown, with), (_, without)) = frames("lidar/lone-star.laz");
+    assert!(shown);
+    let differ = with.iter().zip(&without).filter(|(a, b)| a != b).count();
+    assert!(
+        differ > with.len() / 10,
+        "lone-star: {differ} pixels differ"
+    );
+}

@@ -36,6 +36,37 @@ pub enum Attribute {
     Return,
 }
 
+/// The scale (1 / the 99th percentile) under which a cloud without colours shows its
+/// intensity as grey ([`intensity_grey`]) by default, or None where the intensity shows
+/// nothing: all (or 99% of it) zero, or a placeholder, one value held by at least half the
+/// points. The Stanford bunny's zipper reconstruction writes 0.5 for three quarters of its
+/// points and lower values at scattered others; shown, they speckled a uniform surface
+/// white and grey. A LiDAR return's intensity varies from point to point (Autzen's most
+/// common value holds 1% of its points). `--colour-by intensity` shows any intensity.
+pub fn intensity_scale(v: &[u16]) -> Option<f32> {
+    let mut hist = vec![0u64; 65536];
+    for &i in v {
+        hist[i as usize] += 1;
+    }
+    let n = v.len() as u64;
+    if n == 0 || hist.iter().any(|&c| 2 * c >= n) {
+        return None;
+    }
+    let target = (n as f64 * 0.99) as u64;
+    let mut acc = 0;
+    let p99 = hist.iter().position(|&c| {
+        acc += c;
+        acc >= target
+    })?;
+    (p99 > 0).then(|| 1.0 / p99 as f32)
+}
+
+/// The sRGB 8-bit grey level that shows intensity `t` under `scale` ([`intensity_scale`]).
+#[inline]
+pub fn intensity_grey(t: u16, scale: f32) -> u8 {
+    ((t as f32 * scale).min(1.0) * 255.0) as u8
+}
+
 /// A named colour map.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -411,5 +442,35 @@ mod tests {
         // Large values with a small spread keep their precision (GPS times).
         let f = Field::new("t", &[4.0e8, 4.0e8 + 0.25]);
         assert_eq!(f.value(1) - f.value(0), 0.25);
+    }
+
+    /// Intensity shows as grey under 1 / its 99th percentile where it varies, and not at all
+    /// where one value holds half the points or more (a placeholder) or where it is zero.
+    #[test]
+    fn intensity_shows_where_it_varies() {
+        // Varying: 0..1000, each value once; 99% of them are at most 989.
+        let v: Vec<u16> = (0..1000).collect();
+        let s = intensity_scale(&v).unwrap();
+        assert_eq!(s, 1.0 / 989.0);
+        assert_eq!(intensity_grey(495, s), 127);
+        assert_eq!(intensity_grey(999, s), 255);
+        // A placeholder: one value for half the points, whatever the others hold.
+        for share in [500, 750, 1000] {
+            let mut v: Vec<u16> = (0..1000).map(|i| (i * 37 % 3000) as u16).collect();
+            v[..share].fill(32768);
+            assert_eq!(intensity_scale(&v), None, "{share}");
+        }
+        // Just under half on one value still varies.
+        let mut v: Vec<u16> = (0..1000).map(|i| 1 + i as u16).collect();
+        v[..499].fill(7);
+        assert!(intensity_scale(&v).is_some());
+        // Nothing to show: no points, all zero, or 99% zero.
+        assert_eq!(intensity_scale(&[]), None);
+        assert_eq!(intensity_scale(&[0; 10]), None);
+        let mut v = vec![0u16; 1000];
+        for (i, x) in v.iter_mut().enumerate().take(9) {
+            *x = 100 + i as u16;
+        }
+        assert_eq!(intensity_scale(&v), None);
     }
 }

@@ -6,8 +6,9 @@
 //! the error says to convert them to LAS/LAZ.
 //!
 //! Colour: RGB where the file has it (16-bit LAS colours are shifted to 8 bits, decided on
-//! the file's first batch), else grey from intensity (scaled by the first batch's 99th
-//! percentile), else a neutral grey.
+//! the file's first batch), else grey from intensity as the renderer shows it (scaled by the
+//! first batch's 99th percentile; `stipple_core::colour_map::intensity_scale`), else a
+//! neutral grey (also where the intensity is a placeholder, one value for most points).
 
 use crate::record::Record;
 use crate::LodError;
@@ -108,27 +109,17 @@ enum ColourMode {
     Neutral,
 }
 
-fn p99(v: impl Iterator<Item = u16>) -> u16 {
-    let mut all: Vec<u16> = v.collect();
-    if all.is_empty() {
-        return 0;
-    }
-    let k = (all.len() - 1) * 99 / 100;
-    *all.select_nth_unstable(k).1
-}
-
-fn intensity_mode(p: u16) -> ColourMode {
-    if p == 0 {
-        ColourMode::Neutral
-    } else {
-        ColourMode::Intensity {
-            scale: 255.0 / p as f32,
-        }
+/// Grey from intensity under [`stipple_core::colour_map::intensity_scale`] (the renderer's
+/// rule: 1 / the 99th percentile), or neutral where the intensity shows nothing.
+fn intensity_mode(v: &[u16]) -> ColourMode {
+    match stipple_core::colour_map::intensity_scale(v) {
+        Some(scale) => ColourMode::Intensity { scale },
+        None => ColourMode::Neutral,
     }
 }
 
 fn grey(i: u16, scale: f32) -> [u8; 3] {
-    [(i as f32 * scale).min(255.0) as u8; 3]
+    [stipple_core::colour_map::intensity_grey(i, scale); 3]
 }
 
 impl Input {
@@ -147,7 +138,7 @@ impl Input {
             Kind::Loaded(c) => {
                 let mode = match (&c.colors, &c.intensity) {
                     (Some(_), _) => ColourMode::Rgb { shift: 0 },
-                    (None, Some(i)) => intensity_mode(p99(i.iter().copied())),
+                    (None, Some(i)) => intensity_mode(i),
                     _ => ColourMode::Neutral,
                 };
                 for start in (0..c.len()).step_by(batch) {
@@ -229,7 +220,7 @@ fn read_chunks(
                     shift: if max > 255 { 8 } else { 0 },
                 }
             } else {
-                intensity_mode(p99(all().map(|p| p.intensity)))
+                intensity_mode(&all().map(|p| p.intensity).collect::<Vec<_>>())
             }
         });
         out.clear();
@@ -294,7 +285,7 @@ fn read_batches(
                     shift: if max > 255 { 8 } else { 0 },
                 }
             }
-            None => intensity_mode(p99(pd.intensity())),
+            None => intensity_mode(&pd.intensity().collect::<Vec<_>>()),
         });
         out.clear();
         for (k, ((x, y), z)) in pd.x().zip(pd.y()).zip(pd.z()).enumerate() {

@@ -21,21 +21,7 @@ pub fn alpha8(opacity: f32) -> u8 {
     (opacity.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
-/// The scale that maps LiDAR intensities to [0, 1]: 1 / their 99th percentile (None when
-/// that is 0).
-pub fn intensity_scale(v: &[u16]) -> Option<f32> {
-    let mut hist = vec![0u64; 65536];
-    for &i in v {
-        hist[i as usize] += 1;
-    }
-    let target = (v.len() as f64 * 0.99) as u64;
-    let mut acc = 0;
-    let p99 = hist.iter().position(|&c| {
-        acc += c;
-        acc >= target
-    })?;
-    (p99 > 0).then(|| 1.0 / p99 as f32)
-}
+pub use stipple_core::colour_map::intensity_scale;
 
 /// A cloud with what every frame needs computed once: the point spacing (for d̃), the
 /// intensity scale, opacities, and (for scenes) objects and shadow textures.
@@ -43,7 +29,8 @@ pub struct PreparedCloud {
     pub cloud: PointCloud,
     /// Median nearest-neighbour distance, world units.
     pub spacing: f32,
-    /// Maps intensity to [0, 1] (1 / the 99th percentile), when the cloud has intensity.
+    /// Maps intensity to [0, 1] (1 / the 99th percentile), when the cloud has intensity that
+    /// shows something ([`intensity_scale`]).
     pub intensity_scale: Option<f32>,
     /// Per-point opacity in 8 bits (None: every point is opaque).
     pub alpha: Option<Vec<u8>>,

@@ -1,11 +1,7 @@
 //! sRGB encoding and decoding, shared by both backends (the GPU uploads these tables, so the
 //! two encode identically).
 
-/// The sRGB 8-bit grey level that shows LiDAR intensity `t` under `scale` (1 / p99).
-#[inline]
-pub fn intensity_grey(t: u16, scale: f32) -> u8 {
-    ((t as f32 * scale).min(1.0) * 255.0) as u8
-}
+pub use stipple_core::colour_map::intensity_grey;
 
 /// sRGB 8-bit → linear, by level.
 pub fn srgb_to_linear_table() -> [f32; 256] {

@@ -681,11 +681,13 @@ fn place(
     if let Some(col) = colour {
         c.colors = Some(vec![col; c.len()]);
     } else if c.colors.is_none() {
-        let grey = c.intensity.as_ref().map(|i| {
-            let scale = stipple_render::intensity_scale(i).unwrap_or(1.0);
-            i.iter()
-                .map(|&t| stipple_render::srgb::intensity_grey(t, scale))
-                .collect::<Vec<u8>>()
+        let grey = c.intensity.as_ref().and_then(|i| {
+            let scale = stipple_render::intensity_scale(i)?;
+            Some(
+                i.iter()
+                    .map(|&t| stipple_render::srgb::intensity_grey(t, scale))
+                    .collect::<Vec<u8>>(),
+            )
         });
         c.colors = Some(match grey {
             Some(g) => g.into_iter().map(|v| [v; 3]).collect(),
