@@ -47,7 +47,9 @@
 //! 6. **Splat shapes** ([`shapes`]): each splat is bent to the surface's second fundamental
 //!    form (a quadric fitted to the neighbourhood) and, at a crease, cut by the tangent
 //!    planes of the neighbours across it. Estimated normals are first made robust at creases
-//!    ([`robust_normals`]) and then turned to the slope of the fitted quadric
+//!    ([`robust_normals`]; a point detached from the layer its neighbours lie on, as a depth
+//!    camera's steps leave them, takes that layer's normal and stays flat and small,
+//!    [`Fit::Detached`]) and then turned to the slope of the fitted quadric
 //!    ([`refine_normals`]). Two clip planes hold a splat at an edge or at a corner of two
 //!    edges; where a third face's plane would cut it too (a box's corner, a point on the
 //!    corner whose normal is the three faces' mean), its radius shrinks to stop there
@@ -1660,17 +1662,18 @@ fn shapes_with(
 /// [`refine_normals`] and [`shapes`] from one quadric fit per point (for estimated normals:
 /// the shape is fitted in the frame of the normal before its refinement, which tilts it by
 /// a degree or two, and carried to the refined normal's frame, `reframe`). The fit leaves
-/// out neighbours across a crease from the point ([`CREASE_COS`]; for the points `crease`
-/// marks, set at a crease by [`robust_normals`], all but the point's own face,
-/// [`SAME_FACE`]). Clip planes are made from the refined normals, once all are refined.
+/// out neighbours across a crease from the point ([`CREASE_COS`]; for the points `fit`
+/// marks as set at a crease by [`robust_normals`], all but the point's own face,
+/// [`SAME_FACE`]; points it marks detached stay flat, no wider than their neighbours' splats).
+/// Clip planes are made from the refined normals, once all are refined.
 pub fn refine_and_shape(
     positions: &[Vec3],
     normals: &mut [Vec3],
     radii: &mut [f32],
     nb: &Neighbours,
-    crease: &[bool],
+    fit: &[Fit],
 ) -> Vec<SplatShape> {
-    let (shapes, factors) = refine_and_shape_with(positions, normals, radii, nb, crease, true);
+    let (shapes, factors) = refine_and_shape_with(positions, normals, radii, nb, fit, true);
     scale_radii(radii, &factors);
     shapes
 }
@@ -1681,7 +1684,7 @@ fn refine_and_shape_with(
     normals: &mut [Vec3],
     radii: &[f32],
     nb: &Neighbours,
-    crease: &[bool],
+    fit: &[Fit],
     clips: bool,
 ) -> ShapesAndFactors {
     let before: Vec<Vec3> = normals.to_vec();
@@ -1689,9 +1692,16 @@ fn refine_and_shape_with(
         .par_iter_mut()
         .enumerate()
         .map(|(i, n)| {
+            if fit[i] == Fit::Detached {
+                return [0.0; 3];
+            }
             let u = n.try_normalize().unwrap_or(Vec3::Z);
             // At a crease, the face's neighbours alone (the other face would tilt the fit).
-            let min = if crease[i] { SAME_FACE } else { CREASE_COS };
+            let min = if fit[i] == Fit::Crease {
+                SAME_FACE
+            } else {
+                CREASE_COS
+            };
             let j = jet(positions, i, u, nb, Some((&before, min)));
             let bend = bend_of(j, radii[i]);
             match j.and_then(|j| refined(u, j)) {
@@ -1706,6 +1716,14 @@ fn refine_and_shape_with(
         })
         .collect();
     drop(before);
+    // A detached point's splat no wider than its neighbours' (the median): its own radius
+    // spans the gap to their layer.
+    let narrower = |i: usize| {
+        let mut r: Vec<f32> = nb.of(i).iter().map(|&j| radii[j as usize]).collect();
+        let m = r.len() / 2;
+        let median = *r.select_nth_unstable_by(m, f32::total_cmp).1;
+        (median / radii[i]).min(1.0)
+    };
     if !clips {
         let shapes = bends
             .into_iter()
@@ -1732,6 +1750,11 @@ fn refine_and_shape_with(
         })
         .collect();
     grow_into_holes(positions, normals, radii, nb, &mut shapes);
+    for (i, s) in shapes.iter_mut().enumerate() {
+        if fit[i] == Fit::Detached {
+            s.2 = s.2.min(narrower(i));
+        }
+    }
     share_boundaries(positions, normals, radii, nb, shapes)
 }
 
@@ -3029,11 +3052,214 @@ fn quadric_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f
 /// at a box edge): there the fit starts from the neighbour's normal whose plane through the
 /// point the most neighbours lie on, and the reweighting settles on a face. Then, at a
 /// crease, each point takes the face whose neighbours' tangent planes pass nearest it
-/// (`nearest_faces`). Signs are kept. Returns which normals were set at a crease: for
-/// those, [`refine_and_shape`] fits the quadric to the point's own face alone.
-pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Vec<bool> {
+/// (`nearest_faces`). Last, a point whose neighbours lie in a layer apart from its own takes
+/// their normal (`follow_detached`). Signs are kept. Returns how each normal was set
+/// ([`Fit`]): at a crease, [`refine_and_shape`] fits the quadric to the point's own face
+/// alone; a detached point stays flat.
+pub fn robust_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Vec<Fit> {
     let smooth = robust_refit(positions, normals, nb);
-    nearest_faces(positions, normals, nb, &smooth)
+    let crease = nearest_faces(positions, normals, nb, &smooth);
+    let detached = follow_detached(positions, normals, nb);
+    crease
+        .iter()
+        .zip(&detached)
+        .map(|(&c, &d)| match (c, d) {
+            (_, true) => Fit::Detached,
+            (true, _) => Fit::Crease,
+            _ => Fit::Smooth,
+        })
+        .collect()
+}
+
+/// How [`robust_normals`] set a point's normal, for [`refine_and_shape`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Fit {
+    /// On smooth surface, or re-fitted to a plane through it.
+    #[default]
+    Smooth,
+    /// At a crease, on one face: the quadric is fitted to that face alone.
+    Crease,
+    /// Off the layer its neighbours lie on ([`follow_detached`]): it keeps their normal,
+    /// flat (no quadric through it and them), and its splat is no wider than theirs.
+    Detached,
+}
+
+/// A point is looked at by [`follow_detached`] where fewer of its neighbours than this (of
+/// 16) have a normal near its own ([`DETACHED_NEAR`]).
+const DETACHED_AGREEING: usize = 10;
+/// Neighbours whose normals agree that make a plane for [`follow_detached`].
+const DETACHED_PLANE: usize = 5;
+/// Normals agree within this (cosine: 18°).
+const DETACHED_AGREE: f32 = 0.95;
+/// A point is looked at where its normal is further than this (cosine: 30°) from most of
+/// its neighbours' ([`DETACHED_AGREEING`]): a detached point's is 60° to 90° off.
+const DETACHED_NEAR: f32 = 0.866;
+/// A plane lies off the point by more than this share of its points' distance along it:
+/// another layer, not a face meeting the point's.
+const DETACHED_OFF: f32 = 0.5;
+/// How close to its layer (a share of the layers' distance) each neighbour must lie.
+const DETACHED_TIGHT: f32 = 0.25;
+
+/// Points whose neighbours lie in parallel layers take the layers' normal. A depth camera
+/// quantises depth in steps far wider than its points' spacing (the Kinect office: 7 cm
+/// steps at 5 m, points 1 cm apart), so a point alone on its step, or in a row along a
+/// step's edge, finds most of its neighbours on the next step, a plane parallel to its own
+/// but far off it. PCA and the re-fit then tilt its normal towards the step by up to 90°
+/// (the plane through a row holds the row whatever its tilt): its splat stood edge-on across
+/// the wall, a dark streak. Here, for a point whose normal most of its neighbours disagree
+/// with ([`DETACHED_AGREEING`]): where at least [`DETACHED_PLANE`] neighbours' normals agree
+/// ([`DETACHED_AGREE`]) and lie on one plane off the point by more than [`DETACHED_OFF`] of
+/// their distance along it, and every neighbour lies on that plane or on the parallel one
+/// through the point ([`DETACHED_TIGHT`]), the point takes their mean normal. A face meeting
+/// the point's at a crease, or a riser between two steps, spreads across the layers' gap and
+/// changes nothing. Signed as the point's own layer's normals are where they agree in sign,
+/// else as the other layer's, else as its own. Returns which changed.
+fn follow_detached(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Vec<bool> {
+    let start: Vec<Vec3> = normals.to_vec();
+    normals
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, n)| {
+            let ids = nb.of(i);
+            if ids.len() < DETACHED_AGREEING {
+                return false;
+            }
+            let own = start[i];
+            // Most points' normals lie within 30° of most of their neighbours' (noise on
+            // LiDAR ground spreads them by more than DETACHED_AGREE, not by this): nothing
+            // to look at.
+            let with_own = ids
+                .iter()
+                .filter(|&&j| own.dot(start[j as usize]).abs() >= DETACHED_NEAR)
+                .count();
+            if with_own >= DETACHED_AGREEING {
+                return false;
+            }
+            // Which neighbours' normals agree with which (a bit mask per neighbour, each pair
+            // tested once), then their groups, largest first; the first (of at most three
+            // distinct ones) whose points make a layer apart from the point's wins.
+            let k = ids.len().min(32);
+            let (mut x, mut y, mut z) = ([0.0f32; 32], [0.0f32; 32], [0.0f32; 32]);
+            for (a, &j) in ids.iter().take(k).enumerate() {
+                let m = start[j as usize];
+                (x[a], y[a], z[a]) = (m.x, m.y, m.z);
+            }
+            let mut with = [0u32; 32];
+            for a in 0..k {
+                let mut bits = 0u32;
+                for b in 0..32 {
+                    let d = x[a] * x[b] + y[a] * y[b] + z[a] * z[b];
+                    bits |= ((d.abs() >= DETACHED_AGREE) as u32) << b;
+                }
+                with[a] = bits;
+            }
+            let mut order = [0usize; 32];
+            let mut m = 0;
+            for a in 0..k {
+                if with[a].count_ones() as usize >= DETACHED_PLANE
+                    && start[ids[a] as usize] != Vec3::ZERO
+                {
+                    order[m] = a;
+                    m += 1;
+                }
+            }
+            let order = &mut order[..m];
+            order.sort_by_key(|&a| std::cmp::Reverse(with[a].count_ones()));
+            let (mut tried, mut t) = (0u32, 0);
+            for &a in order.iter() {
+                if t == 3 {
+                    break;
+                }
+                if tried & 1 << a != 0 {
+                    continue;
+                }
+                // A group's members are not tried again as candidates.
+                tried |= with[a];
+                t += 1;
+                let c = start[ids[a] as usize];
+                if let Some(m) = layered(positions, &start, ids, positions[i], own, c) {
+                    *n = m;
+                    return true;
+                }
+            }
+            false
+        })
+        .collect()
+}
+
+/// The normal of [`follow_detached`] for a point at `p` (normal `own`) with neighbours `ids`
+/// whose group of normals agreeing with `c` makes a layer apart from the point's: their mean,
+/// signed; None where the neighbours do not lie in two such layers.
+fn layered(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    ids: &[u32],
+    p: Vec3,
+    own: Vec3,
+    c: Vec3,
+) -> Option<Vec3> {
+    let agree = |a: Vec3, b: Vec3| a.dot(b).abs() >= DETACHED_AGREE;
+    // The agreeing neighbours' offsets from the point along c; the other layer is where
+    // those well off it lie (the median of those beyond a quarter of the largest offset).
+    let mut hs = [0.0f32; 64];
+    let (mut m, mut sum, mut big) = (0, Vec3::ZERO, 0.0f32);
+    for &j in ids.iter().take(hs.len()) {
+        let x = normals[j as usize];
+        if agree(c, x) {
+            let h = (positions[j as usize] - p).dot(c);
+            big = big.max(h.abs());
+            hs[m] = h;
+            m += 1;
+            sum += if x.dot(c) < 0.0 { -x } else { x };
+        }
+    }
+    let mut beyond = [0.0f32; 64];
+    let mut k = 0;
+    for &h in &hs[..m] {
+        if h.abs() > 0.25 * big {
+            beyond[k] = h;
+            k += 1;
+        }
+    }
+    if k == 0 {
+        return None;
+    }
+    let off = *beyond[..k].select_nth_unstable_by(k / 2, f32::total_cmp).1;
+    let tight = DETACHED_TIGHT * off.abs();
+    let m = sum.try_normalize()?;
+    // Every neighbour on one of the two layers; the other layer a plane of at least
+    // DETACHED_PLANE points, off the point by more than a share of their reach. Per layer,
+    // the sum along m of its normals that agree with m, and their count.
+    let (mut near, mut far, mut reach) = ((0.0f32, 0usize), (0.0f32, 0usize), 0.0f32);
+    let mut count_far = 0;
+    for &j in ids {
+        let d = positions[j as usize] - p;
+        let h = d.dot(c);
+        let layer = if (h - off).abs() <= tight {
+            count_far += 1;
+            reach = reach.max((d - h * c).length());
+            &mut far
+        } else if h.abs() <= tight {
+            &mut near
+        } else {
+            return None;
+        };
+        let x = normals[j as usize];
+        if agree(m, x) {
+            layer.0 += x.dot(m);
+            layer.1 += 1;
+        }
+    }
+    let apart = off.abs() > DETACHED_OFF * reach;
+    if count_far < DETACHED_PLANE || !apart {
+        return None;
+    }
+    // Oriented normals of a layer sum to nearly their count along m.
+    let sign = [near, far, (own.dot(m), 1)]
+        .into_iter()
+        .find(|&(d, k)| k > 0 && d.abs() > 0.5 * k as f32)
+        .map_or(1.0, |(d, _)| d.signum());
+    Some(m * sign)
 }
 
 /// The re-fit of [`robust_normals`]; returns which points' neighbourhoods lie on one plane
@@ -3808,12 +4034,12 @@ fn estimate_in(
         let (shapes, factors) = if given.is_some() {
             shapes_with(positions, &normals, &radii, nb, clips)
         } else {
-            let crease = robust_normals(positions, &mut normals, nb);
+            let fit = robust_normals(positions, &mut normals, nb);
             // The robust re-fit may take a neighbour's plane (a crease, foliage): its sign
             // follows the point's own, which can leave a normal nearly across the ray
             // facing away; the sensor decides again.
             towards.orient(positions, &mut normals);
-            refine_and_shape_with(positions, &mut normals, &radii, nb, &crease, clips)
+            refine_and_shape_with(positions, &mut normals, &radii, nb, &fit, clips)
         };
         scale_radii(&mut radii, &factors);
         return Ok(Estimated {
@@ -3878,12 +4104,12 @@ fn estimate_in(
                 _ => orient(positions, &mut normals, nb),
             };
             go_on()?;
-            let crease = robust_normals(positions, &mut normals, nb);
+            let fit = robust_normals(positions, &mut normals, nb);
             go_on()?;
             // Points the propagation turned the wrong way one by one at sharp creases.
             let flipped = flipped + stray_signs(positions, &mut normals, nb);
             let (shapes, factors) =
-                refine_and_shape_with(positions, &mut normals, &radii, nb, &crease, clips);
+                refine_and_shape_with(positions, &mut normals, &radii, nb, &fit, clips);
             scale_radii(&mut radii, &factors);
             go_on()?;
             Ok(Estimated {
@@ -5118,6 +5344,85 @@ mod boundary_tests {
         let spacing = (4.0f32 / n as f32).sqrt();
         let per = |c: usize| c as f32 * step * step / 8.0 / spacing;
         (per(over), per(under))
+    }
+
+    /// A depth camera's wall: a plane tilted from the image plane, sampled on a grid 1 cm
+    /// apart, its depth quantised in 7 cm steps (a Kinect at 5 m). Points alone on their
+    /// step or in a row along a step's edge find most neighbours on the next step; PCA and
+    /// the re-fit tilted them by up to 90° (edge-on splats, dark streaks across the wall).
+    /// They take the steps' normal (`follow_detached`), marked `Fit::Detached`: flat, no
+    /// wider than their neighbours. A cube's creases have no such layers: nothing there is
+    /// marked or changed.
+    #[test]
+    fn points_off_their_neighbours_layer_take_its_normal() {
+        let (s, q) = (0.01f32, 0.07f32);
+        let mut r = crate::rng::Rng::new(5);
+        let mut pts = Vec::new();
+        for yi in 0..60 {
+            for xi in 0..120 {
+                let (x, y) = (xi as f32 * s, yi as f32 * s);
+                // Steps every 30 points. Before each step's edge the camera finds few
+                // points (three columns, a third of their points each), and those it finds
+                // take either step's depth at random: alone or in short rows on their own.
+                let edge = xi % 30 >= 27 && xi < 117;
+                if edge && r.f32() < 0.67 {
+                    continue;
+                }
+                let step = xi / 30 + (edge && r.f32() < 0.5) as usize;
+                pts.push(Vec3::new(x, y, step as f32 * q));
+            }
+        }
+        // Isolated points a step in front of the wall, mid-step, and short rows.
+        for k in 0..8 {
+            let x = 0.12 + 0.3 * (k / 2) as f32;
+            pts.push(Vec3::new(
+                x,
+                0.2 + 0.2 * (k % 2) as f32,
+                (k / 2) as f32 * q - q,
+            ));
+        }
+        for k in 0..4 {
+            for i in 0..5 {
+                let (x, y) = (0.16 + 0.3 * k as f32, 0.45 + s * i as f32);
+                pts.push(Vec3::new(x, y, k as f32 * q - q));
+            }
+        }
+        let nb = neighbours(&pts, 16).unwrap();
+        let off = |n: &[Vec3]| n.iter().filter(|m| m.z.abs() < 0.7).count();
+        let mut n = pca_normals(&pts, &nb);
+        let pca = off(&n);
+        let smooth = robust_refit(&pts, &mut n, &nb);
+        nearest_faces(&pts, &mut n, &nb, &smooth);
+        let refit = off(&n);
+        let mut m = pca_normals(&pts, &nb);
+        let fit = robust_normals(&pts, &mut m, &nb);
+        let now = off(&m);
+        let detached = fit.iter().filter(|&&f| f == Fit::Detached).count();
+        eprintln!("normals over 45° off the steps: PCA {pca}, re-fit {refit}, now {now}; {detached} detached");
+        assert!(refit >= 25 && now * 10 <= refit, "{pca} {refit} {now}");
+        let last = pts.len() - 21;
+        assert_eq!(fit[last], Fit::Detached);
+        assert!(m[last].z.abs() > 0.99, "{:?}", m[last]);
+        // Flat, and no wider than the wall's splats.
+        let mut radii = splat_radii(&nb, 1.0);
+        let wide = radii[last];
+        let shapes = refine_and_shape(&pts, &mut m, &mut radii, &nb, &fit);
+        assert_eq!(shapes[last].bend, [0.0; 3]);
+        assert!(
+            radii[last] <= 0.5 * wide && radii[last] <= 2.0 * s,
+            "{} {wide}",
+            radii[last]
+        );
+        // A cube: the same normals as without the step, nothing detached.
+        let (p, _, _) = cube(3000, 0.8, 6);
+        let nb = neighbours(&p, 16).unwrap();
+        let mut a = pca_normals(&p, &nb);
+        let smooth = robust_refit(&p, &mut a, &nb);
+        nearest_faces(&p, &mut a, &nb, &smooth);
+        let mut b = pca_normals(&p, &nb);
+        let fit = robust_normals(&p, &mut b, &nb);
+        assert_eq!(a, b);
+        assert!(!fit.contains(&Fit::Detached));
     }
 
     /// Splats at a sheet's rim stop near it: rim points cut their own splats beyond the rim
