@@ -3079,7 +3079,7 @@ pub enum Fit {
     Smooth,
     /// At a crease, on one face: the quadric is fitted to that face alone.
     Crease,
-    /// Off the layer its neighbours lie on ([`follow_detached`]): it keeps their normal,
+    /// Off the layer its neighbours lie on (`follow_detached`): it keeps their normal,
     /// flat (no quadric through it and them), and its splat is no wider than theirs.
     Detached,
 }
