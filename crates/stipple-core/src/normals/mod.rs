@@ -3084,10 +3084,16 @@ pub enum Fit {
     Detached,
 }
 
+/// `count` of 16 neighbours, scaled to a neighbourhood of `n` (rounded up).
+fn per16(count: usize, n: usize) -> usize {
+    (count * n).div_ceil(16)
+}
+
 /// A point is looked at by [`follow_detached`] where fewer of its neighbours than this (of
-/// 16) have a normal near its own ([`DETACHED_NEAR`]).
+/// 16, [`per16`]) have a normal near its own ([`DETACHED_NEAR`]).
 const DETACHED_AGREEING: usize = 10;
-/// Neighbours whose normals agree that make a plane for [`follow_detached`].
+/// Neighbours (of 16, [`per16`]) whose normals agree that make a plane for
+/// [`follow_detached`].
 const DETACHED_PLANE: usize = 5;
 /// Normals agree within this (cosine: 18°).
 const DETACHED_AGREE: f32 = 0.95;
@@ -3121,7 +3127,7 @@ fn follow_detached(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) ->
         .enumerate()
         .map(|(i, n)| {
             let ids = nb.of(i);
-            if ids.len() < DETACHED_AGREEING {
+            if ids.len() < 6 {
                 return false;
             }
             let own = start[i];
@@ -3132,7 +3138,7 @@ fn follow_detached(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) ->
                 .iter()
                 .filter(|&&j| own.dot(start[j as usize]).abs() >= DETACHED_NEAR)
                 .count();
-            if with_own >= DETACHED_AGREEING {
+            if with_own >= per16(DETACHED_AGREEING, ids.len()) {
                 return false;
             }
             // Which neighbours' normals agree with which (a bit mask per neighbour, each pair
@@ -3156,7 +3162,7 @@ fn follow_detached(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) ->
             let mut order = [0usize; 32];
             let mut m = 0;
             for a in 0..k {
-                if with[a].count_ones() as usize >= DETACHED_PLANE
+                if with[a].count_ones() as usize >= per16(DETACHED_PLANE, k)
                     && start[ids[a] as usize] != Vec3::ZERO
                 {
                     order[m] = a;
@@ -3251,7 +3257,7 @@ fn layered(
         }
     }
     let apart = off.abs() > DETACHED_OFF * reach;
-    if count_far < DETACHED_PLANE || !apart {
+    if count_far < per16(DETACHED_PLANE, ids.len()) || !apart {
         return None;
     }
     // Oriented normals of a layer sum to nearly their count along m.
@@ -5400,6 +5406,11 @@ mod boundary_tests {
         let detached = fit.iter().filter(|&&f| f == Fit::Detached).count();
         eprintln!("normals over 45° off the steps: PCA {pca}, re-fit {refit}, now {now}; {detached} detached");
         assert!(refit >= 25 && now * 10 <= refit, "{pca} {refit} {now}");
+        // The same with a wider neighbourhood (`--normal-k 32`: the counts scale with it).
+        let nb32 = neighbours(&pts, 32).unwrap();
+        let mut w = pca_normals(&pts, &nb32);
+        robust_normals(&pts, &mut w, &nb32);
+        assert!(off(&w) * 10 <= refit, "k = 32: {}", off(&w));
         let last = pts.len() - 21;
         assert_eq!(fit[last], Fit::Detached);
         assert!(m[last].z.abs() > 0.99, "{:?}", m[last]);
