@@ -315,7 +315,7 @@ fn a_placeholder_intensity_is_not_shown() {
 /// step (their splats stood edge-on across the back wall: dark streaks); they now take the
 /// steps' normal (`stipple_core::normals::robust_normals`, detached points). Measured on the
 /// walls facing the camera, against PCA over 64 neighbours (which spans the steps): 539
-/// normals over 45° off with PCA over 16, 421 after the re-fit before, 18 now.
+/// normals over 45° off with PCA over 16, 421 after the re-fit before, 19 now.
 #[test]
 fn a_depth_cameras_steps_leave_no_edge_on_splats() {
     use stipple_core::normals as nm;
