@@ -1323,7 +1323,22 @@ impl ColourArgs {
     ) -> anyhow::Result<Option<String>> {
         use stipple_core::colour_map::{colour_by_any, elevation_is_z, Attribute, ColourBy};
         let Some(by) = &self.colour_by else {
-            return Ok(None);
+            // A placeholder intensity is not shown: say so, and how to show it.
+            let c = &cloud.cloud;
+            let hidden = match (&c.colors, &c.intensity, self.lookup.is_some()) {
+                (None, Some(i), false) => stipple_core::colour_map::intensity_scale_or_why(i).err(),
+                _ => None,
+            };
+            return Ok(match hidden {
+                Some(stipple_core::colour_map::IntensityHidden::Placeholder { share, .. }) => {
+                    Some(format!(
+                        "the intensity is one value for {:.0}% of the points (a placeholder): \
+                         shown in the material's colour (--colour-by intensity shows it)",
+                        100.0 * share
+                    ))
+                }
+                _ => None,
+            });
         };
         let (colours, (lo, hi)) = colour_by_any(&cloud.cloud, by, self.colour_map, self.range)
             .map_err(|e| anyhow!("{what}: --colour-by: {e}"))?;

@@ -267,7 +267,7 @@ fn a_decimated_scan_shows_the_full_scans_normals() {
 }
 
 /// A placeholder intensity is not shown: the Stanford bunny's zipper reconstruction writes
-/// intensity 0.5 for three quarters of its points and lower values at scattered others, and
+/// intensity 0.5 for 79% of its points and lower values at scattered others, and
 /// showing it as grey speckled the bunny white and grey. Its default frame is the frame of
 /// the same points without intensity (the material's colour). A LiDAR scan's intensity
 /// (lone-star, no RGB) still shows as grey.
@@ -307,6 +307,29 @@ fn a_placeholder_intensity_is_not_shown() {
         differ > with.len() / 10,
         "lone-star: {differ} pixels differ"
     );
+    // The command line says which intensity it does not show, and how to show it.
+    let out = std::env::temp_dir().join(format!("stipple-placeholder-{}.png", std::process::id()));
+    let said = |name: &str| {
+        let file = data.join(name);
+        let args = [
+            "render",
+            file.to_str().unwrap(),
+            "--size",
+            "64",
+            "--backend",
+            "cpu",
+        ];
+        let text =
+            stipple(
+                args.into_iter()
+                    .chain(["--pipeline", "raw", "-o", out.to_str().unwrap()]),
+            );
+        text.contains("the intensity is one value for 79% of the points (a placeholder)")
+            && text.contains("--colour-by intensity shows it")
+    };
+    assert!(said("stanford/bunny/bun_zipper.ply"));
+    assert!(!said("lidar/lone-star.laz"));
+    std::fs::remove_file(&out).ok();
 }
 
 /// A depth camera quantises depth in steps far wider than its points' spacing (the PCL

@@ -38,27 +38,63 @@ pub enum Attribute {
 
 /// The scale (1 / the 99th percentile) under which a cloud without colours shows its
 /// intensity as grey ([`intensity_grey`]) by default, or None where the intensity shows
-/// nothing: all (or 99% of it) zero, or a placeholder, one value held by at least half the
-/// points. The Stanford bunny's zipper reconstruction writes 0.5 for three quarters of its
-/// points and lower values at scattered others; shown, they speckled a uniform surface
-/// white and grey. A LiDAR return's intensity varies from point to point (Autzen's most
-/// common value holds 1% of its points). `--colour-by intensity` shows any intensity.
+/// nothing ([`intensity_scale_or_why`]).
 pub fn intensity_scale(v: &[u16]) -> Option<f32> {
+    intensity_scale_or_why(v).ok()
+}
+
+/// Why a cloud's intensity is not shown by default ([`intensity_scale_or_why`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum IntensityHidden {
+    /// No points, or 99% of them (or one value held by half of them) zero.
+    Zero,
+    /// One value held by this share (at least half) of the points.
+    Placeholder { value: u16, share: f64 },
+}
+
+/// [`intensity_scale`], or why there is none: all (or 99% of it) zero, or a placeholder, one
+/// value held by at least half the points. The Stanford bunny's zipper reconstruction writes
+/// 0.5 for 79% of its points and lower values at scattered others; shown, they
+/// speckled a uniform surface white and grey. A LiDAR return's intensity varies from point
+/// to point (Autzen's most common value holds 1% of its points). `--colour-by intensity`
+/// shows any intensity.
+pub fn intensity_scale_or_why(v: &[u16]) -> Result<f32, IntensityHidden> {
     let mut hist = vec![0u64; 65536];
     for &i in v {
         hist[i as usize] += 1;
     }
     let n = v.len() as u64;
-    if n == 0 || hist.iter().any(|&c| 2 * c >= n) {
-        return None;
+    if n == 0 {
+        return Err(IntensityHidden::Zero);
+    }
+    let (value, &most) = hist
+        .iter()
+        .enumerate()
+        .max_by_key(|&(i, c)| (*c, std::cmp::Reverse(i)))
+        .expect("65536 bins");
+    if 2 * most >= n {
+        return Err(if value == 0 {
+            IntensityHidden::Zero
+        } else {
+            IntensityHidden::Placeholder {
+                value: value as u16,
+                share: most as f64 / n as f64,
+            }
+        });
     }
     let target = (n as f64 * 0.99) as u64;
     let mut acc = 0;
-    let p99 = hist.iter().position(|&c| {
-        acc += c;
-        acc >= target
-    })?;
-    (p99 > 0).then(|| 1.0 / p99 as f32)
+    let p99 = hist
+        .iter()
+        .position(|&c| {
+            acc += c;
+            acc >= target
+        })
+        .unwrap_or(0);
+    if p99 == 0 {
+        return Err(IntensityHidden::Zero);
+    }
+    Ok(1.0 / p99 as f32)
 }
 
 /// The sRGB 8-bit grey level that shows intensity `t` under `scale` ([`intensity_scale`]).
@@ -464,7 +500,17 @@ mod tests {
         let mut v: Vec<u16> = (0..1000).map(|i| 1 + i as u16).collect();
         v[..499].fill(7);
         assert!(intensity_scale(&v).is_some());
+        let mut v: Vec<u16> = (0..1000).map(|i| i as u16).collect();
+        v[..750].fill(32768);
+        assert_eq!(
+            intensity_scale_or_why(&v),
+            Err(IntensityHidden::Placeholder {
+                value: 32768,
+                share: 0.75
+            })
+        );
         // Nothing to show: no points, all zero, or 99% zero.
+        assert_eq!(intensity_scale_or_why(&[0; 10]), Err(IntensityHidden::Zero));
         assert_eq!(intensity_scale(&[]), None);
         assert_eq!(intensity_scale(&[0; 10]), None);
         let mut v = vec![0u16; 1000];
