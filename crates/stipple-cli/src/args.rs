@@ -1325,7 +1325,9 @@ impl ColourArgs {
         let Some(by) = &self.colour_by else {
             // A placeholder intensity is not shown: say so, and how to show it.
             let c = &cloud.cloud;
-            let hidden = match (&c.colors, &c.intensity, self.lookup.is_some()) {
+            // Prepared already: the reason is looked for only where none is shown.
+            let shown = cloud.intensity_scale.is_some();
+            let hidden = match (&c.colors, &c.intensity, self.lookup.is_some() || shown) {
                 (None, Some(i), false) => stipple_core::colour_map::intensity_scale_or_why(i).err(),
                 _ => None,
             };
