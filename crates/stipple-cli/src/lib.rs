@@ -119,6 +119,21 @@ pub enum Cmd {
     View(cmd::view::ViewArgs),
 }
 
+/// Mesa's device-select Vulkan layer (installed with every Mesa Vulkan driver, lavapipe
+/// included) asks the Wayland compositor which GPU drives the display. Where there is no
+/// session to ask (`XDG_RUNTIME_DIR` unset: ssh, containers, CI), libwayland prints
+/// "error: XDG_RUNTIME_DIR is invalid or not set in the environment." twice before every GPU
+/// run, though nothing failed. stipple ranks the adapters itself, so there the layer adds
+/// nothing: it is switched off with its own switch, `NODEVICE_SELECT`, unless the user set
+/// that or asked the layer for a device (`MESA_VK_DEVICE_SELECT`). Called before any thread
+/// starts, as changing the environment requires.
+fn quiet_device_select() {
+    let unset = |v: &str| std::env::var_os(v).is_none_or(|s| s.is_empty());
+    if unset("XDG_RUNTIME_DIR") && unset("NODEVICE_SELECT") && unset("MESA_VK_DEVICE_SELECT") {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
+}
+
 /// Runs the command line (`std::env::args`) and returns the exit code.
 pub fn run() -> ExitCode {
     // Like other command-line tools, end quietly when the reader of our output goes away
@@ -128,6 +143,7 @@ pub fn run() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    quiet_device_select();
     let cli = Cli::parse();
     let memory = match &cli.cmd {
         Some(Cmd::Render(a)) => a.source.memory,

@@ -340,6 +340,32 @@ fn backend_choice_without_an_adapter() {
     std::fs::remove_dir_all(dir).ok();
 }
 
+/// A GPU run on a machine with no desktop session (ssh, containers, CI: no `XDG_RUNTIME_DIR`)
+/// prints nothing but its own lines: Mesa's device-select layer, which asked libwayland for a
+/// compositor and printed "error: XDG_RUNTIME_DIR is invalid or not set" twice, is switched
+/// off there.
+#[test]
+fn a_gpu_run_without_a_desktop_session_prints_no_wayland_errors() {
+    if !common::gpu_available() {
+        return;
+    }
+    let dir = tempdir("headless");
+    let out = Command::new(env!("CARGO_BIN_EXE_stipple"))
+        .args(["render", "--points", "20000", "--size", "64x48"])
+        .args(["--backend", "gpu", "-o"])
+        .arg(dir.join("a.png"))
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .env_remove("MESA_VK_DEVICE_SELECT")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(!err.contains("XDG_RUNTIME_DIR"), "{err}");
+    assert!(!err.contains("error"), "{err}");
+    std::fs::remove_dir_all(dir).ok();
+}
+
 /// On a machine whose only adapter is a software rasterizer (lavapipe, as in CI), `auto`
 /// renders on the CPU and says why; `gpu` uses the software adapter.
 #[test]
