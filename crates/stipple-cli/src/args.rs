@@ -732,8 +732,15 @@ pub struct PipelineArgs {
     /// How much an edge pixel takes of its blurred neighbourhood (0..1).
     #[arg(long, value_parser = finite_f32, default_value_t = 0.6)]
     pub aa_strength: f32,
-    /// Keep points whose normals face away from the eye.
+    /// Discard points whose normals face away from the eye before projecting (Dobrev
+    /// §3.1). Off by default: the hidden side's points fill the gaps that the 3×3 fills
+    /// cannot close where a randomly sampled surface lands about one point per pixel (the
+    /// occluded fill then replaces them with the front's points), and a patch of normals
+    /// oriented wrongly is not cut out.
     #[arg(long)]
+    pub backface_culling: bool,
+    /// Kept for old command lines: culling is off unless --backface-culling asks for it.
+    #[arg(long, hide = true)]
     pub no_backface_culling: bool,
     /// Show colours unlit even where normals exist.
     #[arg(long)]
@@ -979,7 +986,7 @@ impl PipelineArgs {
             return Err(anyhow!("--light-falloff {d}: too large"));
         }
         let mut p = Pipeline {
-            backface_culling: !self.no_backface_culling,
+            backface_culling: self.backface_culling && !self.no_backface_culling,
             lighting: !self.no_lighting,
             lights: vec![self.light],
             falloff: self.light_falloff.map(|d| d as f32),

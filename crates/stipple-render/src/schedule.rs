@@ -307,9 +307,13 @@ mod tests {
     }
 
     #[test]
-    fn one_layer_culls_and_runs_every_pass_in_order() {
+    fn one_layer_culls_as_asked_and_runs_every_pass_in_order() {
         let mut x = log(99, true);
-        assert_eq!(frame(&mut x, &Pipeline::default(), 0.5), Ok(1));
+        let culled = Pipeline {
+            backface_culling: true,
+            ..Pipeline::default()
+        };
+        assert_eq!(frame(&mut x, &culled, 0.5), Ok(1));
         assert_eq!(
             x.steps,
             [
