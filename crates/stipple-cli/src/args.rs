@@ -868,6 +868,9 @@ impl PipelineArgs {
                 }
                 r => r.map_err(|e| anyhow!("normal estimation: {e}"))?,
             };
+        if let (Some(note), false) = (report.dequantised_note(), report.repeated) {
+            notes.push(note);
+        }
         if report.estimated && !report.repeated {
             notes.push(format!(
                 "estimated normals for {n} points (k = {}, oriented {}) in {:.2} s",

@@ -367,3 +367,54 @@ fn a_depth_cameras_steps_leave_no_edge_on_splats() {
     assert!(walls.len() > 50_000 && pca > 200, "{} {pca}", walls.len());
     assert!(now * 10 <= pca, "{now} of PCA's {pca}");
 }
+
+/// A depth camera's quantised depths (the Kinect office: 125 distinct depths, steps of 1 to
+/// 8 cm, points 2 to 9 mm apart): every neighbourhood lay on one terrace, so oblique walls
+/// and the floor had normals facing the camera with steeply tilted ones along each step's
+/// edge. Render's preparation smooths the depths across the steps first
+/// (`stipple_core::normals::quantised`) and says so; the normals then agree with their
+/// neighbours' where they disagreed along every step.
+#[test]
+fn a_depth_cameras_quantised_depths_are_smoothed_before_estimating() {
+    use stipple_core::normals as nm;
+    let Some(data) = data_dir() else {
+        return;
+    };
+    let file = data.join("colored/office1.pcd");
+    let c = stipple_io::read_cloud(&file).unwrap();
+    // Points whose normal is over 30° from most of their 16 neighbours'.
+    let rough = |pos: &[glam::Vec3], n: &[glam::Vec3]| {
+        let nb = nm::neighbours(pos, 16).unwrap();
+        (0..pos.len())
+            .filter(|&i| {
+                let ids = nb.of(i);
+                let off = ids
+                    .iter()
+                    .filter(|&&j| n[i].dot(n[j as usize]).abs() < 0.866);
+                2 * off.count() > ids.len()
+            })
+            .count()
+    };
+    let stored = nm::estimate_from(&c.positions, None, 16, 1.0, nm::Towards::Unknown).unwrap();
+    let before = rough(&c.positions, &stored.normals);
+    let mut p = stipple_render::PreparedCloud::new(c);
+    let at = p.cloud.sensor.map(|s| s.position);
+    let r = p.prepare_surface_from(16, true, at).unwrap();
+    let (levels, _) = r.dequantised.expect("the office's depths are quantised");
+    let after = rough(&p.cloud.positions, p.cloud.normals.as_ref().unwrap());
+    eprintln!("office: {levels} depths; normals off most neighbours' {before} -> {after}");
+    assert!(levels < 200, "{levels}");
+    assert!(before > 5_000 && after * 5 <= before, "{before} -> {after}");
+    // The command line says what it did.
+    let out = std::env::temp_dir().join(format!("stipple-office-{}.png", std::process::id()));
+    let text = stipple([
+        "render".as_ref(),
+        file.as_os_str(),
+        "--size".as_ref(),
+        "64x48".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+    ]);
+    std::fs::remove_file(&out).ok();
+    assert!(text.contains("a depth camera's"), "{text}");
+}

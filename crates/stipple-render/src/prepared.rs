@@ -489,6 +489,19 @@ impl PreparedCloud {
                 } else {
                     stipple_core::normals::estimate_normals_from
                 };
+                // A depth camera's steps, smoothed within each step (the points drawn
+                // where the smoothing put them, within their measurement's rounding).
+                if let (Some(sensor), true) = (c.sensor, need_normals) {
+                    let eye = (sensor.position - c.origin).as_vec3();
+                    if let Some(d) = stipple_core::normals::quantised::dequantise(
+                        &c.positions,
+                        eye,
+                        sensor.forward.as_vec3(),
+                    )? {
+                        c.positions = d.positions;
+                        report.dequantised = Some((d.levels, d.steps));
+                    }
+                }
                 estimate(&c.positions, c.normals.as_deref(), k, 1.0, towards)?
             }
         };
@@ -664,6 +677,24 @@ pub struct SurfaceReport {
     pub repeated: bool,
     /// How the normals' signs were chosen.
     pub oriented: Oriented,
+    /// The depths were quantised in steps wider than the points' spacing (a depth
+    /// camera's) and were smoothed within their steps before estimating: how many distinct
+    /// depths there were, and the smallest and largest step
+    /// (`stipple_core::normals::quantised`).
+    pub dequantised: Option<(usize, (f32, f32))>,
+}
+
+impl SurfaceReport {
+    /// A line for the user where the depths were a depth camera's steps and were smoothed.
+    pub fn dequantised_note(&self) -> Option<String> {
+        let (levels, (lo, hi)) = self.dequantised?;
+        Some(format!(
+            "the depths take {levels} values, in steps of {lo:.3} to {hi:.3} along the \
+             sensor's axis (a depth camera's): points moved onto a surface fitted across the \
+             steps (at most {} steps along their rays) before estimating normals",
+            stipple_core::normals::quantised::MAX_MOVE
+        ))
+    }
 }
 
 /// How [`PreparedCloud::prepare_surface_from`] chose the normals' signs.

@@ -64,6 +64,9 @@ pub fn normals(a: NormalsArgs) -> Result<()> {
         .prepare_normals_from(a.k as usize, viewpoint)
         .with_context(|| a.input.display().to_string())?;
     let s = t0.elapsed().as_secs_f64();
+    if let Some(note) = r.dequantised_note() {
+        println!("{note}");
+    }
     if had {
         println!(
             "kept the file's normals; {} of {n} turned round ({:.1}% of neighbouring normals \

@@ -61,6 +61,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 mod orient;
+pub mod quantised;
 pub use orient::orient_components;
 
 /// Default neighbourhood size.
