@@ -166,14 +166,16 @@ pub fn splat(
             for (li, &sid) in ids.iter().enumerate() {
                 let fp = feet[sid as usize].expect("listed splats have footprints");
                 let r = Raster::new(v, &discs[li]);
-                for y in fp[1].max(py0)..=fp[3].min(py1) {
-                    let row = (y - py0) as usize * tile_w;
-                    for x in fp[0].max(px0)..=fp[2].min(px1) {
-                        if let Some(fr) = r.eval(x, y) {
-                            frags.push(((row + (x - px0) as usize) as u32, li as u32, fr));
-                        }
-                    }
-                }
+                let rect = [
+                    fp[0].max(px0),
+                    fp[1].max(py0),
+                    fp[2].min(px1),
+                    fp[3].min(py1),
+                ];
+                r.eval_rect(rect, |x, y, fr| {
+                    let k = (y - py0) as usize * tile_w + (x - px0) as usize;
+                    frags.push((k as u32, li as u32, fr));
+                });
             }
             // Calls `f(local pixel, fragment, splat, point index)` for every fragment.
             let each = |f: &mut dyn FnMut(usize, super::Frag, &Disc, usize)| {

@@ -385,6 +385,9 @@ pub fn reference(z_all: f32, z_front: f32, epsilon: f32) -> (f32, bool) {
 /// m·dir, the orthographic depth offset) is affine in the pixel coordinates, c₀ + c_x·x +
 /// c_y·y, so the set-up is per splat and a flat splat's hit is one division per pixel. The
 /// WGSL twin (`raster_setup`, `fragment` in splat.wgsl) computes it operation for operation.
+/// Pixels [`Raster::eval_span`] evaluates at a time.
+pub const LANES: usize = 8;
+
 #[derive(Clone, Copy, Debug)]
 pub struct Raster {
     /// au, av, ah, du, dv, dh, off as [c₀, c_x, c_y].
@@ -487,6 +490,116 @@ impl Raster {
             -ah / dh
         };
         self.hit(t, [au, av, du, dv, dh, off], xf, yf)
+    }
+
+    /// [`Raster::eval`] for the pixels of the rectangle x0..=x1 × y0..=y1, row by row, calling
+    /// `emit` with each fragment: the same arithmetic, operation for operation, so the same
+    /// fragments to the bit. A bent splat without clip planes (nearly every test on a real
+    /// cloud's estimated splats: 6.36 M of the Dragon's 6.96 M at 1024²) is evaluated
+    /// [`LANES`] pixels at a time, each step a plain loop over the lanes without branches,
+    /// which the compiler turns into vector instructions; other splats pixel by pixel.
+    #[inline]
+    pub fn eval_rect(&self, [x0, y0, x1, y1]: [u32; 4], mut emit: impl FnMut(u32, u32, Frag)) {
+        if x0 > x1 || y0 > y1 {
+            return;
+        }
+        if !self.bent || self.clips != 0 {
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    if let Some(fr) = self.eval(x, y) {
+                        emit(x, y, fr);
+                    }
+                }
+            }
+            return;
+        }
+        const L: usize = LANES;
+        let w = x1 - x0 + 1;
+        let total = w * (y1 - y0 + 1);
+        let [ka, kb, kc] = self.shape;
+        let (near, r2) = (self.near, self.r2);
+        let mut base = 0u32;
+        // The next pixel, walking the rectangle row by row (lanes past its end repeat the
+        // last pixel and are not emitted).
+        let (mut cx, mut cy) = (x0, y0);
+        while base < total {
+            let (mut px, mut py) = ([x1; L], [y1; L]);
+            for l in 0..L {
+                if cy > y1 {
+                    break;
+                }
+                (px[l], py[l]) = (cx, cy);
+                if cx == x1 {
+                    (cx, cy) = (x0, cy + 1);
+                } else {
+                    cx += 1;
+                }
+            }
+            let (mut xf, mut yf) = ([0.0f32; L], [0.0f32; L]);
+            for l in 0..L {
+                xf[l] = px[l] as f32;
+                yf[l] = py[l] as f32;
+            }
+            let mut lin = [[0.0f32; L]; 7];
+            for (k, c) in self.lin.iter().enumerate() {
+                for l in 0..L {
+                    lin[k][l] = c[0] + c[1] * xf[l] + c[2] * yf[l];
+                }
+            }
+            let [au, av, ah, du, dv, dh, off] = lin;
+            let (mut b, mut c, mut qd, mut disc) =
+                ([0.0f32; L], [0.0f32; L], [0.0f32; L], [0.0f32; L]);
+            for l in 0..L {
+                qd[l] = 0.5 * (ka * du[l] * du[l] + kc * dv[l] * dv[l]) + kb * du[l] * dv[l];
+                let li =
+                    ka * au[l] * du[l] + kb * (au[l] * dv[l] + av[l] * du[l]) + kc * av[l] * dv[l];
+                let qa = 0.5 * (ka * au[l] * au[l] + kc * av[l] * av[l]) + kb * au[l] * av[l];
+                b[l] = li - dh[l];
+                c[l] = qa - ah[l];
+                disc[l] = b[l] * b[l] - 4.0 * qd[l] * c[l];
+            }
+            let (mut root, mut t0, mut t1) = ([0.0f32; L], [0.0f32; L], [0.0f32; L]);
+            for l in 0..L {
+                let sq = disc[l].sqrt();
+                root[l] = -0.5 * (b[l] + if b[l] >= 0.0 { sq } else { -sq });
+                let (a, z) = (c[l] / root[l], root[l] / qd[l]);
+                t0[l] = if z < a { z } else { a };
+                t1[l] = if z < a { a } else { z };
+            }
+            let mut hit = [[0.0f32; L]; 4];
+            let mut ok = [false; L];
+            for l in 0..L {
+                let (d0, d1) = (t0[l] + off[l], t1[l] + off[l]);
+                let (u0, w0) = (au[l] + t0[l] * du[l], av[l] + t0[l] * dv[l]);
+                let (u1, w1) = (au[l] + t1[l] * du[l], av[l] + t1[l] * dv[l]);
+                let (q0, q1) = (u0 * u0 + w0 * w0, u1 * u1 + w1 * w1);
+                let ok0 = d0 > near && q0 < r2;
+                let ok1 = d1 > near && q1 < r2;
+                // `eval`: no root (disc < 0 or NaN) or a zero root misses; else the nearer
+                // hit, else the farther.
+                ok[l] = disc[l] >= 0.0 && root[l] != 0.0 && (ok0 || ok1);
+                hit[0][l] = if ok0 { d0 } else { d1 };
+                hit[1][l] = if ok0 { q0 } else { q1 };
+                hit[2][l] = if ok0 { u0 } else { u1 };
+                hit[3][l] = if ok0 { w0 } else { w1 };
+            }
+            for l in 0..(total - base).min(L as u32) as usize {
+                if ok[l] {
+                    emit(
+                        px[l],
+                        py[l],
+                        Frag {
+                            depth: hit[0][l],
+                            q: hit[1][l] / r2,
+                            u: hit[2][l],
+                            v: hit[3][l],
+                            front: dh[l] < 0.0,
+                        },
+                    );
+                }
+            }
+            base += L as u32;
+        }
     }
 
     #[inline]
@@ -599,5 +712,54 @@ mod tests {
             let (o, _) = v.pixel_ray(i, 32);
             assert_eq!(Raster::new(&v, &clipped).eval(i, 32).is_some(), o.x <= 0.05);
         }
+    }
+
+    /// `eval_rect` emits exactly the fragments `eval` gives pixel by pixel, in the same
+    /// order, for bent splats of either sign seen from many sides, near and far, in both
+    /// projections, rectangles of every shape (a lane count's multiple or not).
+    #[test]
+    fn a_rectangle_of_pixels_gives_what_each_pixel_gives() {
+        let mut rng = stipple_core::rng::Rng::new(7);
+        let (mut emitted, mut tests) = (0usize, 0usize);
+        for case in 0..400 {
+            let v = ViewParams::axis_aligned(48, 40, case % 2 == 0, 1.0);
+            let p = Vec3::new(
+                rng.f32() - 0.5,
+                rng.f32() - 0.5,
+                if case % 2 == 0 {
+                    1.0 + 2.0 * rng.f32()
+                } else {
+                    3.0
+                },
+            );
+            let n = Vec3::new(rng.f32() - 0.5, rng.f32() - 0.5, -rng.f32()).normalize();
+            let bend = [0.0f32; 3].map(|_| 4.0 * rng.f32() - 2.0);
+            let shape = SplatShape {
+                bend,
+                clip: [[0.0; 4]; 2],
+                curve: [[0.0; 2]; 2],
+            };
+            let d = Disc::new(&v, p, Some(n), 0.1 + 0.4 * rng.f32(), Some(shape));
+            let r = Raster::new(&v, &d);
+            let Some(f) = footprint(&v, &d) else {
+                continue;
+            };
+            let want: Vec<(u32, u32, Frag)> = (f[1]..=f[3])
+                .flat_map(|y| (f[0]..=f[2]).map(move |x| (x, y)))
+                .filter_map(|(x, y)| r.eval(x, y).map(|fr| (x, y, fr)))
+                .collect();
+            let mut got = Vec::new();
+            r.eval_rect(f, |x, y, fr| got.push((x, y, fr)));
+            assert_eq!(got.len(), want.len(), "case {case}");
+            for (a, b) in got.iter().zip(&want) {
+                assert_eq!((a.0, a.1), (b.0, b.1), "case {case}");
+                let bits = |fr: &Frag| [fr.depth, fr.q, fr.u, fr.v].map(f32::to_bits);
+                assert_eq!(bits(&a.2), bits(&b.2), "case {case} at {:?}", (a.0, a.1));
+                assert_eq!(a.2.front, b.2.front);
+            }
+            emitted += got.len();
+            tests += ((f[2] - f[0] + 1) * (f[3] - f[1] + 1)) as usize;
+        }
+        assert!(emitted > 10_000 && tests > emitted, "{emitted} of {tests}");
     }
 }
