@@ -385,7 +385,7 @@ pub fn reference(z_all: f32, z_front: f32, epsilon: f32) -> (f32, bool) {
 /// m·dir, the orthographic depth offset) is affine in the pixel coordinates, c₀ + c_x·x +
 /// c_y·y, so the set-up is per splat and a flat splat's hit is one division per pixel. The
 /// WGSL twin (`raster_setup`, `fragment` in splat.wgsl) computes it operation for operation.
-/// Pixels [`Raster::eval_span`] evaluates at a time.
+/// Pixels [`Raster::eval_rect`] evaluates at a time.
 pub const LANES: usize = 8;
 
 #[derive(Clone, Copy, Debug)]
