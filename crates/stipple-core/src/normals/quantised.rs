@@ -66,7 +66,8 @@ pub struct Dequantised {
     pub positions: Vec<Vec3>,
     /// How many distinct depths the cloud had.
     pub levels: usize,
-    /// The smallest and the largest step between neighbouring depths that points sit on.
+    /// The steps at the nearest and the farthest point (the ladder's, see the module
+    /// documentation).
     pub steps: (f32, f32),
 }
 
@@ -227,7 +228,9 @@ pub fn dequantise(
                 if count < 6 {
                     return cur[i];
                 }
-                let a = solve3(m, r).unwrap_or(cur[i] as f64);
+                let a = solve3(m, r)
+                    .filter(|a| a.is_finite())
+                    .unwrap_or(cur[i] as f64);
                 // Never beyond the stored depths' range either: the camera's near and far
                 // planes were fitted to the stored points.
                 let reach = MAX_MOVE * s;
