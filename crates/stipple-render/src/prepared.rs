@@ -489,8 +489,8 @@ impl PreparedCloud {
                 } else {
                     stipple_core::normals::estimate_normals_from
                 };
-                // A depth camera's steps, smoothed within each step (the points drawn
-                // where the smoothing put them, within their measurement's rounding).
+                // A depth camera's steps, smoothed across the steps (the points drawn
+                // where the smoothing put them, at most a few steps along their rays).
                 if let (Some(sensor), true) = (c.sensor, need_normals) {
                     let eye = (sensor.position - c.origin).as_vec3();
                     if let Some(d) = stipple_core::normals::quantised::dequantise(
@@ -678,7 +678,7 @@ pub struct SurfaceReport {
     /// How the normals' signs were chosen.
     pub oriented: Oriented,
     /// The depths were quantised in steps wider than the points' spacing (a depth
-    /// camera's) and were smoothed within their steps before estimating: how many distinct
+    /// camera's) and were smoothed across the steps before estimating: how many distinct
     /// depths there were, and the smallest and largest step
     /// (`stipple_core::normals::quantised`).
     pub dequantised: Option<(usize, (f32, f32))>,
