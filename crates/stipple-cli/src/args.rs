@@ -234,24 +234,10 @@ impl CameraArgs {
             self.view,
         ) {
             // The cloud as its sensor saw it (a depth camera's frame): from its position,
-            // along its view, with a field of view that holds every point in front of it.
-            // Writers disagree on whether the pose turns the sensor or the cloud (PCL's
-            // Kinect frames carry a half turn about x with the points still in front along
-            // +z): the view is the one of ±forward with most points in front.
+            // along its view (turned to the points by the reader,
+            // `PointCloud::face_sensor_to_points`), with a field of view that holds every
+            // point in front of it.
             let step = (cloud.len() / 20_000).max(1);
-            let ahead = (0..cloud.len())
-                .step_by(step)
-                .filter(|&i| (cloud.world(i) - s.position).dot(s.forward) > 0.0)
-                .count();
-            let s = if 2 * ahead < cloud.len().div_ceil(step) {
-                stipple_core::cloud::Sensor {
-                    forward: -s.forward,
-                    up: -s.up,
-                    ..s
-                }
-            } else {
-                s
-            };
             // Aimed at the points' centre (a cropped object off the sensor's axis is seen
             // in the middle of the image), the image up kept as near the sensor's as can be.
             let mut centre = glam::DVec3::ZERO;

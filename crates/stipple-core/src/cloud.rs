@@ -252,6 +252,29 @@ pub struct Sensor {
 }
 
 impl PointCloud {
+    /// Turns the sensor (if any) to face the points. Writers disagree on whether a pose
+    /// turns the sensor or the cloud (PCL's Kinect frames carry a half turn about x with the
+    /// points still in front along +z): the sensor's view becomes the one of ±forward (with
+    /// up turned alike) that has most points in front. Readers call it once, so that the
+    /// camera and the normal estimation can take `forward` as it is.
+    pub fn face_sensor_to_points(&mut self) {
+        let Some(s) = self.sensor else {
+            return;
+        };
+        let step = (self.len() / 20_000).max(1);
+        let ahead = (0..self.len())
+            .step_by(step)
+            .filter(|&i| (self.world(i) - s.position).dot(s.forward) > 0.0)
+            .count();
+        if 2 * ahead < self.len().div_ceil(step) {
+            self.sensor = Some(Sensor {
+                forward: -s.forward,
+                up: -s.up,
+                ..s
+            });
+        }
+    }
+
     /// Builds a cloud from world positions, choosing the origin at the centre of their bounds
     /// so that `f32` offsets keep the most precision.
     pub fn from_world(points: &[DVec3]) -> PointCloud {
@@ -632,6 +655,30 @@ fn median_nn(pts: &[Vec3], min: Vec3, cell: f32, qstride: usize) -> Option<f32> 
 
 #[cfg(test)]
 mod tests {
+    /// A sensor whose pose looks away from its points (PCL's Kinect frames) is turned round
+    /// with its up; one that faces them, or no sensor, is left as it is.
+    #[test]
+    fn a_sensor_is_turned_to_face_its_points() {
+        use super::*;
+        let pts: Vec<DVec3> = (0..100)
+            .map(|i| DVec3::new(i as f64 * 0.01, 0.0, 2.0 + (i % 7) as f64 * 0.1))
+            .collect();
+        let looking = |z: f64| Sensor {
+            position: DVec3::ZERO,
+            forward: DVec3::new(0.0, 0.0, z),
+            up: DVec3::new(0.0, -z, 0.0),
+        };
+        let mut c = PointCloud::from_world(&pts);
+        c.sensor = Some(looking(-1.0));
+        c.face_sensor_to_points();
+        assert_eq!(c.sensor, Some(looking(1.0)));
+        c.face_sensor_to_points();
+        assert_eq!(c.sensor, Some(looking(1.0)));
+        c.sensor = None;
+        c.face_sensor_to_points();
+        assert_eq!(c.sensor, None);
+    }
+
     use super::*;
 
     /// Coinciding points: all at one position (no spacing), and a grid with a pile of

@@ -204,6 +204,7 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud, String> {
         "ascii" => {
             let mut c = parse_ascii(body, &fields, n, [ix, iy, iz])?;
             c.sensor = sensor(viewpoint.as_deref());
+            c.face_sensor_to_points();
             return Ok(c);
         }
         "binary" => {
@@ -275,6 +276,7 @@ pub fn parse_pcd(bytes: &[u8]) -> Result<PointCloud, String> {
         fields[f].bits(slot(f, i))
     })?;
     c.sensor = sensor(viewpoint.as_deref());
+    c.face_sensor_to_points();
     Ok(c)
 }
 

@@ -126,7 +126,8 @@ fn levels_of(sorted: &[f32]) -> Vec<f32> {
 }
 
 /// Smooths depths quantised along the `forward` axis of a sensor at `eye` (positions and
-/// eye in the cloud's frame); None where they are not quantised in steps wider than the
+/// eye in the cloud's frame; forward towards the points, as readers leave a sensor:
+/// `PointCloud::face_sensor_to_points`); None where they are not quantised in steps wider than the
 /// points' spacing (see the module documentation). Errors only where the neighbour search
 /// does (non-finite positions).
 pub fn dequantise(
@@ -135,22 +136,9 @@ pub fn dequantise(
     forward: Vec3,
 ) -> Result<Option<Dequantised>, NormalError> {
     let n = positions.len();
-    let Some(mut f) = forward.try_normalize() else {
+    let Some(f) = forward.try_normalize() else {
         return Ok(None);
     };
-    // Writers disagree on whether the pose turns the sensor or the cloud (PCL's Kinect
-    // frames carry a half turn about x with the points in front along +z): the axis is the
-    // one of ±forward the points lie in front along.
-    if positions
-        .iter()
-        .step_by(64)
-        .filter(|p| (**p - eye).dot(f) < 0.0)
-        .count()
-        * 2
-        > n.div_ceil(64)
-    {
-        f = -f;
-    }
     if n < 4 * POINTS_PER_LEVEL {
         return Ok(None);
     }
@@ -259,7 +247,8 @@ pub fn dequantise(
     }))
 }
 
-/// The first unknown of m x = r (Cramer's rule), None where m is singular.
+/// The first unknown of m x = r (Cramer's rule), None where m is singular. (glam's
+/// `DMat3::inverse` computes all nine cofactors: the office's estimate 1.00 → 1.19 s.)
 fn solve3(m: [[f64; 3]; 3], r: [f64; 3]) -> Option<f64> {
     let det = |a: [[f64; 3]; 3]| {
         a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
@@ -392,10 +381,10 @@ mod tests {
                 "{bands} bands"
             );
         }
-        // The sensor's axis given the other way round (PCL's Kinect frames) finds the steps.
+        // Points behind the sensor (its axis the other way round) are no depth camera's.
         let stepped = capture(plane(n), true);
         assert!(dequantise(&stepped, Vec3::ZERO, -Vec3::Z)
             .unwrap()
-            .is_some());
+            .is_none());
     }
 }
