@@ -220,7 +220,7 @@ pub fn epsilon(median_radius: f32) -> f32 {
 /// perspective image is bounded by dividing each side by the nearest or farthest depth:
 /// tilted splats get narrow rectangles (a sphere bound would test up to twice the pixels).
 /// Written as the WGSL twin computes it.
-#[inline]
+#[inline(always)]
 pub fn footprint(v: &ViewParams, s: &Disc) -> Option<[u32; 4]> {
     let (right, up, fwd) = (Vec3::from(v.right), Vec3::from(v.up), Vec3::from(v.forward));
     let d = s.p - Vec3::from(v.eye);
@@ -404,6 +404,7 @@ pub struct Raster {
 }
 
 impl Raster {
+    #[inline(always)]
     pub fn new(v: &ViewParams, s: &Disc) -> Raster {
         let (w, h) = (v.width as f32, v.height as f32);
         let (r, u, f) = (Vec3::from(v.right), Vec3::from(v.up), Vec3::from(v.forward));
@@ -460,7 +461,7 @@ impl Raster {
     }
 
     /// The fragment of pixel (x, y)'s centre ray, or None when it misses.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, x: u32, y: u32) -> Option<Frag> {
         let (xf, yf) = (x as f32, y as f32);
         let at = |c: &[f32; 3]| c[0] + c[1] * xf + c[2] * yf;
@@ -498,7 +499,7 @@ impl Raster {
     /// cloud's estimated splats: 6.36 M of the Dragon's 6.96 M at 1024²) is evaluated
     /// [`LANES`] pixels at a time, each step a plain loop over the lanes without branches,
     /// which the compiler turns into vector instructions; other splats pixel by pixel.
-    #[inline]
+    #[inline(always)]
     pub fn eval_rect(&self, [x0, y0, x1, y1]: [u32; 4], mut emit: impl FnMut(u32, u32, Frag)) {
         if x0 > x1 || y0 > y1 {
             return;
@@ -602,7 +603,7 @@ impl Raster {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     #[allow(clippy::too_many_arguments)]
     fn hit(&self, t: f32, [au, av, du, dv, dh, off]: [f32; 6], x: f32, y: f32) -> Option<Frag> {
         let depth = t + off;
