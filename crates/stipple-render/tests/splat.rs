@@ -815,6 +815,10 @@ fn rounded_box_sdf(p: DVec3) -> f64 {
 /// on to the tangent planes of neighbours 37° round and stuck out by a pixel all along the
 /// outline (normals given: IoU 0.9881–0.9892 at these seeds); nearer neighbours' planes
 /// now cut them where the surface is convex (`stipple_core::normals::CONVEX_CUT_COS`).
+/// Without normals, a point whose neighbourhood runs from a face across its seam with a
+/// rounding lies on no quadric, and was taken for a crease's and given a face's normal,
+/// 5–11° off (seed 86: depth within 0.5% of the range on 0.944–0.948 of the pixels); a
+/// cubic fits it, and it stays smooth (`stipple_core::normals::robust_normals`).
 /// Every variant and mode.
 #[test]
 fn a_rounded_box_keeps_its_outline() {
@@ -825,7 +829,7 @@ fn a_rounded_box_keeps_its_outline() {
         2000,
         0.95,
     );
-    for seed in [82, 84, 93] {
+    for seed in [82, 84, 86, 93] {
         measure_all(std::slice::from_ref(&rounded), seed, false, |_, what, r| {
             r.check(&format!("seed {seed}, {what}"))
         });
