@@ -2919,7 +2919,8 @@ fn fit_quadric(
     QuadricFit::new(rows, anchor).map(|f| f.x)
 }
 
-/// A weighted least-squares quadric fit: its coefficients, and the Cholesky factor L of its
+/// A weighted least-squares height-field fit of U terms (a quadric's [`QUADRIC`] by default;
+/// a cubic's ten in [`cubic_misfit`]): its coefficients, and the Cholesky factor L of its
 /// normal equations (M = L Lᵀ), which gives each row's leverage.
 struct QuadricFit<const U: usize = QUADRIC> {
     x: [f64; U],
@@ -3017,14 +3018,29 @@ fn quadric_at(c: &[f64; QUADRIC], row: &[f64; QUADRIC]) -> f64 {
 /// percentile; measured on random samples with k = 16). Infinite where the fit is
 /// ill-conditioned.
 fn quadric_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
+    height_misfit(positions, p0, ids, n, sigma, quadric_terms)
+}
+
+/// The largest distance of the point at `p0` and its neighbours `ids` from their
+/// least-squares height field with terms `terms` over the plane of unit normal `n` (all
+/// weighted alike, the point held at height 0), over `sigma`; infinite where the fit is
+/// ill-conditioned. ([`quadric_misfit`], [`cubic_misfit`].)
+fn height_misfit<const U: usize>(
+    positions: &[Vec3],
+    p0: DVec3,
+    ids: &[u32],
+    n: DVec3,
+    sigma: f64,
+    terms: fn(f64, f64) -> [f64; U],
+) -> f64 {
     let (t1, t2) = tangent_frame(n.as_vec3());
     let (t1, t2) = (t1.as_dvec3(), t2.as_dvec3());
     // In units of σ, for conditioning.
     let row = |j: u32| {
         let d = (positions[j as usize].as_dvec3() - p0) / sigma;
-        (quadric_terms(d.dot(t1), d.dot(t2)), d.dot(n))
+        (terms(d.dot(t1), d.dot(t2)), d.dot(n))
     };
-    let Some(c) = fit_quadric(
+    let Some(fit) = QuadricFit::<U>::new(
         ids.iter().map(|&j| {
             let (r, h) = row(j);
             (r, h, 1.0)
@@ -3033,10 +3049,11 @@ fn quadric_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f
     ) else {
         return f64::INFINITY;
     };
+    let c = fit.x;
     ids.iter()
         .map(|&j| {
             let (r, h) = row(j);
-            (h - quadric_at(&c, &r)).abs()
+            (h - c.iter().zip(&r).map(|(c, r)| c * r).sum::<f64>()).abs()
         })
         .fold(c[0].abs(), f64::max)
 }
@@ -3083,28 +3100,7 @@ fn cubic_terms(u: f64, v: f64) -> [f64; 10] {
 /// is a quadric, and its odd part u|u| one that a cubic follows closely. A crease,
 /// h = a|u − e|, has a kink that no polynomial follows: its misfit stays large.
 fn cubic_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
-    let (t1, t2) = tangent_frame(n.as_vec3());
-    let (t1, t2) = (t1.as_dvec3(), t2.as_dvec3());
-    let row = |j: u32| {
-        let d = (positions[j as usize].as_dvec3() - p0) / sigma;
-        (cubic_terms(d.dot(t1), d.dot(t2)), d.dot(n))
-    };
-    let Some(f) = QuadricFit::<10>::new(
-        ids.iter().map(|&j| {
-            let (r, h) = row(j);
-            (r, h, 1.0)
-        }),
-        true,
-    ) else {
-        return f64::INFINITY;
-    };
-    let c = f.x;
-    ids.iter()
-        .map(|&j| {
-            let (r, h) = row(j);
-            (h - c.iter().zip(&r).map(|(c, r)| c * r).sum::<f64>()).abs()
-        })
-        .fold(c[0].abs(), f64::max)
+    height_misfit(positions, p0, ids, n, sigma, cubic_terms)
 }
 
 /// Robust re-fit of each normal (iteratively reweighted PCA, three rounds): neighbours far
@@ -4954,28 +4950,31 @@ mod tests {
         assert!(a.dot(b) < 0.9, "{a} {b}");
     }
 
+    /// The quadric's and the cubic's misfit ([`quadric_misfit`], [`cubic_misfit`]) of the
+    /// neighbourhood `pts[1..]` of `pts[0]`, over its PCA plane, σ = ¼ of the mean distance
+    /// (as `robust_refit` measures them).
+    fn misfits(pts: &[Vec3]) -> (f64, f64) {
+        let ids: Vec<u32> = (1..pts.len() as u32).collect();
+        let mean =
+            pts[1..].iter().map(|q| (*q - pts[0]).length()).sum::<f32>() / (pts.len() - 1) as f32;
+        let pca = {
+            let nb = neighbours(pts, pts.len() - 1).unwrap();
+            pca_normals(pts, &nb)[0]
+        };
+        let (p0, n, sigma) = (pts[0].as_dvec3(), pca.as_dvec3(), 0.25 * mean as f64);
+        (
+            quadric_misfit(pts, p0, &ids, n, sigma),
+            cubic_misfit(pts, p0, &ids, n, sigma),
+        )
+    }
+
     /// A neighbourhood on a strongly curved smooth surface lies on its quadric (sphere of
     /// radius two spacings: neighbours' normals up to 45° apart); one across a right-angled
     /// crease does not.
     #[test]
     fn a_quadric_fits_curved_neighbourhoods_and_not_creases() {
         let mut r = Rng::new(42);
-        let misfit = |pts: &[Vec3]| {
-            let ids: Vec<u32> = (1..pts.len() as u32).collect();
-            let mean = pts[1..].iter().map(|q| (*q - pts[0]).length()).sum::<f32>()
-                / (pts.len() - 1) as f32;
-            let pca = {
-                let nb = neighbours(pts, pts.len() - 1).unwrap();
-                pca_normals(pts, &nb)[0]
-            };
-            quadric_misfit(
-                pts,
-                pts[0].as_dvec3(),
-                &ids,
-                pca.as_dvec3(),
-                0.25 * mean as f64,
-            )
-        };
+        let misfit = |pts: &[Vec3]| misfits(pts).0;
         for _ in 0..20 {
             // 17 points on a sphere of radius 0.2, within 0.2 of its top (spacing ~0.1).
             let mut sphere = vec![Vec3::new(0.0, 0.0, 0.2)];
@@ -5009,20 +5008,7 @@ mod tests {
     #[test]
     fn a_cubic_fits_a_face_meeting_a_rounded_edge_and_not_a_crease() {
         let mut r = Rng::new(7);
-        let fits = |pts: &[Vec3]| {
-            let ids: Vec<u32> = (1..pts.len() as u32).collect();
-            let mean = pts[1..].iter().map(|q| (*q - pts[0]).length()).sum::<f32>()
-                / (pts.len() - 1) as f32;
-            let pca = {
-                let nb = neighbours(pts, pts.len() - 1).unwrap();
-                pca_normals(pts, &nb)[0]
-            };
-            let (p0, n, sigma) = (pts[0].as_dvec3(), pca.as_dvec3(), 0.25 * mean as f64);
-            (
-                quadric_misfit(pts, p0, &ids, n, sigma),
-                cubic_misfit(pts, p0, &ids, n, sigma),
-            )
-        };
+        let fits = misfits;
         // Of 400 random neighbourhoods each: how many a quadric fits by QUADRIC_SMOOTH, and
         // a cubic by CUBIC_SMOOTH.
         let (mut round_q, mut round_c, mut crease_c) = (0, 0, 0);
