@@ -520,8 +520,11 @@ fn voronoi_pixels_show_the_surface_normal_at_the_hit() {
 /// A sheet far thinner than ε with both sides sampled and normals given: the side facing
 /// away must not blend into the side facing the eye (`passes::splat::reference`), and the
 /// given normals are not "repaired" into one side (`stipple_core::normals::same_layer`).
-/// Without normals (or with random signs) the two sides cannot be told apart and blend;
-/// the open boundary overshoots by about a splat radius (IoU 0.97): both are known gaps.
+/// At the plate's rim, the far side's planes cut nothing, and the rim is looked for
+/// (`stipple_core::normals`, `shape_at`): they had kept it from being found, and the splats
+/// ran a radius past the rim (IoU 0.977, now 0.982). Without normals (or with random
+/// signs) the two sides cannot be told apart and blend, and the rim still overshoots where
+/// a point's own side has too few of its 16 neighbours to trace it: both are known gaps.
 #[test]
 fn a_thin_sheet_shows_its_front_side() {
     let cam = camera(DVec3::new(0.3, 1.2, 3.0), 256);
@@ -536,7 +539,7 @@ fn a_thin_sheet_shows_its_front_side() {
         );
         eprintln!("plate, normals given, {mode:?}: {r:?}");
         assert!(r.depth_within >= 0.93, "{mode:?}: {r:?}");
-        assert!(r.iou >= 0.96 && r.behind <= 0.02, "{mode:?}: {r:?}");
+        assert!(r.iou >= 0.98 && r.behind <= 0.02, "{mode:?}: {r:?}");
     }
 }
 
