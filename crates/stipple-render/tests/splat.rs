@@ -522,9 +522,10 @@ fn voronoi_pixels_show_the_surface_normal_at_the_hit() {
 /// given normals are not "repaired" into one side (`stipple_core::normals::same_layer`).
 /// At the plate's rim, the far side's planes cut nothing, and the rim is looked for
 /// (`stipple_core::normals`, `shape_at`): they had kept it from being found, and the splats
-/// ran a radius past the rim (IoU 0.977, now 0.982). Without normals (or with random
-/// signs) the two sides cannot be told apart and blend, and the rim still overshoots where
-/// a point's own side has too few of its 16 neighbours to trace it: both are known gaps.
+/// ran a radius past the rim (IoU 0.977, then 0.982); a point whose own face holds only 6
+/// of its 16 neighbours traces the rim with its own face's points within twice its reach
+/// (`boundary_planes`; 0.984). Without normals (or with random signs) the two sides
+/// cannot be told apart and blend, and the rim still overshoots in places: known gaps.
 #[test]
 fn a_thin_sheet_shows_its_front_side() {
     let cam = camera(DVec3::new(0.3, 1.2, 3.0), 256);
@@ -539,7 +540,7 @@ fn a_thin_sheet_shows_its_front_side() {
         );
         eprintln!("plate, normals given, {mode:?}: {r:?}");
         assert!(r.depth_within >= 0.93, "{mode:?}: {r:?}");
-        assert!(r.iou >= 0.98 && r.behind <= 0.02, "{mode:?}: {r:?}");
+        assert!(r.iou >= 0.983 && r.behind <= 0.02, "{mode:?}: {r:?}");
     }
 }
 
