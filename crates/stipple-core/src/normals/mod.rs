@@ -2254,14 +2254,15 @@ fn boundary_planes(
     // like a hole (a plate 0.01 thick: IoU 0.982 → 0.984). There, their own layer's
     // neighbours within twice the point's reach join them.
     let own_layer = |j: usize| j != i && normals[j].dot(n) >= 0.0;
-    let mut own: Vec<u32> = nb.of(i).to_vec();
-    own.retain(|&j| own_layer(j as usize));
-    if own.len() * 3 < nb.of(i).len() * 2 {
+    let first = nb.of(i).iter().filter(|&&j| own_layer(j as usize)).count();
+    let wider = (first * 3 < nb.of(i).len() * 2).then(|| {
         let reach = nb
             .of(i)
             .iter()
             .map(|&j| positions[j as usize].distance_squared(p))
             .fold(0.0f32, f32::max);
+        let mut own: Vec<u32> = nb.of(i).to_vec();
+        own.retain(|&j| own_layer(j as usize));
         for k in 0..own.len() {
             for &q in nb.of(own[k] as usize) {
                 if own_layer(q as usize)
@@ -2272,12 +2273,17 @@ fn boundary_planes(
                 }
             }
         }
-    }
+        own
+    });
+    let candidates: &[u32] = wider.as_deref().unwrap_or(nb.of(i));
     // The directions of the neighbours on the point's layer, as (a pseudo-angle in [0, 4),
     // which orders directions as their angles do, u, v).
     let dirs = || {
-        own.iter().filter_map(move |&j| {
+        candidates.iter().filter_map(move |&j| {
             let j = j as usize;
+            if !own_layer(j) {
+                return None;
+            }
             let (u, v) = flat(positions[j] - p);
             let l2 = u * u + v * v;
             if l2.is_nan() || l2 <= 0.0 {
