@@ -77,11 +77,16 @@ struct TileOut {
     albedo: Vec<[f32; 3]>,
 }
 
+/// The splats of a frame as discs (`splat`'s footprint pass reads them).
+struct Splats<'a> {
+    v: &'a ViewParams,
+    s: &'a SplatInput<'a>,
+}
+
 /// What every tile of a frame reads: the splats, their footprints and the tiles' lists
 /// (`splat`'s counting sort).
 struct Tiles<'a> {
-    v: &'a ViewParams,
-    s: &'a SplatInput<'a>,
+    splats: &'a Splats<'a>,
     mode: SplatMode,
     albedo: Option<(Albedo<'a>, &'a [f32; 256])>,
     srgb_lut: &'a [f32; 256],
@@ -91,7 +96,7 @@ struct Tiles<'a> {
     tw: u32,
 }
 
-impl Tiles<'_> {
+impl Splats<'_> {
     /// Splat `i` as a disc.
     #[inline(always)]
     fn disc(&self, i: usize) -> Disc {
@@ -105,6 +110,26 @@ impl Tiles<'_> {
         )
     }
 
+    /// The footprints of splats `first..first + out.len()` into `out`.
+    #[inline(always)]
+    fn footprints(&self, first: usize, out: &mut [Option<[u32; 4]>]) {
+        for (k, f) in out.iter_mut().enumerate() {
+            *f = footprint(self.v, &self.disc(first + k));
+        }
+    }
+
+    /// [`Splats::footprints`] compiled for AVX2 (as [`Tiles::tile_avx2`] is).
+    ///
+    /// # Safety
+    /// The processor must have AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn footprints_avx2(&self, first: usize, out: &mut [Option<[u32; 4]>]) {
+        self.footprints(first, out)
+    }
+}
+
+impl Tiles<'_> {
     /// Point `id`'s linear albedo.
     #[inline]
     fn albedo_of(&self, id: usize) -> [f32; 3] {
@@ -114,24 +139,6 @@ impl Tiles<'_> {
             Some((Albedo::Constant(c), _)) => c,
             None => [1.0; 3],
         }
-    }
-
-    /// The footprints of splats `first..first + out.len()` into `out`.
-    #[inline(always)]
-    fn footprints(&self, first: usize, out: &mut [Option<[u32; 4]>]) {
-        for (k, f) in out.iter_mut().enumerate() {
-            *f = footprint(self.v, &self.disc(first + k));
-        }
-    }
-
-    /// [`Tiles::footprints`] compiled for AVX2 (as [`Tiles::tile_avx2`]).
-    ///
-    /// # Safety
-    /// The processor must have AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn footprints_avx2(&self, first: usize, out: &mut [Option<[u32; 4]>]) {
-        self.footprints(first, out)
     }
 
     /// [`Tiles::tile`] compiled for AVX2: the rasterizer's lanes ([`Raster::eval_rect`]) and
@@ -151,8 +158,7 @@ impl Tiles<'_> {
     #[inline(always)]
     fn tile(&self, frags: &mut Vec<(u32, u32, super::Frag)>, t: usize) -> TileOut {
         let Tiles {
-            v,
-            s,
+            splats,
             mode,
             srgb_lut,
             feet,
@@ -161,8 +167,9 @@ impl Tiles<'_> {
             tw,
             ..
         } = *self;
+        let Splats { v, s } = *splats;
         let (w, h) = (v.width, v.height);
-        let disc = |i: usize| self.disc(i);
+        let disc = |i: usize| splats.disc(i);
         let lut_albedo = |id: usize| self.albedo_of(id);
         let mut ids: Vec<u32> = list[start[t]..start[t + 1]]
             .iter()
@@ -182,7 +189,6 @@ impl Tiles<'_> {
         for &sid in &ids {
             discs.push(disc(sid as usize));
         }
-        // Reused from the thread's previous tile (no growth by doubling per tile).
         frags.clear();
         for (li, &sid) in ids.iter().enumerate() {
             let fp = feet[sid as usize].expect("listed splats have footprints");
@@ -353,27 +359,16 @@ fn splat_with(
     let avx2 = vector && std::arch::is_x86_feature_detected!("avx2");
     #[cfg(not(target_arch = "x86_64"))]
     let _ = vector;
-    let srgb_lut = srgb_to_linear_table();
-    let mut tiles = Tiles {
-        v,
-        s,
-        mode,
-        albedo,
-        srgb_lut: &srgb_lut,
-        feet: &[],
-        list: &[],
-        start: &[],
-        tw,
-    };
+    let splats = Splats { v, s };
     const CHUNK: usize = 4096;
     let mut feet = vec![None; n];
     feet.par_chunks_mut(CHUNK).enumerate().for_each(|(c, out)| {
         #[cfg(target_arch = "x86_64")]
         if avx2 {
             // SAFETY: the processor has AVX2 (detected above).
-            return unsafe { tiles.footprints_avx2(c * CHUNK, out) };
+            return unsafe { splats.footprints_avx2(c * CHUNK, out) };
         }
-        tiles.footprints(c * CHUNK, out)
+        splats.footprints(c * CHUNK, out)
     });
     let drawn = feet.par_iter().filter(|f| f.is_some()).count() as u64;
     // Counting sort of (tile, splat).
@@ -407,9 +402,17 @@ fn splat_with(
             }
         }
     });
-    tiles.feet = &feet;
-    tiles.list = &list;
-    tiles.start = &start;
+    let srgb_lut = srgb_to_linear_table();
+    let tiles = Tiles {
+        splats: &splats,
+        mode,
+        albedo,
+        srgb_lut: &srgb_lut,
+        feet: &feet,
+        list: &list,
+        start: &start,
+        tw,
+    };
     let outs: Vec<TileOut> = (0..(tw * th) as usize)
         .into_par_iter()
         .map_init(Vec::new, |frags, t| {
