@@ -504,7 +504,11 @@ impl Raster {
         if x0 > x1 || y0 > y1 {
             return;
         }
-        if !self.bent || self.clips != 0 {
+        const L: usize = LANES;
+        let w = (x1 - x0) as u64 + 1;
+        let total = w * ((y1 - y0) as u64 + 1);
+        // (The lanes count pixels and coordinates in i32.)
+        if !self.bent || self.clips != 0 || total >= 1 << 30 || x1.max(y1) >= 1 << 30 {
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     if let Some(fr) = self.eval(x, y) {
@@ -514,33 +518,39 @@ impl Raster {
             }
             return;
         }
-        const L: usize = LANES;
-        let w = x1 - x0 + 1;
-        let total = w * (y1 - y0 + 1);
+        let total = total as u32;
         let [ka, kb, kc] = self.shape;
         let (near, r2) = (self.near, self.r2);
-        let mut base = 0u32;
-        // The next pixel, walking the rectangle row by row (lanes past its end repeat the
-        // last pixel and are not emitted).
-        let (mut cx, mut cy) = (x0, y0);
-        while base < total {
-            let (mut px, mut py) = ([x1; L], [y1; L]);
-            for l in 0..L {
-                if cy > y1 {
-                    break;
-                }
-                (px[l], py[l]) = (cx, cy);
-                if cx == x1 {
-                    (cx, cy) = (x0, cy + 1);
-                } else {
-                    cx += 1;
+        // The lanes' pixels, walking the rectangle row by row (lanes past its end are not
+        // emitted): column and row per lane, advanced by L pixels at a time with at most
+        // ⌈L/w⌉ wraps. In the lanes, not lane by lane: a vector read of lanes written one
+        // at a time waits for the stores.
+        let (w, x0, y0) = (w as i32, x0 as i32, y0 as i32);
+        let wraps = (L as i32 + w - 1) / w;
+        let wrap = |col: &mut [i32; L], row: &mut [i32; L]| {
+            for _ in 0..wraps {
+                for l in 0..L {
+                    let past = col[l] >= w;
+                    col[l] -= if past { w } else { 0 };
+                    row[l] += past as i32;
                 }
             }
+        };
+        let (mut col, mut row) = ([0i32; L], [0i32; L]);
+        for (l, c) in col.iter_mut().enumerate() {
+            *c = l as i32;
+        }
+        wrap(&mut col, &mut row);
+        let mut base = 0u32;
+        while base < total {
+            let (mut px, mut py) = ([0i32; L], [0i32; L]);
             let (mut xf, mut yf) = ([0.0f32; L], [0.0f32; L]);
             for l in 0..L {
-                xf[l] = px[l] as f32;
-                yf[l] = py[l] as f32;
+                (px[l], py[l]) = (x0 + col[l], y0 + row[l]);
+                (xf[l], yf[l]) = (px[l] as f32, py[l] as f32);
+                col[l] += L as i32;
             }
+            wrap(&mut col, &mut row);
             let mut lin = [[0.0f32; L]; 7];
             for (k, c) in self.lin.iter().enumerate() {
                 for l in 0..L {
@@ -568,33 +578,35 @@ impl Raster {
                 t1[l] = if z < a { a } else { z };
             }
             let mut hit = [[0.0f32; L]; 4];
-            let mut ok = [false; L];
+            let (mut ok, mut front) = ([false; L], [false; L]);
             for l in 0..L {
                 let (d0, d1) = (t0[l] + off[l], t1[l] + off[l]);
                 let (u0, w0) = (au[l] + t0[l] * du[l], av[l] + t0[l] * dv[l]);
                 let (u1, w1) = (au[l] + t1[l] * du[l], av[l] + t1[l] * dv[l]);
                 let (q0, q1) = (u0 * u0 + w0 * w0, u1 * u1 + w1 * w1);
-                let ok0 = d0 > near && q0 < r2;
-                let ok1 = d1 > near && q1 < r2;
+                let ok0 = (d0 > near) & (q0 < r2);
+                let ok1 = (d1 > near) & (q1 < r2);
                 // `eval`: no root (disc < 0 or NaN) or a zero root misses; else the nearer
                 // hit, else the farther.
-                ok[l] = disc[l] >= 0.0 && root[l] != 0.0 && (ok0 || ok1);
+                // (`&` and `|`, not `&&` and `||`: no branches in the lanes.)
+                ok[l] = (disc[l] >= 0.0) & (root[l] != 0.0) & (ok0 | ok1);
+                front[l] = dh[l] < 0.0;
                 hit[0][l] = if ok0 { d0 } else { d1 };
-                hit[1][l] = if ok0 { q0 } else { q1 };
+                hit[1][l] = (if ok0 { q0 } else { q1 }) / r2;
                 hit[2][l] = if ok0 { u0 } else { u1 };
                 hit[3][l] = if ok0 { w0 } else { w1 };
             }
             for l in 0..(total - base).min(L as u32) as usize {
                 if ok[l] {
                     emit(
-                        px[l],
-                        py[l],
+                        px[l] as u32,
+                        py[l] as u32,
                         Frag {
                             depth: hit[0][l],
-                            q: hit[1][l] / r2,
+                            q: hit[1][l],
                             u: hit[2][l],
                             v: hit[3][l],
-                            front: dh[l] < 0.0,
+                            front: front[l],
                         },
                     );
                 }
