@@ -204,10 +204,12 @@ impl Tiles<'_> {
                 frags.push((k as u32, li as u32, fr));
             });
         }
-        let ray = |k: usize| {
+        // The pixels' ray directions, computed once per pixel rather than per fragment.
+        let mut dirs = Vec::with_capacity(m);
+        for k in 0..m {
             let (x, y) = ((k % tile_w) as u32 + px0, (k / tile_w) as u32 + py0);
-            (x, y, v.pixel_ray(x, y).1)
-        };
+            dirs.push(v.pixel_ray(x, y).1);
+        }
         let mut out = TileOut {
             depth: vec![f32::INFINITY; m],
             id: vec![BACKGROUND; m],
@@ -238,7 +240,7 @@ impl Tiles<'_> {
             // Compositing (Fig. 5): the nearest depth over the groups, then the blend of
             // the groups within ε of it.
             for k in 0..m {
-                let dir = ray(k).2;
+                let dir = dirs[k];
                 let winners = (0..k_groups)
                     .map(|g| win[g * m + k])
                     .filter(|&fi| fi != u32::MAX)
@@ -299,7 +301,7 @@ impl Tiles<'_> {
                     let sid = ids[li as usize] as usize;
                     out.depth[k] = fr.depth;
                     out.id[k] = sid as u32;
-                    out.normal[k] = discs[li as usize].normal_facing(&fr, ray(k).2);
+                    out.normal[k] = discs[li as usize].normal_facing(&fr, dirs[k]);
                     out.albedo[k] = lut_albedo(sid).map(|c| srgb_lut[linear_to_srgb8(c) as usize]);
                 }
                 return out;
@@ -308,7 +310,7 @@ impl Tiles<'_> {
                 let k = k as usize;
                 if counts(k, &fr) {
                     let sid = ids[li as usize] as usize;
-                    acc[k].add(fr, &discs[li as usize], sid, ray(k).2, lut_albedo(sid));
+                    acc[k].add(fr, &discs[li as usize], sid, dirs[k], lut_albedo(sid));
                 }
             }
         }
