@@ -524,7 +524,8 @@ fn voronoi_pixels_show_the_surface_normal_at_the_hit() {
 /// (`stipple_core::normals`, `shape_at`): they had kept it from being found, and the splats
 /// ran a radius past the rim (IoU 0.977, then 0.982); a point whose own face holds only 6
 /// of its 16 neighbours traces the rim with its own face's points within twice its reach
-/// (`boundary_planes`; 0.984). Without normals (or with random signs) the two sides
+/// (`boundary_planes`; 0.984); a point 0.012 in from the rim leaves a gap of 112°, now
+/// enough (`BOUNDARY_GAP` 115° → 109°; 0.986). Without normals (or with random signs) the two sides
 /// cannot be told apart and blend, and the rim still overshoots in places: known gaps.
 #[test]
 fn a_thin_sheet_shows_its_front_side() {
@@ -540,7 +541,7 @@ fn a_thin_sheet_shows_its_front_side() {
         );
         eprintln!("plate, normals given, {mode:?}: {r:?}");
         assert!(r.depth_within >= 0.93, "{mode:?}: {r:?}");
-        assert!(r.iou >= 0.983 && r.behind <= 0.02, "{mode:?}: {r:?}");
+        assert!(r.iou >= 0.985 && r.behind <= 0.02, "{mode:?}: {r:?}");
     }
 }
 
