@@ -1602,7 +1602,8 @@ pub struct SplatShape {
 ///   cuts it too (`mismatch_plane`). Away from creases, a splat at an open boundary (the rim of a sheet, a scan's edge) is
 ///   cut just beyond the rim its points trace ([`BOUNDARY_REACH`]; see `boundary_planes`).
 /// - **radius**: `radii` are scaled down where a crease plane that neither clip plane stands
-///   for would cut the splat (`radius_cap`).
+///   for would cut the splat (`radius_cap`), and next to an apex, where its own layer's
+///   open gap would (`boundary_planes`).
 pub fn shapes(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -2629,12 +2630,14 @@ fn shape_at(
     // is capped as those planes would cut. A cone's point 0.03 below the apex kept a radius
     // of 0.12 and stuck out past the silhouette by 140 pixels (the cone at half the unseen
     // sweep's density, 4–4.5 px apart, seed 78: IoU 0.988 → 0.991).
-    let apex = (!boundary && np > 0 && normal_spread(normals, nb, i) > SINGULAR_SPREAD)
+    // (Where every plane was a thin sheet's far side, `boundary_planes` was asked already.)
+    let apex = (!boundary && np > far && normal_spread(normals, nb, i) > SINGULAR_SPREAD)
         .then(|| boundary_planes(positions, normals, nb, i, n))
         .flatten();
     let wedge = apex
         .into_iter()
         .flatten()
+        .filter(|c| *c != [0.0; 4])
         .map(|c| (Vec3::new(c[0], c[1], c[2]), c[3]));
     let factor = if boundary {
         1.0
