@@ -434,23 +434,61 @@ fn splat_with(
         b.albedo.clear();
         b.albedo.resize(npx, [0.0; 3]);
     }
-    for (t, o) in outs.iter().enumerate() {
-        let (tx, ty) = (t as u32 % tw, t as u32 / tw);
-        let (px0, py0) = (tx * TILE, ty * TILE);
-        let tile_w = ((px0 + TILE).min(w) - px0) as usize;
-        let rows = o.depth.len() / tile_w;
-        for r in 0..rows {
-            let dst = (py0 as usize + r) * w as usize + px0 as usize;
-            let src = r * tile_w;
-            g.depth[dst..dst + tile_w].copy_from_slice(&o.depth[src..src + tile_w]);
-            g.id[dst..dst + tile_w].copy_from_slice(&o.id[src..src + tile_w]);
-            if let Some(b) = blended.as_deref_mut() {
-                b.normal[dst..dst + tile_w].copy_from_slice(&o.normal[src..src + tile_w]);
-                b.albedo[dst..dst + tile_w].copy_from_slice(&o.albedo[src..src + tile_w]);
-            }
-        }
+    // The tiles' outputs into the frame, a band of tile rows per task.
+    let band = (TILE * w) as usize;
+    let place = |ty: usize, put: &mut dyn FnMut(&TileOut, RowCopy)| {
+        band_rows(&outs[ty * tw as usize..][..tw as usize], w as usize, put)
+    };
+    let (depth, id) = (g.depth.par_chunks_mut(band), g.id.par_chunks_mut(band));
+    match blended {
+        Some(b) => depth
+            .zip(id)
+            .zip(b.normal.par_chunks_mut(band))
+            .zip(b.albedo.par_chunks_mut(band))
+            .enumerate()
+            .for_each(|(ty, (((d, i), nr), al))| {
+                place(ty, &mut |o, RowCopy { dst, src, n }| {
+                    d[dst..dst + n].copy_from_slice(&o.depth[src..src + n]);
+                    i[dst..dst + n].copy_from_slice(&o.id[src..src + n]);
+                    nr[dst..dst + n].copy_from_slice(&o.normal[src..src + n]);
+                    al[dst..dst + n].copy_from_slice(&o.albedo[src..src + n]);
+                })
+            }),
+        None => depth.zip(id).enumerate().for_each(|(ty, (d, i))| {
+            place(ty, &mut |o, RowCopy { dst, src, n }| {
+                d[dst..dst + n].copy_from_slice(&o.depth[src..src + n]);
+                i[dst..dst + n].copy_from_slice(&o.id[src..src + n]);
+            })
+        }),
     }
     drawn
+}
+
+/// One row of a tile's output in its band of the frame: `n` pixels from `src` in the tile
+/// to `dst` in the band.
+struct RowCopy {
+    dst: usize,
+    src: usize,
+    n: usize,
+}
+
+/// The rows of a band's tiles (`tiles`, left to right; frame width `w`), each to `put`.
+fn band_rows(tiles: &[TileOut], w: usize, put: &mut dyn FnMut(&TileOut, RowCopy)) {
+    for (tx, o) in tiles.iter().enumerate() {
+        let px0 = tx * TILE as usize;
+        let tile_w = (px0 + TILE as usize).min(w) - px0;
+        for r in 0..o.depth.len() / tile_w {
+            let (dst, src) = (r * w + px0, r * tile_w);
+            put(
+                o,
+                RowCopy {
+                    dst,
+                    src,
+                    n: tile_w,
+                },
+            );
+        }
+    }
 }
 
 #[cfg(test)]
