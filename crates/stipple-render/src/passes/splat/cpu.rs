@@ -436,9 +436,7 @@ fn splat_with(
     }
     // The tiles' outputs into the frame, a band of tile rows per task.
     let band = (TILE * w) as usize;
-    let place = |ty: usize, put: &mut dyn FnMut(&TileOut, RowCopy)| {
-        band_rows(&outs[ty * tw as usize..][..tw as usize], w as usize, put)
-    };
+    let tiles = |ty: usize| &outs[ty * tw as usize..][..tw as usize];
     let (depth, id) = (g.depth.par_chunks_mut(band), g.id.par_chunks_mut(band));
     match blended {
         Some(b) => depth
@@ -447,7 +445,7 @@ fn splat_with(
             .zip(b.albedo.par_chunks_mut(band))
             .enumerate()
             .for_each(|(ty, (((d, i), nr), al))| {
-                place(ty, &mut |o, RowCopy { dst, src, n }| {
+                band_rows(tiles(ty), w as usize, |o, dst, src, n| {
                     d[dst..dst + n].copy_from_slice(&o.depth[src..src + n]);
                     i[dst..dst + n].copy_from_slice(&o.id[src..src + n]);
                     nr[dst..dst + n].copy_from_slice(&o.normal[src..src + n]);
@@ -455,7 +453,7 @@ fn splat_with(
                 })
             }),
         None => depth.zip(id).enumerate().for_each(|(ty, (d, i))| {
-            place(ty, &mut |o, RowCopy { dst, src, n }| {
+            band_rows(tiles(ty), w as usize, |o, dst, src, n| {
                 d[dst..dst + n].copy_from_slice(&o.depth[src..src + n]);
                 i[dst..dst + n].copy_from_slice(&o.id[src..src + n]);
             })
@@ -464,29 +462,14 @@ fn splat_with(
     drawn
 }
 
-/// One row of a tile's output in its band of the frame: `n` pixels from `src` in the tile
-/// to `dst` in the band.
-struct RowCopy {
-    dst: usize,
-    src: usize,
-    n: usize,
-}
-
-/// The rows of a band's tiles (`tiles`, left to right; frame width `w`), each to `put`.
-fn band_rows(tiles: &[TileOut], w: usize, put: &mut dyn FnMut(&TileOut, RowCopy)) {
+/// The rows of a band's tiles (`tiles`, left to right; frame width `w`): `put(tile, dst,
+/// src, n)` for each, `n` pixels from `src` in the tile to `dst` in the band.
+fn band_rows(tiles: &[TileOut], w: usize, mut put: impl FnMut(&TileOut, usize, usize, usize)) {
     for (tx, o) in tiles.iter().enumerate() {
         let px0 = tx * TILE as usize;
         let tile_w = (px0 + TILE as usize).min(w) - px0;
         for r in 0..o.depth.len() / tile_w {
-            let (dst, src) = (r * w + px0, r * tile_w);
-            put(
-                o,
-                RowCopy {
-                    dst,
-                    src,
-                    n: tile_w,
-                },
-            );
+            put(o, r * w + px0, r * tile_w, tile_w);
         }
     }
 }
