@@ -3548,12 +3548,12 @@ type FaceScratch = (Vec<(u8, f32, u32)>, Vec<f32>, Vec<u32>);
 /// members on the outer side of another's plane): at convex ones both faces' tangent
 /// planes are off by the same bend, and the median served better (a cone's apex). Only at
 /// a crease: another face of at least three members lies more than [`CREASE_COS`] away (on
-/// a curved surface the groups are bands of one smooth turn, and the re-fit stands). Two
-/// A face of one or two members counts where it alone passes through the point (see the
-/// body). Five rounds, each after the first only where a neighbour turned by more than 5°
+/// a curved surface the groups are bands of one smooth turn, and the re-fit stands), or a
+/// face of one or two members does, which counts where it alone passes through the point
+/// (see the body). Five rounds, each after the first only where a neighbour turned by more than 5°
 /// in the one before, and from the third on not next to an apex (`normal_spread` over
 /// [`SINGULAR_SPREAD`]): there the faces turn about the apex and the decision went round
-/// in circles (a cone 4 px apart, seed 87 of the unseen sweep: a point by the apex ended on
+/// in circles (a cone of the unseen sweep, seed 87: a point by the apex ended on
 /// a side whose splat stuck out past the silhouette, IoU 0.994 → 0.989). Returns which
 /// points were set at a crease.
 fn nearest_faces(
@@ -3692,9 +3692,9 @@ fn nearest_faces(
                     // may have only one or two members among its neighbours, and no big face
                     // passes through it. A small face every member's tangent plane of which
                     // passes through the point ([`SMALL_ON`]) where the nearest big face
-                    // misses it ([`SMALL_OFF`]) by far more ([`SMALL_RATIO`]) is its face: on
-                    // a random cube at half the density of 3–6 px apart, a fifth fewer points
-                    // a spacing or more from an edge kept a normal 30° off.
+                    // misses it ([`SMALL_OFF`]) by far more ([`SMALL_RATIO`]) is its face (six
+                    // random cubes of 1 000 points: 58 → 39 points a tenth of a spacing or
+                    // more from an edge kept a normal 30° off, with the later rounds).
                     let sigma = 0.25
                         * nb.of(i)
                             .iter()
