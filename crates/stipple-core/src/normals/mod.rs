@@ -3405,6 +3405,17 @@ fn layered(
     Some(m * sign)
 }
 
+/// The scale σ of a point's neighbourhood for the re-fit and the face decision of
+/// [`robust_normals`]: a quarter of its neighbours' mean distance.
+fn scatter_sigma(positions: &[Vec3], i: usize, ids: &[u32]) -> f64 {
+    let p0 = positions[i].as_dvec3();
+    0.25 * ids
+        .iter()
+        .map(|&j| (positions[j as usize].as_dvec3() - p0).length())
+        .sum::<f64>()
+        / ids.len() as f64
+}
+
 /// The re-fit of [`robust_normals`]; returns which points' neighbourhoods lie on one plane
 /// with no neighbour more than 1.5 σ off it (those are left as they were; `nearest_faces`
 /// looks at the others again).
@@ -3425,12 +3436,7 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
             if ids.len() < 3 {
                 return true;
             }
-            let mean = ids
-                .iter()
-                .map(|&j| (positions[j as usize].as_dvec3() - p0).length())
-                .sum::<f64>()
-                / ids.len() as f64;
-            let sigma = 0.25 * mean;
+            let sigma = scatter_sigma(positions, i, ids);
             if !(sigma > 0.0 && sigma.is_finite()) {
                 return true;
             }
@@ -3630,19 +3636,13 @@ fn nearest_faces(
                     }
                     // Two faces with members at a sharp angle, or no crease.
                     let big = |f: usize| count[f] >= 3;
-                    let sharp = |a: usize, b: usize| {
-                        big(a) && big(b) && first[a].dot(first[b]).abs() < CREASE_COS
-                    };
+                    let across = |a: usize, b: usize| first[a].dot(first[b]).abs() < CREASE_COS;
+                    let sharp = |a: usize, b: usize| big(a) && big(b) && across(a, b);
                     // A face of one or two members (weights) at a sharp angle to a big
                     // one: the point may lie on it (see below).
-                    let small = |f: usize| count[f] < 3;
                     let pair = (0..nf).any(|a| (a + 1..nf).any(|b| sharp(a, b)));
                     let lone = !pair
-                        && (0..nf).any(|a| {
-                            big(a)
-                                && (0..nf)
-                                    .any(|b| small(b) && first[a].dot(first[b]).abs() < CREASE_COS)
-                        });
+                        && (0..nf).any(|a| big(a) && (0..nf).any(|b| !big(b) && across(a, b)));
                     if !pair && !lone {
                         return;
                     }
@@ -3695,15 +3695,10 @@ fn nearest_faces(
                     // misses it ([`SMALL_OFF`]) by far more ([`SMALL_RATIO`]) is its face (six
                     // random cubes of 1 000 points: 58 → 39 points a tenth of a spacing or
                     // more from an edge kept a normal 30° off, with the later rounds).
-                    let sigma = 0.25
-                        * nb.of(i)
-                            .iter()
-                            .map(|&j| (positions[j as usize] - p).length())
-                            .sum::<f32>()
-                        / nb.of(i).len() as f32;
+                    let sigma = scatter_sigma(positions, i, nb.of(i)) as f32;
                     let big_face = best.1;
                     if best.0 > SMALL_OFF * sigma {
-                        for f in (0..nf).filter(|&f| small(f)) {
+                        for f in (0..nf).filter(|&f| !big(f)) {
                             let o = members
                                 .iter()
                                 .filter(|m| m.0 as usize == f)
