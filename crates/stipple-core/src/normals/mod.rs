@@ -1561,10 +1561,55 @@ pub fn max_curvature([a, b, c]: [f32; 3]) -> f32 {
     (0.5 * (a + c)).abs() + (0.25 * (a - c) * (a - c) + b * b).sqrt()
 }
 
+/// The curvature D that closes a bend (A, B, C) into the quadric surface
+/// ½(A u² + 2B uv + C v²) + ½D h² = h, which meets the paraboloid
+/// h = ½(A u² + 2B uv + C v²) to second order at the splat's point and is exactly the
+/// sphere or cylinder of that curvature where the surface is one: D is the principal
+/// curvature of the larger magnitude, where the other has the same sign; it fades to zero
+/// (the paraboloid) as the other turns to the opposite sign, reaching zero where it is
+/// [`SADDLE_FADE`] of the first. A paraboloid lies outside its osculating circle by
+/// ≈ u⁴κ³/8 (a splat of radius r = 0.9/κ reaches 0.08/κ past a cylinder's silhouette);
+/// the closed patch follows it. Zero (the paraboloid, drawn as before and faster) where
+/// |D|·`radius` is under [`CLOSE_FROM`]: there the two differ by less than 1.6% of the
+/// radius.
+#[inline]
+pub fn closing_curvature([a, b, c]: [f32; 3], radius: f32) -> f32 {
+    let (m, d) = (0.5 * (a + c), (0.25 * (a - c) * (a - c) + b * b).sqrt());
+    let (big, small) = if m >= 0.0 {
+        (m + d, m - d)
+    } else {
+        (m - d, m + d)
+    };
+    let reach = big.abs() * radius;
+    if reach.is_nan() || reach < CLOSE_FROM {
+        return 0.0;
+    }
+    big * (1.0 + small / (big * SADDLE_FADE)).clamp(0.0, 1.0)
+}
+
+/// The least |D|·r for which [`closing_curvature`] closes a splat.
+pub const CLOSE_FROM: f32 = 0.5;
+
+/// Where [`closing_curvature`] reaches zero: the smaller principal curvature at this
+/// fraction of the larger, of the opposite sign.
+pub const SADDLE_FADE: f32 = 0.25;
+
+/// The largest height above its tangent plane of a patch with bend `bend` over a disc of
+/// squared radius `r2`, closed by D = `close` ([`closing_curvature`]; a bound where the
+/// closed surface ends inside the disc): h = 2Q / (1 + √(1 − 2|D|Q)) at Q = ½κ r², κ the
+/// largest curvature (Q itself where D is zero).
+#[inline]
+pub fn patch_height(bend: [f32; 3], r2: f32, close: f32) -> f32 {
+    let q = 0.5 * max_curvature(bend) * r2;
+    2.0 * q / (1.0 + (1.0 - 2.0 * close.abs() * q).max(0.0).sqrt())
+}
+
 /// How a splat departs from a flat disc (see [`shapes`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SplatShape {
-    /// (A, B, C): the patch is h = ½(A u² + 2B uv + C v²) above the tangent plane.
+    /// (A, B, C): the patch is h = ½(A u² + 2B uv + C v²) above the tangent plane to
+    /// second order; splats draw it closed, ½(A u² + 2B uv + C v²) + ½D h² = h with
+    /// D = [`closing_curvature`], a sphere or cylinder where the surface is one.
     pub bend: [f32; 3],
     /// Two clip planes (m, c): the splat keeps only the points x with m·x ≤ c (x in the
     /// cloud's coordinates). All zero: none.

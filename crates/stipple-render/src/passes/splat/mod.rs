@@ -226,7 +226,7 @@ pub fn footprint(v: &ViewParams, s: &Disc) -> Option<[u32; 4]> {
     let d = s.p - Vec3::from(v.eye);
     let (x, y, z) = (d.dot(right), d.dot(up), d.dot(fwd));
     let r = s.r2.sqrt();
-    let h = 0.5 * stipple_core::normals::max_curvature(s.shape) * s.r2;
+    let h = stipple_core::normals::patch_height(s.shape, s.r2, s.close);
     let ext = |a: Vec3| {
         let c = s.n.dot(a).abs().min(1.0);
         r * (1.0 - c * c).max(0.0).sqrt() + h * c
@@ -299,6 +299,9 @@ pub struct Disc {
     pub clip: [[f32; 4]; 2],
     /// The clip planes bent into their rims (`SplatShape::curve`).
     pub curve: [[f32; 2]; 2],
+    /// The curvature D that closes the patch into a sphere or cylinder where it is one
+    /// (`stipple_core::normals::closing_curvature`): ½(A u² + 2B uv + C v²) + ½D h² = h.
+    pub close: f32,
 }
 
 impl Disc {
@@ -325,6 +328,7 @@ impl Disc {
             shape: shape.bend,
             clip: shape.clip,
             curve: shape.curve,
+            close: stipple_core::normals::closing_curvature(shape.bend, r),
         }
     }
 
@@ -332,7 +336,13 @@ impl Disc {
     #[inline]
     pub fn normal_at(&self, u: f32, w: f32) -> Vec3 {
         let [a, b, c] = self.shape;
-        (self.n - (a * u + b * w) * self.t1 - (b * u + c * w) * self.t2).normalize_or_zero()
+        // ∇ of ½(A u² + 2B uv + C v²) + ½D h² − h, where 1 − D h = √(1 − 2D·Q(u, v)).
+        let mut n = self.n;
+        if self.close != 0.0 {
+            let q = 0.5 * (a * u * u + c * w * w) + b * u * w;
+            n *= (1.0 - 2.0 * self.close * q).max(0.0).sqrt();
+        }
+        (n - (a * u + b * w) * self.t1 - (b * u + c * w) * self.t2).normalize_or_zero()
     }
 
     /// The patch's unit normal at fragment `fr`, turned against the pixel ray's direction
@@ -398,6 +408,7 @@ pub struct Raster {
     rim: [[f32; 4]; 2],
     clips: u8,
     shape: [f32; 3],
+    close: f32,
     bent: bool,
     r2: f32,
     near: f32,
@@ -454,6 +465,7 @@ impl Raster {
             rim,
             clips: clips as u8,
             shape: s.shape,
+            close: s.close,
             bent: s.shape != [0.0; 3],
             r2: s.r2,
             near: v.near,
@@ -468,9 +480,16 @@ impl Raster {
         let [au, av, ah, du, dv, dh, off] = self.lin.each_ref().map(at);
         let t = if self.bent {
             let [ka, kb, kc] = self.shape;
-            let qd = 0.5 * (ka * du * du + kc * dv * dv) + kb * du * dv;
-            let l = ka * au * du + kb * (au * dv + av * du) + kc * av * dv;
-            let qa = 0.5 * (ka * au * au + kc * av * av) + kb * au * av;
+            let kd = self.close;
+            let mut qd = 0.5 * (ka * du * du + kc * dv * dv) + kb * du * dv;
+            let mut l = ka * au * du + kb * (au * dv + av * du) + kc * av * dv;
+            let mut qa = 0.5 * (ka * au * au + kc * av * av) + kb * au * av;
+            if kd != 0.0 {
+                // The closing term ½D h², h = ah + t·dh.
+                qd += 0.5 * kd * dh * dh;
+                l += kd * ah * dh;
+                qa += 0.5 * kd * ah * ah;
+            }
             let b = l - dh;
             let c = qa - ah;
             let disc = b * b - 4.0 * qd * c;
@@ -483,10 +502,18 @@ impl Raster {
             }
             let (t0, t1) = (c / root, root / qd);
             let (t0, t1) = if t1 < t0 { (t1, t0) } else { (t0, t1) };
-            match self.hit(t0, [au, av, du, dv, dh, off], xf, yf) {
-                Some(f) => return Some(f),
-                None => t1,
+            // The closed surface's near half, D h < 1 (the far half of its sphere is not
+            // the splat's).
+            let near_half = |t: f32| kd == 0.0 || kd * (ah + t * dh) < 1.0;
+            if near_half(t0) {
+                if let Some(f) = self.hit(t0, [au, av, du, dv, dh, off], xf, yf) {
+                    return Some(f);
+                }
             }
+            if !near_half(t1) {
+                return None;
+            }
+            t1
         } else {
             -ah / dh
         };
@@ -504,7 +531,6 @@ impl Raster {
         if x0 > x1 || y0 > y1 {
             return;
         }
-        const L: usize = LANES;
         let w = (x1 - x0) as u64 + 1;
         let total = w * ((y1 - y0) as u64 + 1);
         // (The lanes count pixels and coordinates in i32.)
@@ -518,8 +544,28 @@ impl Raster {
             }
             return;
         }
-        let total = total as u32;
+        // A closed splat's extra terms only where it has them: the paraboloid's lanes run
+        // as fast as before.
+        if self.close == 0.0 {
+            self.eval_lanes::<false>([x0, y0, x1, y1], w as u32, total as u32, emit)
+        } else {
+            self.eval_lanes::<true>([x0, y0, x1, y1], w as u32, total as u32, emit)
+        }
+    }
+
+    /// [`Raster::eval_rect`]'s lanes over the `total` pixels of a rectangle `w` wide, with
+    /// the closing term where `CLOSED`.
+    #[inline(always)]
+    fn eval_lanes<const CLOSED: bool>(
+        &self,
+        [x0, y0, _, _]: [u32; 4],
+        w: u32,
+        total: u32,
+        mut emit: impl FnMut(u32, u32, Frag),
+    ) {
+        const L: usize = LANES;
         let [ka, kb, kc] = self.shape;
+        let kd = self.close;
         let (near, r2) = (self.near, self.r2);
         // The lanes' pixels, walking the rectangle row by row (lanes past its end are not
         // emitted): column and row per lane, advanced by L pixels at a time with at most
@@ -562,9 +608,14 @@ impl Raster {
                 ([0.0f32; L], [0.0f32; L], [0.0f32; L], [0.0f32; L]);
             for l in 0..L {
                 qd[l] = 0.5 * (ka * du[l] * du[l] + kc * dv[l] * dv[l]) + kb * du[l] * dv[l];
-                let li =
+                let mut li =
                     ka * au[l] * du[l] + kb * (au[l] * dv[l] + av[l] * du[l]) + kc * av[l] * dv[l];
-                let qa = 0.5 * (ka * au[l] * au[l] + kc * av[l] * av[l]) + kb * au[l] * av[l];
+                let mut qa = 0.5 * (ka * au[l] * au[l] + kc * av[l] * av[l]) + kb * au[l] * av[l];
+                if CLOSED {
+                    qd[l] += 0.5 * kd * dh[l] * dh[l];
+                    li += kd * ah[l] * dh[l];
+                    qa += 0.5 * kd * ah[l] * ah[l];
+                }
                 b[l] = li - dh[l];
                 c[l] = qa - ah[l];
                 disc[l] = b[l] * b[l] - 4.0 * qd[l] * c[l];
@@ -584,8 +635,10 @@ impl Raster {
                 let (u0, w0) = (au[l] + t0[l] * du[l], av[l] + t0[l] * dv[l]);
                 let (u1, w1) = (au[l] + t1[l] * du[l], av[l] + t1[l] * dv[l]);
                 let (q0, q1) = (u0 * u0 + w0 * w0, u1 * u1 + w1 * w1);
-                let ok0 = (d0 > near) & (q0 < r2);
-                let ok1 = (d1 > near) & (q1 < r2);
+                let half0 = !CLOSED || kd * (ah[l] + t0[l] * dh[l]) < 1.0;
+                let half1 = !CLOSED || kd * (ah[l] + t1[l] * dh[l]) < 1.0;
+                let ok0 = (d0 > near) & (q0 < r2) & half0;
+                let ok1 = (d1 > near) & (q1 < r2) & half1;
                 // `eval`: no root (disc < 0 or NaN) or a zero root misses; else the nearer
                 // hit, else the farther.
                 // (`&` and `|`, not `&&` and `||`: no branches in the lanes.)
@@ -725,6 +778,82 @@ mod tests {
             let (o, _) = v.pixel_ray(i, 32);
             assert_eq!(Raster::new(&v, &clipped).eval(i, 32).is_some(), o.x <= 0.05);
         }
+    }
+
+    /// A splat bent like the unit sphere or cylinder it sits on is closed into it
+    /// (`Disc::close`): it meets pixel rays where the surface does across a radius wider
+    /// than the surface (where a paraboloid would stand off by up to r⁴κ³/8 and reach past
+    /// the silhouette), takes the surface's normal there, and meets no ray beyond the
+    /// silhouette (the closed surface's far half is not the splat's). A saddle stays a
+    /// paraboloid.
+    #[test]
+    fn closed_splats_are_the_sphere_or_cylinder_they_bend_like() {
+        let v = ViewParams::axis_aligned(120, 120, false, 2.0 / 2.4);
+        let p = Vec3::new(0.0, 0.0, 5.0);
+        let c = p + Vec3::Z;
+        for cylinder in [false, true] {
+            let bend = if cylinder {
+                [-1.0, 0.0, 0.0]
+            } else {
+                [-1.0, 0.0, -1.0]
+            };
+            let shape = SplatShape {
+                bend,
+                ..Default::default()
+            };
+            let d = Disc::new(&v, p, Some(-Vec3::Z), 1.1, Some(shape));
+            assert_eq!(d.close, -1.0);
+            // The frame's u axis is world x or y: the cylinder's axis along the other.
+            let along_x = d.t1.x.abs() < 0.5;
+            let r = Raster::new(&v, &d);
+            let (mut worst_depth, mut worst_normal, mut hits) = (0.0f32, 1.0f32, 0);
+            for j in 0..120 {
+                for i in 0..120 {
+                    let (o, _) = v.pixel_ray(i, j);
+                    let (mut x, mut y) = (o.x - c.x, o.y - c.y);
+                    if cylinder && along_x {
+                        x = 0.0;
+                    } else if cylinder {
+                        y = 0.0;
+                    }
+                    let rho2 = x * x + y * y;
+                    let in_disc = (o.x - p.x).powi(2) + (o.y - p.y).powi(2) < 1.1 * 1.1;
+                    match r.eval(i, j) {
+                        Some(f) => {
+                            hits += 1;
+                            assert!(rho2 < 1.0 + 1e-3, "a hit past the silhouette at {o:?}");
+                            if rho2 < 0.9 {
+                                let truth = c.z - (1.0 - rho2).sqrt();
+                                worst_depth = worst_depth.max((f.depth - truth).abs());
+                                let on = Vec3::new(x, y, f.depth - c.z).normalize();
+                                worst_normal = worst_normal.min(d.normal_at(f.u, f.v).dot(on));
+                            }
+                        }
+                        None => assert!(!(rho2 < 0.98 && in_disc), "a miss at {o:?}"),
+                    }
+                }
+            }
+            assert!(hits > 1000, "{hits}");
+            assert!(worst_depth < 1e-4, "off the surface by {worst_depth}");
+            assert!(worst_normal > 0.9999, "normal off: cos {worst_normal}");
+        }
+        let saddle = SplatShape {
+            bend: [-1.0, 0.0, 0.5],
+            ..Default::default()
+        };
+        assert_eq!(
+            Disc::new(&v, p, Some(-Vec3::Z), 1.0, Some(saddle)).close,
+            0.0
+        );
+        // Under CLOSE_FROM (|D|·r = 0.4) the paraboloid is near enough: not closed.
+        let small = SplatShape {
+            bend: [-1.0, 0.0, -1.0],
+            ..Default::default()
+        };
+        assert_eq!(
+            Disc::new(&v, p, Some(-Vec3::Z), 0.4, Some(small)).close,
+            0.0
+        );
     }
 
     /// `eval_rect` emits exactly the fragments `eval` gives pixel by pixel, in the same

@@ -79,6 +79,8 @@ struct Splat {
     t1: vec3<f32>,
     t2: vec3<f32>,
     shape: vec3<f32>,
+    // Disc::close (stipple_core::normals::closing_curvature of shape).
+    close: f32,
     clip0: vec4<f32>,
     clip1: vec4<f32>,
     curve: vec4<f32>,
@@ -135,6 +137,22 @@ fn length_sq(a: vec3<f32>) -> f32 {
     return dot3(a, a);
 }
 
+// stipple_core::normals::closing_curvature (CLOSE_FROM = 0.5, SADDLE_FADE = 0.25).
+fn closing_curvature(k: vec3<f32>, radius: f32) -> f32 {
+    let m = 0.5 * (k.x + k.z);
+    let d = sqrt(0.25 * (k.x - k.z) * (k.x - k.z) + k.y * k.y);
+    var big = m - d;
+    var small = m + d;
+    if (m >= 0.0) {
+        big = m + d;
+        small = m - d;
+    }
+    if (!(abs(big) * radius >= 0.5)) {
+        return 0.0;
+    }
+    return big * clamp(1.0 + small / (big * 0.25), 0.0, 1.0);
+}
+
 // mod.rs footprint + splat_normal.
 fn load_splat(local: u32) -> Splat {
     var s: Splat;
@@ -177,6 +195,7 @@ fn load_splat(local: u32) -> Splat {
     } else {
         s.n = -view.forward;
     }
+    s.close = closing_curvature(s.shape, r);
     // mod.rs footprint.
     let d = p - view.eye;
     let x = dot3(d, view.right);
@@ -185,7 +204,9 @@ fn load_splat(local: u32) -> Splat {
     let rr = sqrt(s.r2);
     let kmax = abs(0.5 * (s.shape.x + s.shape.z))
         + sqrt(0.25 * (s.shape.x - s.shape.z) * (s.shape.x - s.shape.z) + s.shape.y * s.shape.y);
-    let hb = 0.5 * kmax * s.r2;
+    // stipple_core::normals::patch_height.
+    let qb = 0.5 * kmax * s.r2;
+    let hb = 2.0 * qb / (1.0 + sqrt(max(1.0 - 2.0 * abs(s.close) * qb, 0.0)));
     let ex = footprint_ext(s.n, view.right, rr, hb);
     let ey = footprint_ext(s.n, view.up, rr, hb);
     let ez = footprint_ext(s.n, view.forward, rr, hb);
@@ -383,9 +404,15 @@ fn fragment(s: Splat, i: u32, j: u32) -> Frag {
     let ka = s.shape.x;
     let kb = s.shape.y;
     let kc = s.shape.z;
-    let qd = 0.5 * (ka * du * du + kc * dv * dv) + kb * du * dv;
-    let l = ka * au * du + kb * (au * dv + av * du) + kc * av * dv;
-    let qa = 0.5 * (ka * au * au + kc * av * av) + kb * au * av;
+    let kd = s.close;
+    var qd = 0.5 * (ka * du * du + kc * dv * dv) + kb * du * dv;
+    var l = ka * au * du + kb * (au * dv + av * du) + kc * av * dv;
+    var qa = 0.5 * (ka * au * au + kc * av * av) + kb * au * av;
+    if (kd != 0.0) {
+        qd = qd + 0.5 * kd * dh * dh;
+        l = l + kd * ah * dh;
+        qa = qa + 0.5 * kd * ah * ah;
+    }
     let b = l - dh;
     let c = qa - ah;
     let disc = b * b - 4.0 * qd * c;
@@ -407,9 +434,15 @@ fn fragment(s: Splat, i: u32, j: u32) -> Frag {
         ta = tb;
         tb = tmp;
     }
-    let first = raster_hit(s, ta, au, av, du, dv, dh, off, x, y);
-    if (first.ok) {
-        return first;
+    // The closed surface's near half, D h < 1.
+    if (kd == 0.0 || kd * (ah + ta * dh) < 1.0) {
+        let first = raster_hit(s, ta, au, av, du, dv, dh, off, x, y);
+        if (first.ok) {
+            return first;
+        }
+    }
+    if (!(kd == 0.0 || kd * (ah + tb * dh) < 1.0)) {
+        return f;
     }
     return raster_hit(s, tb, au, av, du, dv, dh, off, x, y);
 }
@@ -547,7 +580,12 @@ fn splat_clear(
 
 // Disc::normal_at, turned towards the eye along the pixel's ray (mod.rs / cpu.rs blend).
 fn blend_normal(s: Splat, f: Frag, i: u32, j: u32) -> vec3<f32> {
-    let m = s.n - (s.shape.x * f.u + s.shape.y * f.v) * s.t1 - (s.shape.y * f.u + s.shape.z * f.v) * s.t2;
+    var up = s.n;
+    if (s.close != 0.0) {
+        let q = 0.5 * (s.shape.x * f.u * f.u + s.shape.z * f.v * f.v) + s.shape.y * f.u * f.v;
+        up = up * sqrt(max(1.0 - 2.0 * s.close * q, 0.0));
+    }
+    let m = up - (s.shape.x * f.u + s.shape.y * f.v) * s.t1 - (s.shape.y * f.u + s.shape.z * f.v) * s.t2;
     let l2 = dot3(m, m);
     var n = vec3<f32>(0.0);
     if (l2 > 0.0) {
