@@ -3136,13 +3136,33 @@ fn quadric_at(c: &[f64; QUADRIC], row: &[f64; QUADRIC]) -> f64 {
 /// percentile; measured on random samples with k = 16). Infinite where the fit is
 /// ill-conditioned.
 fn quadric_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
-    height_misfit(positions, p0, ids, n, sigma, quadric_terms)
+    height_misfit(positions, p0, ids, n, sigma, quadric_terms, None).0
+}
+
+/// [`quadric_misfit`] of the quadric closed by its own [`closing_curvature`] D (as splats
+/// are drawn): ½(A u² + 2B uv + C v²) + ½D h² = h, fitted as the height field h − ½D h².
+/// A sphere or cylinder is one exactly however much of it the neighbourhood spans, where a
+/// paraboloid misses it by its fourth-order rise (a tube two spacings in radius sampled
+/// sparsely: 0.2–0.4 σ); infinite where there is no D (a saddle, a plane) or no fit.
+fn closed_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
+    let (_, c) = height_misfit(positions, p0, ids, n, sigma, quadric_terms, None);
+    let Some(c) = c else {
+        return f64::INFINITY;
+    };
+    // In units of σ, as the fit.
+    let d = closing_curvature([c[3] as f32, c[4] as f32, c[5] as f32], f32::INFINITY);
+    if d == 0.0 {
+        return f64::INFINITY;
+    }
+    height_misfit(positions, p0, ids, n, sigma, quadric_terms, Some(d as f64)).0
 }
 
 /// The largest distance of the point at `p0` and its neighbours `ids` from their
 /// least-squares height field with terms `terms` over the plane of unit normal `n` (all
-/// weighted alike, the point held at height 0), over `sigma`; infinite where the fit is
-/// ill-conditioned. ([`quadric_misfit`], [`cubic_misfit`].)
+/// weighted alike, the point held at height 0), over `sigma`, and the fit's coefficients
+/// (in units of σ); infinite and None where the fit is ill-conditioned. With `close` D (in
+/// units of 1/σ) the field fitted is h − ½D h² ([`closed_misfit`]). ([`quadric_misfit`],
+/// [`cubic_misfit`].)
 fn height_misfit<const U: usize>(
     positions: &[Vec3],
     p0: DVec3,
@@ -3150,13 +3170,16 @@ fn height_misfit<const U: usize>(
     n: DVec3,
     sigma: f64,
     terms: fn(f64, f64) -> [f64; U],
-) -> f64 {
+    close: Option<f64>,
+) -> (f64, Option<[f64; U]>) {
     let (t1, t2) = tangent_frame(n.as_vec3());
     let (t1, t2) = (t1.as_dvec3(), t2.as_dvec3());
     // In units of σ, for conditioning.
     let row = |j: u32| {
         let d = (positions[j as usize].as_dvec3() - p0) / sigma;
-        (terms(d.dot(t1), d.dot(t2)), d.dot(n))
+        let h = d.dot(n);
+        let h = close.map_or(h, |k| h - 0.5 * k * h * h);
+        (terms(d.dot(t1), d.dot(t2)), h)
     };
     let Some(fit) = QuadricFit::<U>::new(
         ids.iter().map(|&j| {
@@ -3165,15 +3188,17 @@ fn height_misfit<const U: usize>(
         }),
         true,
     ) else {
-        return f64::INFINITY;
+        return (f64::INFINITY, None);
     };
     let c = fit.x;
-    ids.iter()
+    let misfit = ids
+        .iter()
         .map(|&j| {
             let (r, h) = row(j);
             (h - c.iter().zip(&r).map(|(c, r)| c * r).sum::<f64>()).abs()
         })
-        .fold(c[0].abs(), f64::max)
+        .fold(c[0].abs(), f64::max);
+    (misfit, Some(c))
 }
 
 /// A neighbourhood off its plane but within this many σ of its quadric
@@ -3195,6 +3220,15 @@ const CUBIC_SMOOTH: f64 = 0.08;
 /// foliage's larger still (the cubic fitted wherever the quadric missed made Autzen's
 /// robust stage 8.9 → 10.9 s; with this gate, 9.0 s).
 const CUBIC_TRIED: f64 = 0.75;
+/// The closed quadric ([`closed_misfit`]) is fitted only where the quadric's misfit is at
+/// most this.
+const CLOSED_TRIED: f64 = 0.75;
+/// A neighbourhood within this many σ of its closed quadric ([`closed_misfit`]) is smooth.
+/// The unseen thin torus at half density (tube radius two spacings), normals estimated:
+/// depth within 0.5% of the range on 88.8% of pixels without the test, 89.2% at 0.12 σ,
+/// 91.3% at 0.18 σ, 93.3% at 0.25 σ, where a cone lost three cases (its rim taken for
+/// smooth) and a hexagonal prism one.
+const CLOSED_SMOOTH: f64 = 0.18;
 
 /// The terms of a cubic height field at (u, v).
 #[inline]
@@ -3218,7 +3252,7 @@ fn cubic_terms(u: f64, v: f64) -> [f64; 10] {
 /// is a quadric, and its odd part u|u| one that a cubic follows closely. A crease,
 /// h = a|u − e|, has a kink that no polynomial follows: its misfit stays large.
 fn cubic_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
-    height_misfit(positions, p0, ids, n, sigma, cubic_terms)
+    height_misfit(positions, p0, ids, n, sigma, cubic_terms, None).0
 }
 
 /// Robust re-fit of each normal (iteratively reweighted PCA, three rounds): neighbours far
@@ -3226,7 +3260,8 @@ fn cubic_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64
 /// neighbour distance) lose weight exp(−(h/σ)²). On smooth surface this changes next to
 /// nothing (neighbours sit d²κ/2 off the plane), and where the surface is so curved at the
 /// neighbourhood's scale that they lie far off it, a quadric still fits them
-/// (`quadric_misfit`): such points are left as they are, smooth (a tube two spacings in
+/// (`quadric_misfit`; sampled more sparsely still, the quadric closed into a sphere or
+/// cylinder, `closed_misfit`): such points are left as they are, smooth (a tube two spacings in
 /// radius, without this test, took 40% of its points for a crease, and its splats, fitted
 /// to a face of 18°, went flat). At a crease PCA averages both faces (45° off
 /// at a box edge): there the fit starts from the neighbour's normal whose plane through the
@@ -3530,6 +3565,13 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
             // the seam where the rounding is a few spacings wide. A crease is no cubic
             // either (`cubic_misfit`). Tried only where the quadric nearly fits.
             if misfit <= CUBIC_TRIED && cubic_misfit(positions, p0, ids, own, sigma) <= CUBIC_SMOOTH
+            {
+                return true;
+            }
+            // Nor where the closed quadric fits them: a sphere or cylinder whose
+            // neighbourhood spans much of it (`closed_misfit`).
+            if misfit <= CLOSED_TRIED
+                && closed_misfit(positions, p0, ids, own, sigma) <= CLOSED_SMOOTH
             {
                 return true;
             }
@@ -4550,8 +4592,12 @@ mod tests {
     }
 
     pub(super) fn torus(n: usize, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+        torus_of(n, seed, 1.0, 0.35)
+    }
+
+    /// `n` area-uniform points on the torus of radii `big` and `small`, and their normals.
+    pub(super) fn torus_of(n: usize, seed: u64, big: f32, small: f32) -> (Vec<Vec3>, Vec<Vec3>) {
         let mut r = Rng::new(seed);
-        let (big, small) = (1.0f32, 0.35f32);
         let mut p = Vec::new();
         let mut nn = Vec::new();
         while p.len() < n {
@@ -6189,6 +6235,25 @@ mod boundary_tests {
         }
         eprintln!("{off} points a tenth of a spacing or more from an edge 30° off");
         assert!(off <= 48, "{off}");
+    }
+
+    /// A thin tube sampled sparsely (a torus whose tube's radius is about two spacings): its
+    /// neighbourhoods span a third of the tube, where a paraboloid misses the circle by its
+    /// fourth-order rise and the quadric test took many for creases, snapping them to
+    /// "faces" 30–60° off. The closed quadric (`closed_misfit`) keeps them smooth. Over six
+    /// tori of 750 points, normals 10° or more off: 245 before, 124 now.
+    #[test]
+    fn a_sparse_thin_tube_is_smooth() {
+        let mut off = 0;
+        for seed in 0..6 {
+            let (p, truth) = super::tests::torus_of(750, 600 + seed, 0.9, 0.2);
+            let e = estimate(&p, None, 16, 1.0).unwrap();
+            off += (e.normals.iter().zip(&truth))
+                .filter(|(a, t)| a.dot(**t).abs() < 10f32.to_radians().cos())
+                .count();
+        }
+        eprintln!("{off} normals of 4 500 10° or more off");
+        assert!(off <= 160, "{off}");
     }
 
     /// Noisy samples (a tenth of a spacing off the surface, about normal): the local fit
