@@ -6295,10 +6295,7 @@ mod boundary_tests {
                 p.push(q);
                 truth.push(v / l);
             }
-            let e = estimate(&p, None, 16, 1.0).unwrap();
-            off += (e.normals.iter().zip(&truth))
-                .filter(|(a, t)| a.dot(**t).abs() < 30f32.to_radians().cos())
-                .count();
+            off += off_by(&estimate(&p, None, 16, 1.0).unwrap().normals, &truth, 30.0);
         }
         eprintln!("{off} normals of 6 600 30° or more off");
         assert!(off <= 80, "{off}");
@@ -6314,13 +6311,20 @@ mod boundary_tests {
         let mut off = 0;
         for seed in 0..6 {
             let (p, truth) = super::tests::torus_of(750, 600 + seed, 0.9, 0.2);
-            let e = estimate(&p, None, 16, 1.0).unwrap();
-            off += (e.normals.iter().zip(&truth))
-                .filter(|(a, t)| a.dot(**t).abs() < 10f32.to_radians().cos())
-                .count();
+            off += off_by(&estimate(&p, None, 16, 1.0).unwrap().normals, &truth, 10.0);
         }
         eprintln!("{off} normals of 4 500 10° or more off");
         assert!(off <= 160, "{off}");
+    }
+
+    /// How many of the normals `est` are `deg` degrees or more off the axes `truth` (sign
+    /// aside).
+    fn off_by(est: &[Vec3], truth: &[Vec3], deg: f32) -> usize {
+        let cos = deg.to_radians().cos();
+        est.iter()
+            .zip(truth)
+            .filter(|(a, t)| a.dot(**t).abs() < cos)
+            .count()
     }
 
     /// Noisy samples (a tenth of a spacing off the surface, about normal): the local fit
