@@ -3126,21 +3126,33 @@ fn quadric_at(c: &[f64; QUADRIC], row: &[f64; QUADRIC]) -> f64 {
 /// is a quadric to second order (a tube of radius 2.2 spacings: at most 0.12 σ, 90th
 /// percentile); a crease is not (two planes at a box's edge: 0.4–1.5 σ, 10th to 90th
 /// percentile; measured on random samples with k = 16). Infinite where the fit is
-/// ill-conditioned.
-fn quadric_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
-    height_misfit(positions, p0, ids, n, sigma, quadric_terms, None).0
+/// ill-conditioned. Also the fit's coefficients (units of σ; None there), for
+/// [`closed_misfit`].
+fn quadric_misfit(
+    positions: &[Vec3],
+    p0: DVec3,
+    ids: &[u32],
+    n: DVec3,
+    sigma: f64,
+) -> (f64, Option<[f64; QUADRIC]>) {
+    height_misfit(positions, p0, ids, n, sigma, quadric_terms, None)
 }
 
 /// [`quadric_misfit`] of the quadric closed by its own [`closing_curvature`] D (as splats
 /// are drawn): ½(A u² + 2B uv + C v²) + ½D h² = h, fitted as the height field h − ½D h².
 /// A sphere or cylinder is one exactly however much of it the neighbourhood spans, where a
 /// paraboloid misses it by its fourth-order rise (a tube two spacings in radius sampled
-/// sparsely: 0.2–0.4 σ); infinite where there is no D (a saddle, a plane) or no fit.
-fn closed_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64) -> f64 {
-    let (_, c) = height_misfit(positions, p0, ids, n, sigma, quadric_terms, None);
-    let Some(c) = c else {
-        return f64::INFINITY;
-    };
+/// sparsely: 0.2–0.4 σ); infinite where there is no D (a saddle, a plane). `quadric` is
+/// the quadric's fit ([`quadric_misfit`]), whose bend gives D.
+fn closed_misfit(
+    positions: &[Vec3],
+    p0: DVec3,
+    ids: &[u32],
+    n: DVec3,
+    sigma: f64,
+    quadric: &[f64; QUADRIC],
+) -> f64 {
+    let c = quadric;
     // In units of σ, as the fit.
     let d = closing_curvature([c[3] as f32, c[4] as f32, c[5] as f32], f32::INFINITY);
     if d == 0.0 {
@@ -3173,24 +3185,37 @@ fn height_misfit<const U: usize>(
         let h = close.map_or(h, |k| h - 0.5 * k * h * h);
         (terms(d.dot(t1), d.dot(t2)), h)
     };
-    let Some(fit) = QuadricFit::<U>::new(
+    match fit_residual(ids, row, true) {
+        Some((c, worst)) => (worst.max(c[0].abs()), Some(c)),
+        None => (f64::INFINITY, None),
+    }
+}
+
+/// The least-squares height field (all rows weighted alike; with `anchor`, the origin at
+/// height 0 as one more row) of the rows `row(j)` (terms, height) of `ids`: its
+/// coefficients and the largest distance of a row from it; None where it is
+/// ill-conditioned ([`QuadricFit`]). ([`height_misfit`], [`height_offset`].)
+fn fit_residual<const U: usize>(
+    ids: &[u32],
+    row: impl Fn(u32) -> ([f64; U], f64),
+    anchor: bool,
+) -> Option<([f64; U], f64)> {
+    let c = QuadricFit::<U>::new(
         ids.iter().map(|&j| {
             let (r, h) = row(j);
             (r, h, 1.0)
         }),
-        true,
-    ) else {
-        return (f64::INFINITY, None);
-    };
-    let c = fit.x;
-    let misfit = ids
+        anchor,
+    )?
+    .x;
+    let worst = ids
         .iter()
         .map(|&j| {
             let (r, h) = row(j);
             (h - c.iter().zip(&r).map(|(c, r)| c * r).sum::<f64>()).abs()
         })
-        .fold(c[0].abs(), f64::max);
-    (misfit, Some(c))
+        .fold(0.0, f64::max);
+    Some((c, worst))
 }
 
 /// A neighbourhood off its plane but within this many σ of its quadric
@@ -3253,9 +3278,9 @@ fn cubic_misfit(positions: &[Vec3], p0: DVec3, ids: &[u32], n: DVec3, sigma: f64
 /// nothing (neighbours sit d²κ/2 off the plane), and where the surface is so curved at the
 /// neighbourhood's scale that they lie far off it, a quadric still fits them
 /// (`quadric_misfit`; sampled more sparsely still, the quadric closed into a sphere or
-/// cylinder, `closed_misfit`): such points are left as they are, smooth (a tube two spacings in
-/// radius, without this test, took 40% of its points for a crease, and its splats, fitted
-/// to a face of 18°, went flat). At a crease PCA averages both faces (45° off
+/// cylinder, `closed_misfit`): such points are left as they are, smooth (a tube two
+/// spacings in radius, without this test, took 40% of its points for a crease, and its
+/// splats, fitted to a face of 18°, went flat). At a crease PCA averages both faces (45° off
 /// at a box edge): there the fit starts from the neighbour's normal whose plane through the
 /// point the most neighbours lie on, and the reweighting settles on a face. Then, at a
 /// crease, each point takes the face whose neighbours' tangent planes pass nearest it
@@ -3548,7 +3573,7 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
             // Off the plane but on one quadric: a smooth surface curved at the scale of the
             // neighbourhood (a thin tube, a rounded edge), not a crease; the quadric's
             // slope refines the normal later (`refine_and_shape`).
-            let misfit = quadric_misfit(positions, p0, ids, own, sigma);
+            let (misfit, quadric) = quadric_misfit(positions, p0, ids, own, sigma);
             if misfit <= QUADRIC_SMOOTH {
                 return true;
             }
@@ -3562,10 +3587,10 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
             }
             // Nor where the closed quadric fits them: a sphere or cylinder whose
             // neighbourhood spans much of it (`closed_misfit`).
-            if misfit <= CLOSED_TRIED
-                && closed_misfit(positions, p0, ids, own, sigma) <= CLOSED_SMOOTH
-            {
-                return true;
+            if let Some(q) = quadric.filter(|_| misfit <= CLOSED_TRIED) {
+                if closed_misfit(positions, p0, ids, own, sigma, &q) <= CLOSED_SMOOTH {
+                    return true;
+                }
             }
             for &j in ids {
                 let c = start[j as usize].as_dvec3();
@@ -3829,12 +3854,13 @@ const FACE_FIT: f64 = 0.25;
 /// bend, d²κ/2, which at a concave crease between two convex faces favours the other face
 /// (two overlapping spheres: 1–2% of points took the other sphere's normal, and their
 /// splats stood up to 0.03 in front of it). With six or seven members (a sparse sample:
-/// too few to fit a quadric's six terms reliably) the height field has one curvature for every
-/// direction (a sphere's, to second order): at such a seam between two spheres 0.1 apart
-/// on radius 0.6 the median of tangent planes gave 119 normals 30° off of 6 600, this 71.
-/// None with fewer than six members, or where a member lies more than [`FACE_FIT`] σ off
-/// the quadric (with fewer than eight, [`FACE_FIT_FEW`] of that) (a member whose fitted normal
-/// took this face wrongly would swing the fit; the median is not moved by one).
+/// too few to fit a quadric's six terms reliably) the height field has one curvature for
+/// every direction (a sphere's, to second order): at such a seam between two spheres 0.1
+/// apart on radius 0.6 the median of tangent planes gave 119 normals 30° off of 6 600,
+/// this 71. None with fewer than six members, or where a member lies more than
+/// [`FACE_FIT`] σ off the fit ([`FACE_FIT_FEW`] of that with fewer than eight): a member
+/// whose fitted normal took this face wrongly would swing the fit; the median is not moved
+/// by one.
 fn face_quadric_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
     if ids.len() < FACE_ROUND_MEMBERS {
         return None;
@@ -3879,19 +3905,8 @@ fn height_offset<const U: usize>(
     limit: f64,
     row: impl Fn(u32) -> ([f64; U], f64),
 ) -> Option<f64> {
-    let c = QuadricFit::<U>::new(
-        ids.iter().map(|&j| {
-            let (r, h) = row(j);
-            (r, h, 1.0)
-        }),
-        false,
-    )?
-    .x;
-    let fits = ids.iter().all(|&j| {
-        let (r, h) = row(j);
-        (h - c.iter().zip(&r).map(|(c, r)| c * r).sum::<f64>()).abs() <= limit
-    });
-    fits.then_some(c[0].abs())
+    let (c, worst) = fit_residual(ids, row, false)?;
+    (worst <= limit).then_some(c[0].abs())
 }
 
 /// The fewest members [`face_quadric_offset`] fits a face to (a quadric from eight, below
@@ -5205,7 +5220,7 @@ mod tests {
         };
         let (p0, n, sigma) = (pts[0].as_dvec3(), pca.as_dvec3(), 0.25 * mean as f64);
         (
-            quadric_misfit(pts, p0, &ids, n, sigma),
+            quadric_misfit(pts, p0, &ids, n, sigma).0,
             cubic_misfit(pts, p0, &ids, n, sigma),
         )
     }
