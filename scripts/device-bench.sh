@@ -2,18 +2,28 @@
 # Whole-frame GPU figures for BENCHMARKS.md on a lent H100/H200 (see the `device` tool).
 #
 # The device machine has no Rust toolchain and no network, so everything travels:
-#   strip -o .devcarry/stipple target/release/stipple     (the release binary, stripped)
+#   strip -o .devcarry/stipple target/release/stipple     (the release binary, stripped;
+#                                                          may travel gzipped as stipple.gz)
+#   .devcarry/tests/NAME[.gz]                             (test binaries of stipple-render,
+#                                                          stripped, for the `tests` step)
 #   .devcarry/data/                                       (dragon_vrip.ply.gz, bun_zipper.ply, …)
 #   .gl/*.deb                                             (Debian's Vulkan/EGL loader packages)
 # Both folders are listed in .git/info/exclude and named in the call's `carry`.
 #
-# Usage: scripts/device-bench.sh [STEP…]   (steps: info copybw frames zhang table3 raw images; default all)
+# Usage: scripts/device-bench.sh [STEP…]
+#   steps: info copybw frames zhang table3 raw images tests transparent shadow10m quick lod;
+#   default: info frames zhang table3 raw images
 # Output goes to stdout and, when OUT is set, to $OUT/log.txt and $OUT/*.png.
 set -u
 B=${STIPPLE_BIN:-.devcarry/stipple}
 D=${STIPPLE_DATA:-.devcarry/data}
 O=${OUT:-/tmp/stipple-device}
 mkdir -p "$O"
+# Images of the `images` step (the device tool brings back at most 8 files from $OUT).
+IMG=${IMG:-$O}
+if [ ! -x "$B" ] && [ -f "$B.gz" ]; then
+    gunzip -c "$B.gz" >/tmp/stipple && chmod +x /tmp/stipple && B=/tmp/stipple
+fi
 LOG="$O/log.txt"
 
 if [ -d .gl ] && ! ldconfig -p | grep -q libvulkan.so.1; then
@@ -25,10 +35,12 @@ if ! "$B" devices 2>/dev/null | grep -qi nvidia; then
     export __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
 fi
 
+# Each command's limit in seconds (T=60 run …).
+T=300
 run() {
     echo "### $*" | tee -a "$LOG"
     local t0=$(date +%s%N)
-    timeout 300 "$@" 2>&1 | tee -a "$LOG"
+    timeout "$T" "$@" 2>&1 | tee -a "$LOG"
     echo "### took $(( ($(date +%s%N) - t0) / 1000000 )) ms" | tee -a "$LOG"
 }
 
@@ -79,12 +91,62 @@ print(f"copy 4 GiB: {ms:.3f} ms, {2 * 4 * 2**30 / ms / 1e9:.0f} GB/s read + writ
         run "$B" bench "$D/lone-star.laz" --raw --size 1024x768 --backend gpu --frames 10
         ;;
     images)
+        mkdir -p "$IMG"
         for be in cpu gpu; do
-            run "$B" render "$D/dragon_vrip.ply.gz" --backend $be -o "$O/dragon-$be.png"
-            run "$B" render --backend $be -o "$O/demo-$be.png"
-            run "$B" render .devcarry/nested-tori.toml --backend $be -o "$O/tori-$be.png"
-            run "$B" render "$D/lone-star.laz" --backend $be -o "$O/lone-star-$be.png"
+            run "$B" render "$D/dragon_vrip.ply.gz" --backend $be -o "$IMG/dragon-$be.png"
+            run "$B" render --backend $be -o "$IMG/demo-$be.png"
+            run "$B" render examples/nested-tori.toml --backend $be -o "$IMG/tori-$be.png"
+            run "$B" render "$D/lone-star.laz" --backend $be -o "$IMG/lone-star-$be.png"
         done
+        ;;
+    tests)
+        # The GPU parity tests on real hardware (they fail rather than skip without a GPU).
+        mkdir -p /tmp/tests
+        for f in .devcarry/tests/*; do
+            n=$(basename "$f" .gz)
+            case $f in *.gz) gunzip -c "$f" >"/tmp/tests/$n" ;; *) cp "$f" "/tmp/tests/$n" ;; esac
+            chmod +x "/tmp/tests/$n"
+        done
+        # Test binaries look for their fixtures relative to the crate.
+        # (splat: its GPU test only; the rest are CPU tests CI runs.)
+        for t in parity splat transparent_splats sorted_splats fidelity; do
+            [ -x "/tmp/tests/$t" ] || continue
+            f=; [ $t = splat ] && f=gpu_
+            (cd crates/stipple-render && STIPPLE_REQUIRE_GPU=1 T=180 run "/tmp/tests/$t" $f)
+        done
+        ;;
+    transparent)
+        # Zhang & Pajarola Algorithms 2 and 3 (transparent splats) on the GPU.
+        for size in 512x512 1024x1024; do
+            for alg in "" --smooth-nearest; do
+                T=90 run "$B" bench "$D/dragon_vrip.ply.gz" --pipeline splat --splat transparent \
+                    --opacity 0.5 --size $size --frames 10 --backend gpu $alg
+            done
+        done
+        for alg in "" --smooth-nearest; do
+            T=90 run "$B" bench examples/nested-tori-splats.toml --size 1024x1024 --frames 5 \
+                --backend gpu $alg
+        done
+        ;;
+    shadow10m)
+        # The viewer's goal: 10 M points, Dobrev's pipeline, a one-sample shadow, p99 of
+        # 100 frames at 1920×1080 (the shadow texture is made once: the light is fixed).
+        T=120 run "$B" bench --demo plane-objects --points 10000000 --pipeline dobrev --shadows \
+            --light disc:1,4,2,0.3 --shadow-samples 1 --size 1920x1080 --frames 100 --backend gpu
+        T=120 run "$B" bench --demo plane-objects --points 10000000 --pipeline dobrev \
+            --size 1920x1080 --frames 100 --backend gpu
+        ;;
+    imgdiff)
+        # CPU against GPU images of the `images` step: how far apart, and where.
+        run python3 -c '
+import glob, os, sys, numpy as np
+from PIL import Image
+for c in sorted(glob.glob(os.path.join(sys.argv[1], "*-cpu.png"))):
+    a = np.asarray(Image.open(c).convert("RGB"), dtype=np.int16)
+    b = np.asarray(Image.open(c.replace("-cpu.png", "-gpu.png")).convert("RGB"), dtype=np.int16)
+    d = np.abs(a - b).max(axis=2)
+    print(f"{os.path.basename(c)}: max {d.max()}, mean {d.mean():.3f}, over 8 on {100 * (d > 8).mean():.3f}% of pixels")
+' "$IMG"
         ;;
     quick)
         run "$B" bench --backend gpu --frames 20

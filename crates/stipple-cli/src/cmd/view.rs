@@ -725,7 +725,7 @@ impl App {
         }
         let mut t = self.times.clone();
         t.sort_by(f64::total_cmp);
-        let at = |q: f64| t[((t.len() - 1) as f64 * q).round() as usize];
+        let at = |q: f64| crate::figures::percentile(&t, q);
         let n = t.len() as f64;
         // From one frame on screen to the next: the render, the presentation and the
         // event loop (what a person sees; the first frame's is not known).
@@ -740,7 +740,7 @@ impl App {
             k => format!(
                 "; presented every {:.2} ms (median), p99 {:.2}",
                 gaps[k / 2],
-                gaps[((k - 1) as f64 * 0.99).round() as usize]
+                crate::figures::percentile(&gaps, 0.99)
             ),
         };
         let mut passes = self.pass_ms.clone();
