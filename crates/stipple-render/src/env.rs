@@ -39,6 +39,7 @@
 //! scanned objects, +Z for LiDAR) and +X as its reference east. The WGSL twin
 //! (`env_sample`, `fresnel` in sorted.wgsl) computes the same operations.
 
+use crate::params::ViewParams;
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -185,8 +186,14 @@ impl Environment {
         })
     }
 
-    /// The light arriving from direction `d` (any length), with the scene's up axis `up`.
-    pub fn sample(&self, d: Vec3, up: Vec3) -> [f32; 3] {
+    /// The light arriving from direction `d` (any length), with the scene's up axis `up`,
+    /// seen by a pixel `cone` radians across ([`pixel_cone`]; 0: a single ray). The sky's
+    /// checkered ground is averaged over that cone (exactly, for the box filter over the
+    /// spot the cone makes on the ground), so that squares smaller than a pixel near the
+    /// horizon turn to their mean grey instead of aliasing into moiré, and so that the last
+    /// bit of a ray's direction no longer picks a pixel's square: the CPU and a GPU agree.
+    /// Images are sampled bilinearly whatever the cone.
+    pub fn sample(&self, d: Vec3, up: Vec3, cone: f32) -> [f32; 3] {
         let (east, north, u) = frame(up);
         let d = d.normalize_or(u);
         let (x, y, z) = (d.dot(east), d.dot(north), d.dot(u));
@@ -195,10 +202,15 @@ impl Environment {
                 if z >= 0.0 {
                     mix(HORIZON, ZENITH, z.sqrt())
                 } else {
-                    // The ground plane one unit below, in squares of ½.
+                    // The ground plane one unit below, in squares of ½; the cone's spot on
+                    // it is cone / z² across along the ray's azimuth (narrower across it:
+                    // filtered as wide both ways).
                     let (gx, gy) = (x / -z, y / -z);
-                    let k = ((2.0 * gx).floor() + (2.0 * gy).floor()).rem_euclid(2.0);
-                    let g = if k < 0.5 { GROUND[0] } else { GROUND[1] };
+                    let c = checker(gx, gy, cone / (z * z));
+                    let g = std::array::from_fn(|ch| {
+                        0.5 * (GROUND[0][ch] + GROUND[1][ch])
+                            + 0.5 * (GROUND[0][ch] - GROUND[1][ch]) * c
+                    });
                     mix(HORIZON, g, (-8.0 * z).min(1.0))
                 }
             }
@@ -225,6 +237,37 @@ impl Environment {
             }
         }
     }
+}
+
+/// The angle a pixel spans at the centre of the view (perspective; 0 for orthographic
+/// views, whose rays are parallel): the cone over which [`Environment::sample`] averages.
+/// As sorted.wgsl `pixel_cone`.
+pub fn pixel_cone(v: &ViewParams) -> f32 {
+    if v.perspective == 1 {
+        2.0 / (v.height.max(1) as f32 * v.sy)
+    } else {
+        0.0
+    }
+}
+
+/// The sky's ground checker at (gx, gy) on the plane one unit below (squares of ½): +1 on
+/// [`GROUND`]`[0]`'s squares, −1 on the others', box-filtered over a square `w` ground
+/// units wide: the product of two filtered square waves, each the difference of its
+/// integral (a triangle wave) across the box over the box's width. Below a thousandth of a
+/// square the filter is skipped (the difference would be rounding). As sorted.wgsl
+/// `checker`.
+pub fn checker(gx: f32, gy: f32, w: f32) -> f32 {
+    // In units of one square: the wave is +1 on [0, 1), −1 on [1, 2), of period 2.
+    let w = 2.0 * w.max(0.0);
+    let wave = |u: f32| {
+        if w < 1e-3 {
+            1.0 - 2.0 * u.floor().rem_euclid(2.0)
+        } else {
+            let tri = |t: f32| 1.0 - (t.rem_euclid(2.0) - 1.0).abs();
+            (tri(u + 0.5 * w) - tri(u - 0.5 * w)) / w
+        }
+    };
+    wave(2.0 * gx) * wave(2.0 * gy)
 }
 
 /// The Fresnel reflectance of a dielectric of relative index `eta` for unpolarised light
@@ -263,14 +306,15 @@ pub fn refracted(d: Vec3, n: Vec3, eta: f32, layers: f32) -> Vec3 {
 
 /// A pixel's finished colour: `c`, the composite of its layers over black, plus what they
 /// let through (`through`, the mean over the groups) of the environment seen along the ray
-/// `dir` refracted by `layers` layers (per colour channel with the settings' dispersion),
-/// and, with an index of refraction, the environment reflected by the nearest layer
-/// (normal `n`, either side; None where no layer is).
+/// `dir` (a pixel [`pixel_cone`] `cone` across) refracted by `layers` layers (per colour
+/// channel with the settings' dispersion), and, with an index of refraction, the
+/// environment reflected by the nearest layer (normal `n`, either side; None where no
+/// layer is).
 pub fn finish(
     c: [f32; 3],
     e: &EnvSettings,
     surface: &Surface,
-    dir: Vec3,
+    (dir, cone): (Vec3, f32),
     n: Option<Vec3>,
     through: f32,
     layers: f32,
@@ -285,14 +329,14 @@ pub fn finish(
     match (n, surface.eta) {
         (Some(n), Some(eta)) if through > 0.0 => {
             let seen = per_channel(eta, surface.dispersion, |eta| {
-                e.env.sample(refracted(d, n, eta, layers), e.up)
+                e.env.sample(refracted(d, n, eta, layers), e.up, cone)
             });
             for ch in 0..3 {
                 out[ch] += pass[ch] * seen[ch];
             }
         }
         _ if through > 0.0 => {
-            let s = e.env.sample(d, e.up);
+            let s = e.env.sample(d, e.up, cone);
             for ch in 0..3 {
                 out[ch] += pass[ch] * s[ch];
             }
@@ -300,7 +344,10 @@ pub fn finish(
         _ => {}
     }
     match (n, surface.eta) {
-        (Some(n), Some(eta)) => reflect_into(out, &e.env, e.up, (eta, surface.reflectivity), d, n),
+        (Some(n), Some(eta)) => {
+            let optics = (eta, surface.reflectivity);
+            reflect_into(out, &e.env, e.up, optics, d, n, cone)
+        }
         _ => out,
     }
 }
@@ -324,6 +371,7 @@ pub fn reflect_into(
     (eta, reflectivity): (f32, f32),
     dir: Vec3,
     n: Vec3,
+    cone: f32,
 ) -> [f32; 3] {
     let d = dir.normalize_or_zero();
     let mut n = n.normalize_or_zero();
@@ -336,7 +384,7 @@ pub fn reflect_into(
     let cos_i = -n.dot(d);
     let f = fresnel(cos_i, eta) * reflectivity;
     let r = d + 2.0 * cos_i * n;
-    let e = env.sample(r, up);
+    let e = env.sample(r, up, cone);
     std::array::from_fn(|k| f * e[k] + (1.0 - f) * c[k])
 }
 
@@ -364,15 +412,62 @@ mod tests {
     #[test]
     fn the_sky_is_blue_above_and_checkered_below() {
         let up = Vec3::Y;
-        let z = Environment::Sky.sample(Vec3::Y, up);
+        let z = Environment::Sky.sample(Vec3::Y, up, 0.0);
         assert_eq!(z, ZENITH);
-        let h = Environment::Sky.sample(Vec3::X, up);
+        let h = Environment::Sky.sample(Vec3::X, up, 0.0);
         assert_eq!(h, HORIZON);
-        let a = Environment::Sky.sample(Vec3::new(0.1, -1.0, 0.1), up);
-        let b = Environment::Sky.sample(Vec3::new(0.6, -1.0, 0.1), up);
+        let a = Environment::Sky.sample(Vec3::new(0.1, -1.0, 0.1), up, 0.0);
+        let b = Environment::Sky.sample(Vec3::new(0.6, -1.0, 0.1), up, 0.0);
         assert_ne!(a, b, "neighbouring squares differ");
         // Z up: the same sky about +Z.
-        assert_eq!(Environment::Sky.sample(Vec3::Z, Vec3::Z), ZENITH);
+        assert_eq!(Environment::Sky.sample(Vec3::Z, Vec3::Z, 0.0), ZENITH);
+    }
+
+    /// The filtered checker is the mean of the sharp one over its box, and the sky's
+    /// ground turns to the squares' mean grey where they are far smaller than the pixel.
+    #[test]
+    fn the_ground_checker_is_the_mean_over_the_pixel() {
+        let sharp = |gx: f32, gy: f32| checker(gx, gy, 0.0);
+        for &(gx, gy, w) in &[
+            (0.1f32, 0.2f32, 0.05f32),
+            (0.49, 0.26, 0.1),
+            (-1.3, 2.7, 0.35),
+            (3.0, -0.75, 1.7),
+            (10.2, 5.1, 0.02),
+        ] {
+            // The box's mean by the midpoint rule, 400 × 400 samples.
+            let n = 400;
+            let mut sum = 0.0f64;
+            for i in 0..n {
+                for j in 0..n {
+                    let u = gx + w * ((i as f32 + 0.5) / n as f32 - 0.5);
+                    let v = gy + w * ((j as f32 + 0.5) / n as f32 - 0.5);
+                    sum += sharp(u, v) as f64;
+                }
+            }
+            let mean = (sum / (n * n) as f64) as f32;
+            let got = checker(gx, gy, w);
+            assert!(
+                (got - mean).abs() < 0.01,
+                "({gx}, {gy}) w {w}: {got} vs {mean}"
+            );
+        }
+        assert_eq!(sharp(0.1, 0.1), 1.0);
+        assert_eq!(sharp(0.6, 0.1), -1.0);
+        // A pixel of 1/500 rad: at 1° below the horizon the squares are a 150th of it.
+        let up = Vec3::Y;
+        let grey: [f32; 3] = std::array::from_fn(|c| 0.5 * (GROUND[0][c] + GROUND[1][c]));
+        let d = Vec3::new(0.3, -(1f32.to_radians().sin()), 1.0);
+        let far = Environment::Sky.sample(d, up, 0.002);
+        let haze = (8.0 * d.normalize().y.abs()).min(1.0);
+        for c in 0..3 {
+            let want = HORIZON[c] + (grey[c] - HORIZON[c]) * haze;
+            assert!((far[c] - want).abs() < 1e-3, "{far:?}");
+        }
+        // Straight down the squares are 250 pixels across: sharp, one or the other.
+        let near = Environment::Sky.sample(Vec3::new(0.1, -1.0, 0.1), up, 0.002);
+        let off = |g: [f32; 3]| (0..3).map(|c| (near[c] - g[c]).abs()).fold(0.0, f32::max);
+        assert!(off(GROUND[0]).min(off(GROUND[1])) < 1e-4, "{near:?}");
     }
 
     #[test]
@@ -386,9 +481,9 @@ mod tests {
             texels,
         };
         let up = Vec3::Z;
-        assert_eq!(e.sample(Vec3::Z, up), [1.0, 0.0, 0.0]);
-        assert_eq!(e.sample(-Vec3::Z, up), [0.0, 0.0, 1.0]);
-        let side = e.sample(Vec3::X, up);
+        assert_eq!(e.sample(Vec3::Z, up, 0.0), [1.0, 0.0, 0.0]);
+        assert_eq!(e.sample(-Vec3::Z, up, 0.0), [0.0, 0.0, 1.0]);
+        let side = e.sample(Vec3::X, up, 0.0);
         assert!((side[0] - 0.5).abs() < 1e-5 && (side[2] - 0.5).abs() < 1e-5);
     }
 
@@ -452,7 +547,7 @@ mod tests {
             height: 2,
             texels: vec![[1.0; 3]; 4],
         };
-        let c = reflect_into([0.0; 3], &white, Vec3::Y, (1.5, 1.0), Vec3::Z, Vec3::Z);
+        let c = reflect_into([0.0; 3], &white, Vec3::Y, (1.5, 1.0), Vec3::Z, Vec3::Z, 0.0);
         assert!((c[0] - 0.04).abs() < 1e-6, "{c:?}");
     }
 }

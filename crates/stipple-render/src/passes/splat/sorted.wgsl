@@ -420,6 +420,34 @@ fn env_texel(i: f32, j: f32) -> vec3<f32> {
     return t_env[u32(jj * w + ii)].xyz;
 }
 
+// env::pixel_cone: the angle a pixel spans at the centre of a perspective view.
+fn pixel_cone() -> f32 {
+    if (view.perspective == 1u) {
+        return 2.0 / (f32(max(view.height, 1u)) * view.sy);
+    }
+    return 0.0;
+}
+
+// x mod 2 in [0, 2) (f32::rem_euclid).
+fn mod2(t: f32) -> f32 {
+    return t - 2.0 * floor(t / 2.0);
+}
+
+// env::checker: the ground's squares of ½, +1 / −1, box-filtered over w ground units.
+fn checker_wave(u: f32, w: f32) -> f32 {
+    if (w < 1e-3) {
+        return 1.0 - 2.0 * mod2(floor(u));
+    }
+    let hi = 1.0 - abs(mod2(u + 0.5 * w) - 1.0);
+    let lo = 1.0 - abs(mod2(u - 0.5 * w) - 1.0);
+    return (hi - lo) / w;
+}
+
+fn checker(gx: f32, gy: f32, w: f32) -> f32 {
+    let ws = 2.0 * max(w, 0.0);
+    return checker_wave(2.0 * gx, ws) * checker_wave(2.0 * gy, ws);
+}
+
 // env::Environment::sample.
 fn env_sample(dir: vec3<f32>) -> vec3<f32> {
     let f = env_frame(scomp.env_up);
@@ -438,12 +466,10 @@ fn env_sample(dir: vec3<f32>) -> vec3<f32> {
         }
         let gx = x / -z;
         let gy = y / -z;
-        let s = floor(2.0 * gx) + floor(2.0 * gy);
-        let k = s - 2.0 * floor(s / 2.0);
-        var g = vec3<f32>(0.30, 0.30, 0.30);
-        if (k >= 0.5) {
-            g = vec3<f32>(0.12, 0.12, 0.12);
-        }
+        let c = checker(gx, gy, pixel_cone() / (z * z));
+        let g0 = vec3<f32>(0.30, 0.30, 0.30);
+        let g1 = vec3<f32>(0.12, 0.12, 0.12);
+        let g = 0.5 * (g0 + g1) + 0.5 * (g0 - g1) * c;
         return mix(horizon, g, min(-8.0 * z, 1.0));
     }
     let w = f32(scomp.env_w);

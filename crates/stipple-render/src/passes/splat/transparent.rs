@@ -785,6 +785,7 @@ impl Drawing<'_> {
                     *o = c;
                     let Some(e) = env else { continue };
                     let (ro, d) = rays[pix];
+                    let cone = crate::env::pixel_cone(v);
                     // The nearest layer's normal: its fragments' kernel-weighted normals
                     // summed over the groups (one splat's normal alone would show every
                     // splat as a facet in the refracted image).
@@ -798,7 +799,7 @@ impl Drawing<'_> {
                     if phase == Phase::Opaque {
                         // The surface behind over the environment along the pixel's ray,
                         // reflecting it.
-                        *o = crate::env::finish(*o, e, &surface, d, n, through, 0.0);
+                        *o = crate::env::finish(*o, e, &surface, (d, cone), n, through, 0.0);
                         continue;
                     }
                     match behind {
@@ -825,7 +826,7 @@ impl Drawing<'_> {
                                     v, ro, d, drow[pix], nn, far_layer, eta, z0, depth_at,
                                 ) {
                                     Ok((x, y)) => bh.colour_at(v, x, y),
-                                    Err(dir) => e.env.sample(dir, e.up),
+                                    Err(dir) => e.env.sample(dir, e.up, cone),
                                 }
                             };
                             let seen = crate::env::per_channel(eta, surface.dispersion, lookup);
@@ -833,10 +834,12 @@ impl Drawing<'_> {
                             *o = std::array::from_fn(|ch| o[ch] + pass[ch] * seen[ch]);
                             if surface.eta.is_some() {
                                 let f = (eta, surface.reflectivity);
-                                *o = crate::env::reflect_into(*o, &e.env, e.up, f, d, nn);
+                                *o = crate::env::reflect_into(*o, &e.env, e.up, f, d, nn, cone);
                             }
                         }
-                        _ => *o = crate::env::finish(*o, e, &surface, d, n, through, layers),
+                        _ => {
+                            *o = crate::env::finish(*o, e, &surface, (d, cone), n, through, layers)
+                        }
                     }
                 }
                 frags
