@@ -154,10 +154,40 @@ impl<'a> Rec<'a> {
     }
 }
 
+/// How long a wait for the GPU may take before it is an error, in seconds: ten minutes
+/// (lavapipe's slowest frames take a minute or two), or `STIPPLE_GPU_TIMEOUT`.
+pub fn gpu_timeout() -> std::time::Duration {
+    timeout_from(std::env::var("STIPPLE_GPU_TIMEOUT").ok().as_deref())
+}
+
+/// The limit a value of `STIPPLE_GPU_TIMEOUT` sets: a positive number of seconds, else ten
+/// minutes.
+fn timeout_from(value: Option<&str>) -> std::time::Duration {
+    let s = value
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .unwrap_or(600.0);
+    std::time::Duration::from_secs_f64(s.min(1e7))
+}
+
+/// Waits for the work submitted so far: a GPU that never finishes (a hung driver) gives an
+/// error after [`gpu_timeout`] instead of holding the program forever.
 pub(crate) fn wait(ctx: &GpuContext) -> Result<(), GpuError> {
+    let limit = gpu_timeout();
     ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Wgpu(e.to_string()))?;
+        .poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: Some(limit),
+        })
+        .map_err(|e| match e {
+            wgpu::PollError::Timeout => GpuError::Wgpu(format!(
+                "the GPU did not finish within {} s (a hung driver, or work far too large for \
+                 this adapter; STIPPLE_GPU_TIMEOUT=SECONDS sets the limit, --backend cpu \
+                 renders without the GPU)",
+                limit.as_secs_f64()
+            )),
+            e => GpuError::Wgpu(e.to_string()),
+        })?;
     ctx.take_errors()
 }
 
@@ -324,4 +354,26 @@ pub(crate) fn stats(
 
 pub(crate) fn flat_groups(ctx: &GpuContext, n: u64) -> (u32, u32) {
     ctx.grid(n.div_ceil(256) as u32)
+}
+
+#[cfg(test)]
+mod tests {
+    /// The wait's limit: ten minutes, or what `STIPPLE_GPU_TIMEOUT` says where it is a
+    /// positive number of seconds.
+    #[test]
+    fn the_gpu_wait_has_a_limit() {
+        use super::timeout_from;
+        assert_eq!(timeout_from(Some("2.5")).as_secs_f64(), 2.5);
+        assert_eq!(timeout_from(Some(" 30 ")).as_secs(), 30);
+        for bad in [
+            None,
+            Some("0"),
+            Some("-3"),
+            Some("soon"),
+            Some("NaN"),
+            Some(""),
+        ] {
+            assert_eq!(timeout_from(bad).as_secs(), 600, "{bad:?}");
+        }
+    }
 }
