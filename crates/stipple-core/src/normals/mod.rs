@@ -1682,7 +1682,7 @@ fn shapes_with(
     clips: bool,
 ) -> ShapesAndFactors {
     let bend = |i: usize, n: Vec3| {
-        let fit = jet(positions, i, n, nb, Some((normals, CREASE_COS)));
+        let fit = jet_with(positions, i, n, nb, Some((normals, CREASE_COS)), true);
         bend_of(fit, radii[i])
     };
     if !clips {
@@ -2904,6 +2904,23 @@ fn jet(
     nb: &Neighbours,
     normals: Option<(&[Vec3], f32)>,
 ) -> Option<[f64; 5]> {
+    jet_with(positions, i, n, nb, normals, false)
+}
+
+/// [`jet`]; with `given` (the normals are the file's, not estimated), a third fit competes:
+/// the curvature from the neighbours' normals ([`normal_fit`]), first order in the distance
+/// where the height fits are second order, so it follows curvature that changes within the
+/// neighbourhood (a rounded edge, a bump) that both height fits average. It is taken where
+/// it predicts the near neighbours' heights better than the fit chosen from the heights
+/// ([`NORMAL_GAIN`]); noisy normals (a scan's) predict them worse and keep the height fit.
+fn jet_with(
+    positions: &[Vec3],
+    i: usize,
+    n: Vec3,
+    nb: &Neighbours,
+    normals: Option<(&[Vec3], f32)>,
+    given: bool,
+) -> Option<[f64; 5]> {
     const U: usize = QUADRIC;
     let (t1, t2) = tangent_frame(n);
     let p = positions[i];
@@ -2938,12 +2955,20 @@ fn jet(
             d.dot(t2) as f64 / s,
             d.dot(n) as f64 / s,
         );
+        // The height field's gradient where the neighbour's normal says (None where it
+        // stands nearly across the tangent plane).
+        let grad = normals.filter(|_| given).and_then(|(nm, _)| {
+            let m = nm[j as usize];
+            let mn = m.dot(n) as f64;
+            (mn > 0.5).then(|| [-(m.dot(t1) as f64) / mn, -(m.dot(t2) as f64) / mn])
+        });
         rows[m] = JetRow {
             terms: quadric_terms(u, v),
             h,
             w: gauss((h / sigma) * (h / sigma)),
             d2: u * u + v * v,
             wl: 0.0,
+            grad,
         };
         m += 1;
     }
@@ -2960,22 +2985,43 @@ fn jet(
     let score = |loo: &[f64]| -> f64 { rows.iter().zip(loo).map(|(r, e)| r.wl * e * e).sum() };
     let sb = score(&loo[..m]);
     let wsum: f64 = rows.iter().map(|r| r.wl).sum();
-    let x = match broad {
+    let (x, sx) = match broad {
         // A quadric already (a sphere, a plane): nothing for the local fit to improve.
-        Some(b) if sb <= wsum * 1e-10 => b,
+        Some(b) if sb <= wsum * 1e-10 => (b, sb),
         _ => {
             let local = fit_loo(rows, true, &mut loo);
+            let sl = score(&loo[..m]);
             match (broad, local) {
                 (Some(b), Some(l)) => {
-                    if score(&loo[..m]) < LOCAL_GAIN * sb {
-                        l
+                    if sl < LOCAL_GAIN * sb {
+                        (l, sl)
                     } else {
-                        b
+                        (b, sb)
                     }
                 }
-                (b, l) => b.or(l)?,
+                (Some(b), None) => (b, sb),
+                (None, l) => (l?, sl),
             }
         }
+    };
+    let x = match normal_fit(rows).filter(|_| given && sx > wsum * 1e-10) {
+        Some(q) => {
+            // Its prediction of each neighbour's height through the point (no height
+            // went into it: nothing to leave out).
+            let sn: f64 = rows
+                .iter()
+                .map(|r| {
+                    let e = r.h - quadric_at(&q, &r.terms);
+                    r.wl * e * e
+                })
+                .sum();
+            if sn < NORMAL_GAIN * sx {
+                q
+            } else {
+                x
+            }
+        }
+        None => x,
     };
     // Back to world units: h = c₀ + c u + (A/s) u² ... (c₀, a layer's offset, is dropped).
     let out = [x[1], x[2], x[3] / s, x[4] / s, x[5] / s];
@@ -2992,6 +3038,66 @@ struct JetRow {
     d2: f64,
     /// `w` times the weight of that distance (the local fit's).
     wl: f64,
+    /// The height field's gradient (∂h/∂u, ∂h/∂v) the neighbour's given normal implies.
+    grad: Option<[f64; 2]>,
+}
+
+/// How much better the fit from given normals must predict the near neighbours' heights
+/// than the height fit chosen (`jet_with`) to be taken: at all. Ten unseen analytic shapes
+/// 3–4 px apart with their normals (seeds 74–97): 1323 → 1329 of 1341 cases pass (the
+/// rounded box +6), none lost; at 0.7, none gained. Normals 5° off at random: never taken.
+pub const NORMAL_GAIN: f64 = 1.0;
+
+/// The quadric through the point (its own normal the frame's: no constant or linear term)
+/// whose gradient best matches the neighbours' given normals: (∂h/∂u, ∂h/∂v) =
+/// (A u + B v, B u + C v), weighted least squares over the rows with a gradient (weights
+/// `wl`: the nearest count most). As quadric coefficients [0, 0, 0, A, B, C]; None with
+/// fewer than three such rows or ill-conditioned.
+fn normal_fit(rows: &[JetRow]) -> Option<[f64; QUADRIC]> {
+    let mut m = [[0.0f64; 3]; 3];
+    let mut b = [0.0f64; 3];
+    let mut count = 0;
+    for r in rows {
+        let Some([g1, g2]) = r.grad else { continue };
+        let (u, v, w) = (r.terms[1], r.terms[2], r.wl);
+        if w <= 0.0 {
+            continue;
+        }
+        count += 1;
+        m[0][0] += w * u * u;
+        m[0][1] += w * u * v;
+        m[1][1] += w * (u * u + v * v);
+        m[1][2] += w * u * v;
+        m[2][2] += w * v * v;
+        b[0] += w * g1 * u;
+        b[1] += w * (g1 * v + g2 * u);
+        b[2] += w * g2 * v;
+    }
+    if count < 3 {
+        return None;
+    }
+    m[1][0] = m[0][1];
+    m[2][1] = m[1][2];
+    // Cramer's rule on the symmetric 3 × 3 system.
+    let det3 = |a: &[[f64; 3]; 3]| {
+        a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1])
+            - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0])
+    };
+    let det = det3(&m);
+    let scale = m[0][0].max(m[1][1]).max(m[2][2]);
+    if !(det.abs() > 1e-9 * scale * scale * scale) {
+        return None;
+    }
+    let solve = |c: usize| {
+        let mut a = m;
+        for (row, bv) in a.iter_mut().zip(b) {
+            row[c] = bv;
+        }
+        det3(&a) / det
+    };
+    let x = [0.0, 0.0, 0.0, solve(0), solve(1), solve(2)];
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 /// Weighted least squares of a quadric over `rows` (weights `r.w`, or `r.wl` for the local
@@ -5223,6 +5329,41 @@ mod tests {
             quadric_misfit(pts, p0, &ids, n, sigma).0,
             cubic_misfit(pts, p0, &ids, n, sigma),
         )
+    }
+
+    /// Points a tenth of a spacing off a sphere with its exact normals (a scan whose normals
+    /// came from a finer mesh): the heights scatter by as much as the curvature lifts the
+    /// nearest neighbours, the normals do not; with the given normals' fit competing, the
+    /// curvature comes out nearer the sphere's.
+    #[test]
+    fn given_normals_fit_the_curvature_of_noisy_points() {
+        let n = 2000;
+        let exact = random_sphere(n, 5);
+        let spacing = (4.0 * std::f32::consts::PI / n as f32).sqrt();
+        let mut r = Rng::new(6);
+        let mut g = || (0..4).map(|_| r.f32() - 0.5).sum::<f32>() * 1.732 * 0.1 * spacing;
+        let pts: Vec<Vec3> = exact
+            .iter()
+            .map(|p| *p + Vec3::new(g(), g(), g()))
+            .collect();
+        let nb = neighbours(&pts, 16).unwrap();
+        let (mut heights, mut normals) = (0.0f32, 0.0f32);
+        for i in (0..n).step_by(10) {
+            let fit = |given| {
+                let j = jet_with(&pts, i, exact[i], &nb, Some((&exact, CREASE_COS)), given);
+                let j = j.unwrap();
+                // Convex: both curvatures −1 in the outward normal's frame.
+                let (a, c) = (j[2] as f32, j[4] as f32);
+                (a + 1.0).abs().max((c + 1.0).abs())
+            };
+            heights += fit(false);
+            normals += fit(true);
+        }
+        let m = (n / 10) as f32;
+        let (heights, normals) = (heights / m, normals / m);
+        // (Taken wherever it is available, its error would be a quarter of the heights';
+        // judged by the heights it is taken less often, so that noisy normals never are.)
+        assert!(normals < 0.8 * heights, "{normals} against {heights}");
     }
 
     /// A neighbourhood on a strongly curved smooth surface lies on its quadric (sphere of
