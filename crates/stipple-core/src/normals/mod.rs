@@ -3086,7 +3086,9 @@ fn normal_fit(rows: &[JetRow]) -> Option<[f64; QUADRIC]> {
     };
     let det = det3(&m);
     let scale = m[0][0].max(m[1][1]).max(m[2][2]);
-    if !(det.abs() > 1e-9 * scale * scale * scale) {
+    // (NaN sums fail this too.)
+    let conditioned = det.abs() > 1e-9 * scale * scale * scale;
+    if !conditioned {
         return None;
     }
     let solve = |c: usize| {
