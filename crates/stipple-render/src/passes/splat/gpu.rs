@@ -56,6 +56,8 @@ struct Scratch {
 pub(crate) struct BlendTargets<'a> {
     pub attr_pos: &'a Buffer,
     pub attr_normal: &'a Buffer,
+    /// Shade's gathered styles (a pinhole takes its neighbour's).
+    pub attr_style: &'a Buffer,
     pub to_linear: &'a Buffer,
 }
 
@@ -70,6 +72,8 @@ pub(crate) struct SplatGpu {
     accum: ComputePipeline,
     resolve_bgl: wgpu::BindGroupLayout,
     resolve: ComputePipeline,
+    /// Pinholes filled after the resolve (`cpu::fill_pinholes`).
+    pinholes: ComputePipeline,
     /// The resolve of the blend frame recorded last, until shade runs it.
     pending: Option<(wgpu::BindGroup, u32, (u32, u32))>,
     group_bgl: wgpu::BindGroupLayout,
@@ -179,7 +183,8 @@ impl SplatGpu {
             d,
             "splat resolve",
             &[
-                UNIFORM, DYNAMIC, NO, NO, NO, WRITE, NO, NO, WRITE, NO, NO, NO, WRITE, WRITE, WRITE,
+                UNIFORM, DYNAMIC, NO, NO, NO, WRITE, NO, NO, WRITE, WRITE, NO, NO, WRITE, WRITE,
+                WRITE, NO, NO, NO, NO, WRITE,
             ],
             ShaderStages::COMPUTE,
         );
@@ -219,6 +224,7 @@ impl SplatGpu {
             ),
             accum: util::compute(d, &m, "splat_accum", &accum_bgl),
             resolve: util::compute(d, &m, "splat_resolve", &resolve_bgl),
+            pinholes: util::compute(d, &m, "splat_pinholes", &resolve_bgl),
             accum_bgl,
             resolve_bgl,
             pending: None,
@@ -697,12 +703,17 @@ impl SplatGpu {
                     Res::Skip,
                     Res::Skip,
                     Res::Buf(outputs.0),
-                    Res::Skip,
+                    Res::Buf(outputs.1),
                     Res::Skip,
                     Res::Skip,
                     Res::Buf(acc),
                     Res::Buf(b.attr_pos),
                     Res::Buf(b.attr_normal),
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Skip,
+                    Res::Buf(b.attr_style),
                 ],
             );
             self.pending = Some((rg, first_off, ctx.grid(pixels.div_ceil(256) as u32)));
@@ -748,6 +759,8 @@ impl SplatGpu {
         if let Some((bg, off, (gx, gy))) = self.pending.take() {
             pass.set_pipeline(&self.resolve);
             pass.set_bind_group(0, &bg, &[off]);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.pinholes);
             pass.dispatch_workgroups(gx, gy, 1);
         }
     }
@@ -796,6 +809,7 @@ pub(crate) fn record_step(
         Some(BlendTargets {
             attr_pos: &f.attr_pos,
             attr_normal: &f.attr_normal,
+            attr_style: &f.attr_style,
             to_linear: &b.shared.to_linear,
         }),
         &mut begin,

@@ -15,6 +15,8 @@
 //   splat_resolve: per pixel, after shade's gather, the normalised sums replace the pixel's
 //                  depth (blend only), normal and albedo (the albedo as 8-bit sRGB, as the
 //                  CPU stores it)
+//   splat_pinholes: per pixel, after the resolve, a background pixel in a crack one pixel
+//                  wide of a surface takes its neighbours' nearer surface (cpu::fill_pinholes)
 // Deferred mode (Zhang & Pajarola §3.2) replaces all but the resolve:
 //   splat_group_key      : ONE pass over the splats: per group and pixel the smallest Eq. 10
 //                          key (atomicMax of its complement)
@@ -68,6 +70,8 @@ const MAX_FOOTPRINT: f32 = 256.0;
 @group(0) @binding(16) var<storage, read_write> gkey: array<atomic<u32>>;
 @group(0) @binding(17) var<storage, read_write> gid: array<atomic<u32>>;
 @group(0) @binding(18) var<uniform> lin: array<vec4<f32>, 64>;
+// Pinholes: shade's gathered per-pixel style (material, shadow sums), copied from a neighbour.
+@group(0) @binding(19) var<storage, read_write> attr_style: array<vec4<u32>>;
 
 // Fixed-point scale of the blend sums (passes/splat/gpu.rs FIXED).
 const FIXED: f32 = 65536.0;
@@ -713,6 +717,94 @@ fn splat_resolve(
         let a = attr_pos[k];
         attr_pos[k] = vec4<f32>(a.xyz, bitcast<f32>(r | (g << 8u) | (bl << 16u)));
     }
+}
+
+// Covered by the splats (their weight: a fill never writes it).
+fn drawn(j: u32) -> bool {
+    return atomicLoad(&acc[8u * j]) != 0u;
+}
+
+// cpu::pinhole_group: of the four neighbours of pixel k (above, left, right, below) the
+// covered ones within epsilon of the nearest covered depth (the nearest first; ties: the
+// first); count 0 unless two opposite neighbours are covered and within epsilon of each
+// other, or where k lies on the image's border.
+struct Pinhole {
+    group: array<u32, 4>,
+    count: u32,
+}
+
+fn pinhole_group(k: u32) -> Pinhole {
+    var p: Pinhole;
+    p.count = 0u;
+    let w = view.width;
+    let x = k % w;
+    let y = k / w;
+    if (x == 0u || y == 0u || x + 1u >= w || y + 1u >= view.height) {
+        return p;
+    }
+    let nb = array<u32, 4>(k - w, k - 1u, k + 1u, k + w);
+    let on = array<bool, 4>(drawn(nb[0]), drawn(nb[1]), drawn(nb[2]), drawn(nb[3]));
+    let d = array<f32, 4>(depth_out[nb[0]], depth_out[nb[1]], depth_out[nb[2]], depth_out[nb[3]]);
+    let vertical = on[0] && on[3] && abs(d[0] - d[3]) <= blk.epsilon;
+    let horizontal = on[1] && on[2] && abs(d[1] - d[2]) <= blk.epsilon;
+    if (!(vertical || horizontal)) {
+        return p;
+    }
+    var near = 4u;
+    for (var a = 0u; a < 4u; a++) {
+        if (on[a] && (near == 4u || d[a] < d[near])) {
+            near = a;
+        }
+    }
+    p.group = array<u32, 4>(nb[near], nb[near], nb[near], nb[near]);
+    p.count = 1u;
+    for (var a = 0u; a < 4u; a++) {
+        if (a != near && on[a] && d[a] <= d[near] + blk.epsilon) {
+            p.group[p.count] = nb[a];
+            p.count += 1u;
+        }
+    }
+    return p;
+}
+
+// cpu::fill_pinholes: after the resolve (the frame's depths, normals and albedos final), a
+// background pixel in a crack one pixel wide of one surface (pinhole_group) takes the nearer
+// surface among its neighbours: their mean depth and normal, and the nearest one's point
+// (its gathered position and style) and albedo. It reads only pixels the splats covered, which
+// no fill writes: no order matters.
+@compute @workgroup_size(256)
+fn splat_pinholes(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let k = group_index(wg, groups) * 256u + li;
+    if (k >= view.width * view.height || id_out[k] != BACKGROUND) {
+        return;
+    }
+    let p = pinhole_group(k);
+    if (p.count == 0u) {
+        return;
+    }
+    var sum = 0.0;
+    var n = vec3<f32>(0.0);
+    for (var a = 0u; a < p.count; a++) {
+        let j = p.group[a];
+        sum += depth_out[j];
+        n += attr_normal[j].xyz;
+    }
+    let first = p.group[0];
+    depth_out[k] = sum / f32(p.count);
+    id_out[k] = id_out[first];
+    attr_style[k] = attr_style[first];
+    let l2 = dot3(n, n);
+    if (l2 > 0.0) {
+        attr_normal[k] = vec4<f32>(n * (1.0 / sqrt(l2)), 0.0);
+    } else {
+        attr_normal[k] = attr_normal[first];
+    }
+    // The nearest one's position (its point's) and albedo.
+    attr_pos[k] = attr_pos[first];
 }
 
 // DepthQuant::key (mod.rs).
