@@ -674,6 +674,8 @@ impl Drawing<'_> {
         let w = v.width as usize;
         let k_groups = input.groups.max(1);
         let smooth = input.any_smooth();
+        // The angle a pixel spans, over which the environment is averaged.
+        let cone = crate::env::pixel_cone(v);
         colour
             .par_chunks_mut(w * BAND)
             .zip(depth.par_chunks_mut(w * BAND))
@@ -785,7 +787,6 @@ impl Drawing<'_> {
                     *o = c;
                     let Some(e) = env else { continue };
                     let (ro, d) = rays[pix];
-                    let cone = crate::env::pixel_cone(v);
                     // The nearest layer's normal: its fragments' kernel-weighted normals
                     // summed over the groups (one splat's normal alone would show every
                     // splat as a facet in the refracted image).
