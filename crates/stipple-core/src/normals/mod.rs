@@ -1759,7 +1759,7 @@ fn refine_and_shape_with(
                 // such a splat stayed flat with PCA's leaning normal: the thin torus at
                 // half density had 3 of 16 neighbours within 37°, a normal 14° off and a
                 // splat 250 pixels too deep (six tori: flat splats 168 → 9; ten unseen
-                // shapes at half density, normals estimated: 507 → 513 of 720 cases).
+                // shapes at half density: 502 → 513 of 720 cases with the re-framed closed test).
                 let wider = if fit[i] == Fit::Crease {
                     CREASE_COS
                 } else {
