@@ -4099,11 +4099,20 @@ pub fn refine_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
 /// neighbour's normal to be taken (`refine_and_shape`). A paraboloid misses a circle's
 /// normals by about 8° where they have turned by 40°; PCA's own normals are a few degrees
 /// off there. The sparse torus of `a_sparse_tube_s_top_keeps_its_normal`, normals 5° or more
-/// off: 43 without the wider fit, 43 at 12°, 33 at 20°, 25 at 25°, 23 at 30°.
+/// off, no neighbour missed ([`WIDE_FIT_MISSES`] 0): 43 without the wider fit, 43 at 12°,
+/// 33 at 20°, 25 at 25°, 23 at 30°; with one missed, 22 at 25°.
 pub const WIDE_FIT_COS: f32 = 0.906;
 
+/// How many neighbours' normals the wider quadric may miss ([`WIDE_FIT_COS`]): one, a
+/// neighbour whose own estimate went astray. The sparse torus at 256² through the CLI,
+/// normals estimated, four samples: 3 pass with none allowed, 4 with one or two; with two
+/// the unseen shapes at half density lost 8 cases (a concave seam's fit reached across it),
+/// with one they gained one.
+pub const WIDE_FIT_MISSES: usize = 1;
+
 /// Whether the jet `j` of point `i` in the frame of `u` predicts the normals of its
-/// neighbours `ids` on the same side (`normals`·u ≥ 0) within the angle of cosine `cos`.
+/// neighbours `ids` on the same side (`normals`·u ≥ 0) within the angle of cosine `cos`,
+/// but for at most [`WIDE_FIT_MISSES`].
 fn jet_predicts_normals(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -4116,17 +4125,21 @@ fn jet_predicts_normals(
     let (t1, t2) = tangent_frame(u);
     let p = positions[i];
     let [c1, c2, a, b, c] = j.map(|v| v as f32);
-    ids.iter().all(|&k| {
-        let m = normals[k as usize];
-        if m.dot(u) < 0.0 {
-            return true;
-        }
-        let d = positions[k as usize] - p;
-        let (x, y) = (d.dot(t1), d.dot(t2));
-        let (gx, gy) = (c1 + a * x + b * y, c2 + b * x + c * y);
-        let pred = (u - gx * t1 - gy * t2).normalize_or_zero();
-        pred.dot(m.normalize_or_zero()) >= cos
-    })
+    let misses = ids
+        .iter()
+        .filter(|&&k| {
+            let m = normals[k as usize];
+            if m.dot(u) < 0.0 {
+                return false;
+            }
+            let d = positions[k as usize] - p;
+            let (x, y) = (d.dot(t1), d.dot(t2));
+            let (gx, gy) = (c1 + a * x + b * y, c2 + b * x + c * y);
+            let pred = (u - gx * t1 - gy * t2).normalize_or_zero();
+            pred.dot(m.normalize_or_zero()) < cos
+        })
+        .count();
+    misses <= WIDE_FIT_MISSES
 }
 
 fn refined(u: Vec3, j: [f64; 5]) -> Option<Vec3> {
@@ -6575,7 +6588,8 @@ mod boundary_tests {
     /// the tube's top and bottom, neighbours two spacings across it have turned by more
     /// than CREASE_COS, and the quadric through the rest (six of sixteen) tilted the normal
     /// by up to 24°. The fit over all of them is taken where it predicts their normals
-    /// ([`WIDE_FIT_COS`]). Six samples: normals 5° or more off 43 → 25, 10° or more 15 → 11.
+    /// ([`WIDE_FIT_COS`], [`WIDE_FIT_MISSES`]). Six samples: normals 5° or more off 43 → 22,
+    /// 10° or more 15 → 10.
     #[test]
     fn a_sparse_tube_s_top_keeps_its_normal() {
         let (mut off5, mut off10) = (0, 0);
@@ -6586,7 +6600,7 @@ mod boundary_tests {
             off10 += off_by(&e.normals, &truth, 10.0);
         }
         eprintln!("of 4 200 normals: {off5} 5° or more off, {off10} 10° or more");
-        assert!(off5 <= 32 && off10 <= 13, "{off5} {off10}");
+        assert!(off5 <= 30 && off10 <= 13, "{off5} {off10}");
     }
 
     /// How many of the normals `est` are `deg` degrees or more off the axes `truth` (sign
