@@ -4093,8 +4093,6 @@ pub fn refine_normals(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours)
     });
 }
 
-/// The normal of the quadric fit `j` (made in the frame of unit normal `u`) at its point;
-/// None for tilts over 30° (creases, noise).
 /// How near (cosine: 25°) the wider quadric of a smooth point must predict each
 /// neighbour's normal to be taken (`refine_and_shape`). A paraboloid misses a circle's
 /// normals by about 8° where they have turned by 40°; PCA's own normals are a few degrees
@@ -4142,6 +4140,8 @@ fn jet_predicts_normals(
     misses <= WIDE_FIT_MISSES
 }
 
+/// The normal of the quadric fit `j` (made in the frame of unit normal `u`) at its point;
+/// None for tilts over 30° (creases, noise).
 fn refined(u: Vec3, j: [f64; 5]) -> Option<Vec3> {
     let (t1, t2) = tangent_frame(u);
     let (c1, c2) = (j[0] as f32, j[1] as f32);
@@ -6564,8 +6564,8 @@ mod boundary_tests {
     /// tori of 750 points, normals 10° or more off: 245 before, 124 with the closed quadric,
     /// 67 with it also tried in the frame the quadric's slope turns PCA's to (`robust_refit`)
     /// and a quadric fitted to smooth points with too few neighbours within [`CREASE_COS`],
-    /// 33 with the same at creases (`refine_and_shape`). Splats left flat (curvature under
-    /// 1, the tube's is 5): 168 → 9.
+    /// 33 with the same at creases (`refine_and_shape`), 27 with the wider fit of
+    /// [`WIDE_FIT_COS`]. Splats left flat (curvature under 1, the tube's is 5): 168 → 8.
     #[test]
     fn a_sparse_thin_tube_is_smooth() {
         let (mut off, mut flat) = (0, 0);
