@@ -933,6 +933,37 @@ fn sparse_curved_surfaces_are_whole_and_accurate() {
     });
 }
 
+/// The thin torus sampled half as densely (750 points, about 5.4 px apart), without normals:
+/// a point's neighbours have turned by up to 60° around the tube, where PCA's plane leans
+/// and few neighbours lie within `CREASE_COS` of it. Points were taken for creases, and
+/// splats left flat or tilted (`stipple_core::normals`: the closed quadric tried in the
+/// frame its slope turns to, the wider fits of `refine_and_shape`). Twelve samples, three
+/// modes: depth within 0.5% of the range 0.892 → 0.929 on average, the silhouette's IoU at
+/// worst 0.982 → 0.992. The goals (0.95 on every sample) are not met at this density.
+#[test]
+fn a_sparser_thin_tube_without_normals_keeps_its_depth() {
+    let scenes: [Scene; 1] = [(
+        "thin-torus-sparser",
+        thin_torus_sdf,
+        DVec3::new(0.6, 1.3, 2.6),
+        750,
+        1.15,
+    )];
+    let got = std::sync::Mutex::new(Vec::new());
+    for seed in 70..82 {
+        measure_all(&scenes, seed, false, |_, what, r| {
+            if what.contains("estimated") {
+                got.lock().unwrap().push((r.depth_within, r.iou));
+            }
+        });
+    }
+    let got = got.into_inner().unwrap();
+    let mean = got.iter().map(|g| g.0).sum::<f64>() / got.len() as f64;
+    let iou = got.iter().map(|g| g.1).fold(1.0, f64::min);
+    eprintln!("depth within 0.5%: mean {mean:.4}; IoU at worst {iou:.4}");
+    assert!(mean >= 0.915 && iou >= 0.99, "{got:?}");
+}
+
 /// Two overlapping spheres (radius 0.6, centres 0.81 apart): a concave crease of 85°
 /// between two convex faces.
 fn two_spheres_sdf(p: DVec3) -> f64 {
