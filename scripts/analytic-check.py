@@ -4,7 +4,8 @@ exact surface (the surface goals of issue "Surfaces from any cloud", end to end 
 CLI: the pipeline `auto` picks, the camera it frames, the depth and normal outputs).
 
 usage: scripts/analytic-check.py SHAPE N SEED MODE [render args...]
-  SHAPE  sphere | torus | box | cylinder | ellipsoid | capsule
+  SHAPE  sphere | torus | thin-torus | fat-torus | box | cylinder | ellipsoid | capsule
+         (tori of radii 1 and 0.35, 0.2, 0.5)
   N      points, area-uniform on the surface
   MODE   given (exact normals) | none (no normals) | random (exact normals, random sign)
   env    STIPPLE (the binary; target/release/stipple), OUT (a scratch folder;
@@ -27,9 +28,14 @@ def sd_sphere(p):
     return np.linalg.norm(p, axis=-1) - 1.0
 
 
-def sd_torus(p):
-    q = np.stack([np.hypot(p[..., 0], p[..., 1]) - 1.0, p[..., 2]], -1)
-    return np.linalg.norm(q, axis=-1) - 0.35
+def torus(small):
+    def sd(p):
+        q = np.stack([np.hypot(p[..., 0], p[..., 1]) - 1.0, p[..., 2]], -1)
+        return np.linalg.norm(q, axis=-1) - small
+    return sd
+
+
+sd_torus = torus(0.35)
 
 
 def sd_box(p, b=np.array([0.8, 0.6, 0.5])):
@@ -58,6 +64,8 @@ def sd_capsule(p):
 SHAPES = {
     "sphere": (sd_sphere, 1.1),
     "torus": (sd_torus, 1.4),
+    "thin-torus": (torus(0.2), 1.25),
+    "fat-torus": (torus(0.5), 1.55),
     "box": (sd_box, 0.9),
     "cylinder": (sd_cyl, 0.9),
     "ellipsoid": (sd_ellipsoid, 1.05),
