@@ -117,6 +117,9 @@ def main():
     extra = sys.argv[5:]
     if shape not in SHAPES or mode not in ("given", "none", "random"):
         sys.exit(__doc__)
+    if not os.path.isfile(BIN):
+        sys.exit(f"{BIN}: no such binary: build it with `cargo build --release --bin stipple` "
+                 "from the repository root, or set STIPPLE to one")
     sdf, lim = SHAPES[shape]
     rng = np.random.default_rng(seed)
     p, nrm = sample(sdf, lim, n, rng)
