@@ -1750,40 +1750,35 @@ fn refine_and_shape_with(
                 CREASE_COS
             };
             let mut j = jet(positions, i, u, nb, Some((&before, min)));
-            // On smooth surface curved at the neighbourhood's scale (a tube a few spacings
-            // round) neighbours a spacing or two away turn by more than CREASE_COS, and
-            // the quadric through the rest leans on a handful of points: on a torus whose
-            // tube is 2.5 spacings round, a point on the tube's top kept 6 of 16 and its
-            // fit tilted its normal by 24° with a curvature of −24 (the tube's is −2.9).
-            // There the fit over every neighbour but a sheet's far side is taken where it
-            // predicts their normals within WIDE_FIT_COS (a quadric across a crease
-            // misses the other face's by far more).
-            if fit[i] == Fit::Smooth && j.is_some() {
+            if fit[i] == Fit::Smooth {
+                // On smooth surface curved at the neighbourhood's scale (a tube a few
+                // spacings round) neighbours a spacing or two away turn by more than
+                // CREASE_COS, and the quadric through the rest leans on a handful of points
+                // or has too few: the fit over every neighbour but a sheet's far side is
+                // taken where there was none, else where it predicts their normals within
+                // WIDE_FIT_COS (a quadric across a crease misses the other face's by far
+                // more). Without it, on the thin torus at half density a splat with 3 of 16
+                // neighbours within 37° stayed flat with PCA's normal 14° off (250 pixels
+                // too deep), and on a torus whose tube is 2.5 spacings round a point on the
+                // tube's top kept 6 of 16 and its fit tilted its normal by 24° with a
+                // curvature of −24 (the tube's is −2.9). Six thin tori: flat splats 168 →
+                // 8; ten unseen shapes at half density: 502 → 518 of 720 cases with the
+                // re-framed closed test of `robust_refit`.
                 let ids = nb.of(i);
                 if ids.iter().any(|&k| before[k as usize].dot(u) < min) {
                     if let Some(w) = jet(positions, i, u, nb, Some((&before, 0.0))) {
-                        if jet_predicts_normals(positions, &before, ids, i, u, &w, WIDE_FIT_COS) {
+                        if j.is_none()
+                            || jet_predicts_normals(positions, &before, ids, i, u, &w, WIDE_FIT_COS)
+                        {
                             j = Some(w);
                         }
                     }
                 }
-            }
-            if j.is_none() {
-                // Too few neighbours left for a quadric. On smooth surface that is a tube
-                // or rounding a few spacings round (its normals turn by 30° a spacing), not
-                // a crease: the fit takes every neighbour but a thin sheet's far side. At a
-                // crease it takes the neighbours within CREASE_COS, as on smooth surface
-                // (the other face of a crease sharper than that stays out). Without this
-                // such a splat stayed flat with PCA's leaning normal: the thin torus at
-                // half density had 3 of 16 neighbours within 37°, a normal 14° off and a
-                // splat 250 pixels too deep (six tori: flat splats 168 → 9; ten unseen
-                // shapes at half density: 502 → 513 of 720 cases with the re-framed closed test).
-                let wider = if fit[i] == Fit::Crease {
-                    CREASE_COS
-                } else {
-                    0.0
-                };
-                j = jet(positions, i, u, nb, Some((&before, wider)));
+            } else if j.is_none() {
+                // At a crease, too few of the face's own neighbours for a quadric: those
+                // within CREASE_COS, as on smooth surface (the other face of a crease
+                // sharper than that stays out).
+                j = jet(positions, i, u, nb, Some((&before, CREASE_COS)));
             }
             let bend = bend_of(j, radii[i]);
             match j.and_then(|j| refined(u, j)) {
