@@ -512,7 +512,7 @@ pub fn fill_pinholes(
     w: usize,
     h: usize,
     g: &mut GBuffer,
-    blended: Option<&mut Blended>,
+    mut blended: Option<&mut Blended>,
     epsilon: f32,
 ) -> usize {
     if w < 3 || h < 3 {
@@ -532,7 +532,6 @@ pub fn fill_pinholes(
             })
         })
         .collect();
-    let mut blended = blended;
     for &(k, group, count) in &fills {
         let group = &group[..count];
         let depth = group.iter().map(|&j| g.depth[j]).sum::<f32>() / count as f32;
