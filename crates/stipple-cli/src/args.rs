@@ -224,7 +224,7 @@ impl CameraArgs {
         if let Some(cam) = self.file_camera()? {
             return Ok(cam);
         }
-        let (lo, hi) = cloud.world_bounds();
+        let (lo, hi) = self.framed_bounds(cloud);
         if let (Some(s), None, None, None, None, None) = (
             cloud.sensor,
             self.eye,
@@ -298,6 +298,29 @@ impl CameraArgs {
             }
         }
         self.build_framed(lo, hi, cloud.z_up)
+    }
+
+    /// The bounds the default camera frames: the whole cloud, or its bulk where a few points
+    /// stray far from it ([`PointCloud::framing_bounds`]; said on stderr) and the user placed
+    /// neither the eye nor the target.
+    pub fn framed_bounds(&self, cloud: &PointCloud) -> (DVec3, DVec3) {
+        if self.eye.is_some() || self.target.is_some() {
+            return cloud.world_bounds();
+        }
+        let (lo, hi, strays) = cloud.framing_bounds();
+        if strays > 0 {
+            let (lie, them) = if strays == 1 {
+                ("lies", "it")
+            } else {
+                ("lie", "them")
+            };
+            eprintln!(
+                "stipple: the view frames the bulk of the cloud: {strays} of its {} points \
+                 {lie} far outside it (place the camera with --eye and --target to see {them})",
+                cloud.len()
+            );
+        }
+        (lo, hi)
     }
 
     /// The camera for a scene with these world bounds (a LOD tree's root box): the default

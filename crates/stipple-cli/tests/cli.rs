@@ -1635,3 +1635,79 @@ fn an_explicit_splat_mode_is_drawn_even_where_points_are_dense() {
     assert_ne!(env, opaque);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A few stray points far from the rest (an invalid return at a georeferenced tile's origin,
+/// a point at 1e9) no longer shrink the default view to a dot: the camera frames the bulk,
+/// exactly as without them, says so, and the image matches the one without the strays.
+#[test]
+fn stray_points_do_not_shrink_the_default_view() {
+    let dir = tempdir("strays");
+    let centre = [637_000.0, 851_000.0, 120.0];
+    let mut bulk = String::new();
+    let n = 3000;
+    for i in 0..n {
+        // A Fibonacci sphere of radius 5 around a georeferenced centre.
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let a = i as f64 * 2.399_963_229_728_653;
+        let r = (1.0 - z * z).sqrt();
+        let p = [r * a.cos(), r * a.sin(), z];
+        bulk.push_str(&format!(
+            "{:.4} {:.4} {:.4}\n",
+            centre[0] + 5.0 * p[0],
+            centre[1] + 5.0 * p[1],
+            centre[2] + 5.0 * p[2]
+        ));
+    }
+    std::fs::write(dir.join("bulk.xyz"), &bulk).unwrap();
+    std::fs::write(
+        dir.join("strays.xyz"),
+        format!("{bulk}0 0 0\n1e9 1e9 1e9\n"),
+    )
+    .unwrap();
+    let render = |name: &str| {
+        let t = common::ok(
+            &dir,
+            &[
+                "render",
+                &format!("{name}.xyz"),
+                "--size",
+                "96",
+                "--backend",
+                "cpu",
+                "--camera-out",
+                &format!("{name}.json"),
+                "-o",
+                &format!("{name}.png"),
+            ],
+        );
+        let (_, _, rgba) = stipple_io::image::read_png(&dir.join(format!("{name}.png"))).unwrap();
+        (t, rgba)
+    };
+    let (t, clean) = render("bulk");
+    assert!(!t.contains("far outside"), "{t}");
+    let (t, strayed) = render("strays");
+    assert!(t.contains("2 of its 3002 points lie far outside it"), "{t}");
+    for key in ["eye", "target"] {
+        let (a, b) = (
+            camera_vec3(&dir.join("bulk.json"), key),
+            camera_vec3(&dir.join("strays.json"), key),
+        );
+        for k in 0..3 {
+            assert!((a[k] - b[k]).abs() < 1e-3, "{key}: {a:?} against {b:?}");
+        }
+    }
+    let differ = clean
+        .chunks(4)
+        .zip(strayed.chunks(4))
+        .filter(|(a, b)| a.iter().zip(b.iter()).any(|(x, y)| x.abs_diff(*y) > 8))
+        .count();
+    assert!(
+        differ * 200 <= clean.len() / 4,
+        "{differ} of {} pixels differ",
+        clean.len() / 4
+    );
+    assert!(clean.chunks(4).filter(|p| p[..3] != clean[..3]).count() > 1000);
+    let t = common::ok(&dir, &["info", "strays.xyz"]);
+    assert!(t.contains("strays      2 points far outside the bulk"), "{t}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -20,6 +20,28 @@ pub(crate) fn morton3(c: [u32; 3]) -> u32 {
     spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
 }
 
+/// The box outside which a point strays from the bulk of `points`: the 1st–99th
+/// percentile box (per axis, on a sample of at most 2^16 points) grown on every side by
+/// twice its largest side. None for fewer than three points or a bulk without extent.
+fn bulk_box<P>(points: &[P], at: impl Fn(&P) -> DVec3) -> Option<(DVec3, DVec3)> {
+    let n = points.len();
+    if n < 3 {
+        return None;
+    }
+    let step = n.div_ceil(1 << 16);
+    let (mut lo, mut hi) = (DVec3::ZERO, DVec3::ZERO);
+    let mut v: Vec<f64> = Vec::with_capacity(n / step + 1);
+    for a in 0..3 {
+        v.clear();
+        v.extend(points.iter().step_by(step).map(|p| at(p)[a]));
+        let m = v.len();
+        lo[a] = *v.select_nth_unstable_by(m / 100, f64::total_cmp).1;
+        hi[a] = *v.select_nth_unstable_by(m - 1 - m / 100, f64::total_cmp).1;
+    }
+    let side = (hi - lo).max_element();
+    (side > 0.0 && side.is_finite()).then(|| (lo - 2.0 * side, hi + 2.0 * side))
+}
+
 /// An axis-aligned box in the cloud's local (origin-relative) frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
@@ -285,6 +307,19 @@ impl PointCloud {
         let origin = if points.is_empty() || !lo.is_finite() || !hi.is_finite() {
             DVec3::ZERO
         } else {
+            // The centre of the bulk where a few points stray far from it (see
+            // `framing_bounds`), so that the bulk keeps its precision as 32-bit offsets.
+            let (lo, hi) = match bulk_box(points, |p: &DVec3| *p) {
+                Some((a, b)) if points.iter().any(|p| p.cmplt(a).any() || p.cmpgt(b).any()) => {
+                    points
+                        .iter()
+                        .filter(|p| p.cmpge(a).all() && p.cmple(b).all())
+                        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(l, h), &p| {
+                            (l.min(p), h.max(p))
+                        })
+                }
+                _ => (lo, hi),
+            };
             ((lo + hi) * 0.5).round()
         };
         PointCloud {
@@ -414,6 +449,49 @@ impl PointCloud {
         (
             self.origin + b.min.as_dvec3(),
             self.origin + b.max.as_dvec3(),
+        )
+    }
+
+    /// Bounds in world coordinates of the cloud's bulk, for framing a view, and how many
+    /// stray points lie outside them. A stray point lies farther outside the 1st–99th
+    /// percentile box (per axis, on a sample of at most 2^16 points) than twice that box's
+    /// largest side: a point at 1e9 or at the origin of a georeferenced tile (an invalid
+    /// return), which would otherwise shrink the cloud to a dot. A cloud with no such point
+    /// gets exactly [`Self::world_bounds`]; one whose bulk has no extent keeps all its
+    /// points.
+    pub fn framing_bounds(&self) -> (DVec3, DVec3, usize) {
+        use rayon::prelude::*;
+        let all = self.world_bounds();
+        let Some((lo, hi)) = bulk_box(&self.positions, |p: &Vec3| p.as_dvec3()) else {
+            return (all.0, all.1, 0);
+        };
+        let keep = |p: &Vec3| {
+            let p = p.as_dvec3();
+            p.cmpge(lo).all() && p.cmple(hi).all()
+        };
+        let (b, strays) = self
+            .positions
+            .par_chunks(1 << 16)
+            .map(|c| {
+                let mut b = Bounds::EMPTY;
+                let mut s = 0usize;
+                for p in c {
+                    if keep(p) {
+                        b = b.including(*p);
+                    } else {
+                        s += 1;
+                    }
+                }
+                (b, s)
+            })
+            .reduce(|| (Bounds::EMPTY, 0), |x, y| (x.0.union(y.0), x.1 + y.1));
+        if strays == 0 {
+            return (all.0, all.1, 0);
+        }
+        (
+            self.origin + b.min.as_dvec3(),
+            self.origin + b.max.as_dvec3(),
+            strays,
         )
     }
 
@@ -680,6 +758,67 @@ mod tests {
     }
 
     use super::*;
+
+    /// Framing leaves out only points far outside the bulk: a georeferenced tile's stray
+    /// points at the origin and at 1e9 go, a second cluster as large as the first stays, and
+    /// a cloud without strays (or with all but a few points coinciding) keeps its bounds.
+    #[test]
+    fn framing_leaves_out_only_far_strays() {
+        let mut pts: Vec<DVec3> = (0..20_000)
+            .map(|i| {
+                let (u, v) = ((i % 200) as f64, (i / 200) as f64);
+                DVec3::new(
+                    500_000.0 + u,
+                    4_000_000.0 + v,
+                    100.0 + (u * 0.1).sin() * 5.0,
+                )
+            })
+            .collect();
+        let c = PointCloud::from_world(&pts);
+        let (lo, hi, strays) = c.framing_bounds();
+        assert_eq!(strays, 0);
+        assert_eq!((lo, hi), c.world_bounds());
+        pts.push(DVec3::ZERO);
+        pts.push(DVec3::ZERO);
+        pts.push(DVec3::splat(1e9));
+        let c = PointCloud::from_world(&pts);
+        let (lo, hi, strays) = c.framing_bounds();
+        assert_eq!(strays, 3);
+        // The origin is the bulk's centre, so that the bulk keeps its precision.
+        assert!((c.origin - DVec3::new(500_100.0, 4_000_050.0, 100.0)).length() < 1.0);
+        assert!(
+            (lo - DVec3::new(500_000.0, 4_000_000.0, 95.0))
+                .abs()
+                .max_element()
+                < 0.01
+        );
+        assert!(
+            (hi - DVec3::new(500_199.0, 4_000_099.0, 105.0))
+                .abs()
+                .max_element()
+                < 0.01
+        );
+        // Two clusters of equal size, far apart: both are the bulk.
+        let two: Vec<Vec3> = (0..2000)
+            .map(|i| {
+                Vec3::new(
+                    (i % 1000) as f32 * 1e-3 + (i / 1000) as f32 * 100.0,
+                    0.0,
+                    0.0,
+                )
+            })
+            .collect();
+        let c = PointCloud::from_positions(two);
+        assert_eq!(c.framing_bounds().2, 0);
+        // All but a few points coincide: the bulk has no extent, nothing is left out.
+        let mut same = vec![Vec3::ONE; 1000];
+        same.push(Vec3::splat(50.0));
+        let c = PointCloud::from_positions(same);
+        assert_eq!(
+            c.framing_bounds(),
+            (c.world_bounds().0, c.world_bounds().1, 0)
+        );
+    }
 
     /// Coinciding points: all at one position (no spacing), and a grid with a pile of
     /// duplicates on one of its points (the grid's spacing). Both used to scan every

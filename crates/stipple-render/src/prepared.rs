@@ -236,9 +236,13 @@ impl PreparedCloud {
         p
     }
 
-    /// View depth of the centre of the cloud's bounds.
+    /// View depth of the centre of the cloud's bounds (of its bulk where a few points stray
+    /// far from it: [`PointCloud::framing_bounds`]).
     fn centre_depth(&self, v: &ViewParams) -> f32 {
-        let c = self.bounds().center();
+        let c = match self.cloud.framing_bounds() {
+            (_, _, 0) => self.bounds().center(),
+            (lo, hi, _) => ((lo + hi) * 0.5 - self.cloud.origin).as_vec3(),
+        };
         (c - glam::Vec3::from(v.eye)).dot(glam::Vec3::from(v.forward))
     }
 

@@ -40,6 +40,20 @@ pub fn info(files: &[PathBuf], verify: bool) -> Result<()> {
                 println!("  bounds max  {:.4} {:.4} {:.4}", hi.x, hi.y, hi.z);
                 let e = hi - lo;
                 println!("  extent      {:.4} {:.4} {:.4}", e.x, e.y, e.z);
+                let (blo, bhi, strays) = c.framing_bounds();
+                if strays > 0 {
+                    println!(
+                        "  strays      {strays} point{} far outside the bulk ({:.4} {:.4} {:.4} \
+                         to {:.4} {:.4} {:.4}), which the default view frames",
+                        if strays == 1 { "" } else { "s" },
+                        blo.x,
+                        blo.y,
+                        blo.z,
+                        bhi.x,
+                        bhi.y,
+                        bhi.z
+                    );
+                }
                 println!("  attributes  {}", c.attributes().join(", "));
                 if !c.faces.is_empty() {
                     println!("  faces       {} triangles", c.faces.len());

@@ -166,7 +166,7 @@ pub fn view(a: ViewArgs) -> Result<()> {
     }
     let r = &a.render;
     let (scene, camera) = build(r, None)?;
-    let (lo, hi) = scene.cloud.cloud.world_bounds();
+    let (lo, hi, _) = scene.cloud.cloud.framing_bounds();
     let z_up = camera.up.z.abs() > camera.up.y.abs();
     // The panel starts with the options given after `view` (the input aside).
     let given: Vec<String> = std::env::args()
@@ -355,7 +355,7 @@ impl App {
                 scene.prefix = std::mem::take(&mut self.scene.prefix);
                 self.scene = scene;
                 self.panel.error = None;
-                let (lo, hi) = self.scene.cloud.cloud.world_bounds();
+                let (lo, hi, _) = self.scene.cloud.cloud.framing_bounds();
                 self.nav.lo = lo;
                 self.nav.hi = hi;
                 self.shown = None;
