@@ -9,7 +9,8 @@ usage: scripts/analytic-check.py SHAPE N SEED MODE [render args...]
   N      points, area-uniform on the surface
   MODE   given (exact normals) | none (no normals) | random (exact normals, random sign)
   env    STIPPLE (the binary; target/release/stipple), OUT (a scratch folder;
-         /tmp/stipple-analytic)
+         /tmp/stipple-analytic), SCALE (the shape's size, 1), OFFSET (x,y,z of its centre,
+         0,0,0; written as doubles where not zero)
 
 Prints one line: ok/FAIL, the mean nearest-neighbour distance in pixels at the median
 depth, the silhouette IoU, the share of pixels whose depth is within 0.5% of the depth
@@ -98,16 +99,21 @@ def sample(sdf, lim, n, rng):
     return p, grad(sdf, p)
 
 
-def write_ply(path, p, nrm):
+def write_ply(path, p, nrm, double=False):
     with open(path, "wb") as f:
         hdr = "ply\nformat binary_little_endian 1.0\nelement vertex %d\n" % len(p)
-        hdr += "property float x\nproperty float y\nproperty float z\n"
+        t = "double" if double else "float"
+        hdr += f"property {t} x\nproperty {t} y\nproperty {t} z\n"
         if nrm is not None:
             hdr += "property float nx\nproperty float ny\nproperty float nz\n"
         hdr += "end_header\n"
         f.write(hdr.encode())
-        a = p if nrm is None else np.concatenate([p, nrm], 1)
-        f.write(a.astype("<f4").tobytes())
+        if nrm is None:
+            f.write(p.astype("<f8" if double else "<f4").tobytes())
+        else:
+            rec = np.zeros(len(p), dtype=[("p", ("<f8" if double else "<f4"), 3), ("n", "<f4", 3)])
+            rec["p"], rec["n"] = p, nrm
+            f.write(rec.tobytes())
 
 
 def main():
@@ -120,9 +126,16 @@ def main():
     if not os.path.isfile(BIN):
         sys.exit(f"{BIN}: no such binary: build it with `cargo build --release --bin stipple` "
                  "from the repository root, or set STIPPLE to one")
-    sdf, lim = SHAPES[shape]
+    unit_sdf, lim = SHAPES[shape]
     rng = np.random.default_rng(seed)
-    p, nrm = sample(sdf, lim, n, rng)
+    p, nrm = sample(unit_sdf, lim, n, rng)
+    # The shape scaled and moved: the truth is traced in the same world coordinates.
+    scale = float(os.environ.get("SCALE", "1"))
+    off = np.array([float(v) for v in os.environ.get("OFFSET", "0,0,0").split(",")])
+    p = p * scale + off
+
+    def sdf(q):
+        return unit_sdf((q - off) / scale) * scale
     if mode == "none":
         nn = None
     elif mode == "random":
@@ -131,7 +144,7 @@ def main():
         nn = nrm
     tag = f"{OUT}/{shape}-{n}-{seed}-{mode}"
     os.makedirs(OUT, exist_ok=True)
-    write_ply(tag + ".ply", p, nn)
+    write_ply(tag + ".ply", p, nn, double=bool(off.any()))
     for suf in [".png", ".npy", ".n.npy", ".json"]:
         if os.path.exists(tag + suf):
             os.remove(tag + suf)
@@ -168,14 +181,14 @@ def main():
     for _ in range(400):
         q = o + dw * t[..., None]
         d = sdf(q)
-        hit |= alive & (d < 1e-6)
-        alive &= ~hit & (t < 1e3)
+        hit |= alive & (d < 1e-6 * scale)
+        alive &= ~hit & (t < 1e3 * scale)
         t = np.where(alive, t + d, t)
         if not alive.any():
             break
     q = o + dw * t[..., None]
     tdepth = np.where(hit, ((q - eye) @ fwd), np.inf)
-    tn = grad(sdf, q)
+    tn = grad(unit_sdf, (q - off) / scale)
     cov = np.isfinite(depth)
     inter = (cov & hit).sum()
     union = (cov | hit).sum()
