@@ -5,7 +5,8 @@ CLI: the pipeline `auto` picks, the camera it frames, the depth and normal outpu
 
 usage: scripts/analytic-check.py SHAPE N SEED MODE [render args...]
   SHAPE  sphere | torus | thin-torus | fat-torus | box | cylinder | ellipsoid | capsule
-         (tori of radii 1 and 0.35, 0.2, 0.5)
+         (tori of radii 1 and 0.35, 0.2, 0.5), roundbox (a box rounded by 0.15); open: wave (a height field over a square),
+         bowl (half a sphere), whose normals are compared up to sign
   N      points, area-uniform on the surface
   MODE   given (exact normals) | none (no normals) | random (exact normals, random sign)
   env    STIPPLE (the binary; target/release/stipple), OUT (a scratch folder;
@@ -44,6 +45,11 @@ def sd_box(p, b=np.array([0.8, 0.6, 0.5])):
     return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(-1), 0)
 
 
+def sd_roundbox(p, b=np.array([0.7, 0.5, 0.4]), r=0.15):
+    q = np.abs(p) - b
+    return np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(-1), 0) - r
+
+
 def sd_cyl(p):
     d = np.stack([np.hypot(p[..., 0], p[..., 2]) - 0.6, np.abs(p[..., 1]) - 0.8], -1)
     return np.minimum(d.max(-1), 0) + np.linalg.norm(np.maximum(d, 0), axis=-1)
@@ -62,15 +68,74 @@ def sd_capsule(p):
     return np.linalg.norm(q, axis=-1) - 0.4
 
 
+def h_wave(x, y):
+    return 0.25 * np.sin(2 * x) * np.cos(1.5 * y)
+
+
+def h_wave_grad(x, y):
+    return 0.5 * np.cos(2 * x) * np.cos(1.5 * y), -0.375 * np.sin(2 * x) * np.sin(1.5 * y)
+
+
+def ud_wave(p):
+    # Open: a height field over [-1, 1]^2 (distance to first order, unsigned).
+    x, y, z = p[..., 0], p[..., 1], p[..., 2]
+    cx, cy = np.clip(x, -1, 1), np.clip(y, -1, 1)
+    gx, gy = h_wave_grad(cx, cy)
+    s = (z - h_wave(cx, cy)) / np.sqrt(1 + gx * gx + gy * gy)
+    return np.sqrt(s * s + (x - cx) ** 2 + (y - cy) ** 2)
+
+
+def n_wave(p):
+    gx, gy = h_wave_grad(np.clip(p[..., 0], -1, 1), np.clip(p[..., 1], -1, 1))
+    n = np.stack([-gx, -gy, np.ones_like(gx)], -1)
+    return n / np.linalg.norm(n, axis=-1, keepdims=True)
+
+
+def s_wave(n, rng):
+    out = []
+    while sum(len(o) for o in out) < n:
+        x, y = rng.random((2, 4 * n)) * 2 - 1
+        gx, gy = h_wave_grad(x, y)
+        a = np.sqrt(1 + gx * gx + gy * gy)
+        k = rng.random(4 * n) * 1.7 < a
+        out.append(np.stack([x[k], y[k], h_wave(x[k], y[k])], -1))
+    return np.concatenate(out)[:n]
+
+
+def ud_bowl(p):
+    # Open: the unit sphere's half below y = 0.
+    r = np.linalg.norm(p, axis=-1)
+    rim = np.hypot(np.hypot(p[..., 0], p[..., 2]) - 1, p[..., 1])
+    return np.where(p[..., 1] <= 0, np.abs(r - 1), rim)
+
+
+def n_bowl(p):
+    return p / np.maximum(np.linalg.norm(p, axis=-1, keepdims=True), 1e-12)
+
+
+def s_bowl(n, rng):
+    d = rng.normal(size=(n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    d[:, 1] = -np.abs(d[:, 1])
+    return d
+
+
+# Open surfaces: (unsigned distance, normal, sampler); their normals' sign is not defined,
+# so the normal error is measured up to sign.
+OPEN = {"wave": (ud_wave, n_wave, s_wave), "bowl": (ud_bowl, n_bowl, s_bowl)}
+
 SHAPES = {
     "sphere": (sd_sphere, 1.1),
     "torus": (sd_torus, 1.4),
     "thin-torus": (torus(0.2), 1.25),
     "fat-torus": (torus(0.5), 1.55),
     "box": (sd_box, 0.9),
+    "roundbox": (sd_roundbox, 0.95),
     "cylinder": (sd_cyl, 0.9),
     "ellipsoid": (sd_ellipsoid, 1.05),
     "capsule": (sd_capsule, 1.05),
+    "wave": (ud_wave, 1.0),
+    "bowl": (ud_bowl, 1.0),
 }
 
 
@@ -128,7 +193,11 @@ def main():
                  "from the repository root, or set STIPPLE to one")
     unit_sdf, lim = SHAPES[shape]
     rng = np.random.default_rng(seed)
-    p, nrm = sample(unit_sdf, lim, n, rng)
+    if shape in OPEN:
+        p = OPEN[shape][2](n, rng)
+        nrm = OPEN[shape][1](p)
+    else:
+        p, nrm = sample(unit_sdf, lim, n, rng)
     # The shape scaled and moved: the truth is traced in the same world coordinates.
     scale = float(os.environ.get("SCALE", "1"))
     off = np.array([float(v) for v in os.environ.get("OFFSET", "0,0,0").split(",")])
@@ -178,17 +247,17 @@ def main():
     o = np.broadcast_to(eye, dw.shape)
     alive = np.ones((H, W), bool)
     hit = np.zeros((H, W), bool)
-    for _ in range(400):
+    for _ in range(1500 if shape in OPEN else 400):
         q = o + dw * t[..., None]
         d = sdf(q)
         hit |= alive & (d < 1e-6 * scale)
         alive &= ~hit & (t < 1e3 * scale)
-        t = np.where(alive, t + d, t)
+        t = np.where(alive, t + (0.8 * d if shape in OPEN else d), t)
         if not alive.any():
             break
     q = o + dw * t[..., None]
     tdepth = np.where(hit, ((q - eye) @ fwd), np.inf)
-    tn = grad(unit_sdf, (q - off) / scale)
+    tn = OPEN[shape][1]((q - off) / scale) if shape in OPEN else grad(unit_sdf, (q - off) / scale)
     cov = np.isfinite(depth)
     inter = (cov & hit).sum()
     union = (cov | hit).sum()
@@ -200,6 +269,8 @@ def main():
     behind = (err > 0.05 * rng_d).mean()
     nn_ = nout[both]
     cs = (nn_ * tn[both]).sum(-1).clip(-1, 1)
+    if shape in OPEN:
+        cs = np.abs(cs)
     ang = np.degrees(np.arccos(cs))
     # Spacing: the mean nearest-neighbour distance (of 1 500 points) over a pixel's
     # width at the median depth.
