@@ -1708,6 +1708,9 @@ fn stray_points_do_not_shrink_the_default_view() {
     );
     assert!(clean.chunks(4).filter(|p| p[..3] != clean[..3]).count() > 1000);
     let t = common::ok(&dir, &["info", "strays.xyz"]);
-    assert!(t.contains("strays      2 points far outside the bulk"), "{t}");
+    assert!(
+        t.contains("strays      2 points far outside the bulk"),
+        "{t}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
