@@ -461,14 +461,15 @@ impl PointCloud {
     /// points.
     pub fn framing_bounds(&self) -> (DVec3, DVec3, usize) {
         use rayon::prelude::*;
-        let all = self.world_bounds();
         let Some((lo, hi)) = bulk_box(&self.positions, |p: &Vec3| p.as_dvec3()) else {
-            return (all.0, all.1, 0);
+            let (lo, hi) = self.world_bounds();
+            return (lo, hi, 0);
         };
-        let keep = |p: &Vec3| {
-            let p = p.as_dvec3();
-            p.cmpge(lo).all() && p.cmple(hi).all()
-        };
+        // In the local frame (the box's f32 rounding moves its sides by far less than the
+        // two sides' margin); one pass gives the bulk's bounds and, without strays, the
+        // whole cloud's.
+        let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+        let keep = |p: &Vec3| p.cmpge(lo).all() && p.cmple(hi).all();
         let (b, strays) = self
             .positions
             .par_chunks(1 << 16)
@@ -485,9 +486,6 @@ impl PointCloud {
                 (b, s)
             })
             .reduce(|| (Bounds::EMPTY, 0), |x, y| (x.0.union(y.0), x.1 + y.1));
-        if strays == 0 {
-            return (all.0, all.1, 0);
-        }
         (
             self.origin + b.min.as_dvec3(),
             self.origin + b.max.as_dvec3(),
