@@ -5,7 +5,8 @@ CLI: the pipeline `auto` picks, the camera it frames, the depth and normal outpu
 
 usage: scripts/analytic-check.py SHAPE N SEED MODE [render args...]
   SHAPE  sphere | torus | thin-torus | fat-torus | box | cylinder | ellipsoid | capsule
-         (tori of radii 1 and 0.35, 0.2, 0.5), roundbox (a box rounded by 0.15); open: wave (a height field over a square),
+         (tori of radii 1 and 0.35, 0.2, 0.5), roundbox (a box rounded by 0.15), bumpy (a sphere of radius 0.9 with bumps of
+         0.06 and wavelength about 1); open: wave (a height field over a square),
          bowl (half a sphere), whose normals are compared up to sign
   N      points, area-uniform on the surface
   MODE   given (exact normals) | none (no normals) | random (exact normals, random sign)
@@ -66,6 +67,18 @@ def sd_capsule(p):
     q = p.copy()
     q[..., 0] -= x
     return np.linalg.norm(q, axis=-1) - 0.4
+
+
+def sd_bumpy(p):
+    # A sphere of radius 0.9 with bumps of 0.06 (wavelength about 1); f / |grad f| is a
+    # distance to first order.
+    r = np.maximum(np.linalg.norm(p, axis=-1), 1e-9)
+    s, c = np.sin(6 * p), np.cos(6 * p)
+    f = r - 0.9 - 0.06 * s[..., 0] * s[..., 1] * s[..., 2]
+    g = p / r[..., None] - 0.36 * np.stack(
+        [c[..., 0] * s[..., 1] * s[..., 2], s[..., 0] * c[..., 1] * s[..., 2],
+         s[..., 0] * s[..., 1] * c[..., 2]], -1)
+    return f / np.linalg.norm(g, axis=-1)
 
 
 def h_wave(x, y):
@@ -134,6 +147,7 @@ SHAPES = {
     "cylinder": (sd_cyl, 0.9),
     "ellipsoid": (sd_ellipsoid, 1.05),
     "capsule": (sd_capsule, 1.05),
+    "bumpy": (sd_bumpy, 1.05),
     "wave": (ud_wave, 1.0),
     "bowl": (ud_bowl, 1.0),
 }
@@ -247,12 +261,15 @@ def main():
     o = np.broadcast_to(eye, dw.shape)
     alive = np.ones((H, W), bool)
     hit = np.zeros((H, W), bool)
-    for _ in range(1500 if shape in OPEN else 400):
+    # Open surfaces' distances, and those of the ellipsoid and the bumpy sphere, are exact
+    # only to first order: damped steps keep the tracer from stepping through them.
+    damped = shape in OPEN or shape in ("ellipsoid", "bumpy")
+    for _ in range(1500 if damped else 400):
         q = o + dw * t[..., None]
         d = sdf(q)
         hit |= alive & (d < 1e-6 * scale)
         alive &= ~hit & (t < 1e3 * scale)
-        t = np.where(alive, t + (0.8 * d if shape in OPEN else d), t)
+        t = np.where(alive, t + (0.8 * d if damped else d), t)
         if not alive.any():
             break
     q = o + dw * t[..., None]
