@@ -3429,8 +3429,12 @@ const CUBIC_SMOOTH: f64 = 0.08;
 /// robust stage 8.9 → 10.9 s; with this gate, 9.0 s).
 const CUBIC_TRIED: f64 = 0.75;
 /// The closed quadric ([`closed_misfit`]) is fitted only where the quadric's misfit is at
-/// most this.
-const CLOSED_TRIED: f64 = 0.75;
+/// most this. Where a neighbourhood spans half of a tube, the paraboloid misses by up to
+/// about 1.5 σ: the thin torus at 500 points (tube 1.6 spacings round), four samples, normals
+/// 30° or more off 45 at 0.75 → 28 at 1.0, 18 at 1.5, 19 at 3; the CLI's render of it without
+/// normals, depth within 0.5% of the range 0.77–0.78 → 0.845–0.859. Autzen's robust stage,
+/// whose vegetation reaches the test more often, 15.7 → 18.2 s.
+const CLOSED_TRIED: f64 = 1.5;
 /// A neighbourhood within this many σ of its closed quadric ([`closed_misfit`]) is smooth.
 /// The unseen thin torus at half density (tube radius two spacings), normals estimated:
 /// depth within 0.5% of the range on 88.8% of pixels without the test, 89.2% at 0.12 σ,
@@ -6696,9 +6700,11 @@ mod boundary_tests {
     /// radius, so that a neighbourhood spans half of it. The paraboloid's curvature is off by
     /// a third either way there, and the closed quadric of that curvature missed; taken for
     /// creases, such points were snapped to "faces" 30–60° off. The closed quadric is tried
-    /// at several curvatures ([`CLOSED_SCALES`]). Six samples: normals 30° or more off
-    /// 248 → 108 (the CLI's default render of such a torus without normals, depth within
-    /// 0.5% of the range 0.69–0.71 → 0.77–0.78, normals' 90th percentile 21–25° → 12–17°).
+    /// at several curvatures ([`CLOSED_SCALES`]), and wherever the quadric misses by up to
+    /// [`CLOSED_TRIED`]. Six samples: normals 30° or more off 248 → 108 with the curvatures
+    /// → 50 with the wider gate (the CLI's default render of such a torus without normals,
+    /// three samples: depth within 0.5% of the range 0.69–0.71 → 0.77–0.78 → 0.845–0.859,
+    /// IoU 0.948–0.953 → 0.974–0.979, normals' 90th percentile 21–25° → 6.6–9.7°).
     #[test]
     fn a_tube_two_neighbourhoods_round_is_smooth() {
         let mut off = 0;
@@ -6707,7 +6713,7 @@ mod boundary_tests {
             off += off_by(&estimate(&p, None, 16, 1.0).unwrap().normals, &truth, 30.0);
         }
         eprintln!("of 3 000 normals: {off} 30° or more off");
-        assert!(off <= 150, "{off}");
+        assert!(off <= 80, "{off}");
     }
 
     /// A torus whose tube is about 2.5 spacings round (radii 1 and 0.35, 700 points): on
