@@ -1691,7 +1691,7 @@ fn shapes_with(
         // predicts their normals (a crease's other face it misses by far more).
         if fit.is_none() {
             if let Some(w) = jet_with(positions, i, n, nb, Some((normals, 0.0)), true) {
-                if closed_predicts_normals(positions, normals, nb.of(i), i, n, &w, WIDE_FIT_COS) {
+                if jet_predicts_normals(positions, normals, nb.of(i), i, n, &w, true) {
                     fit = Some(w);
                 }
             }
@@ -1781,7 +1781,7 @@ fn refine_and_shape_with(
                 if ids.iter().any(|&k| before[k as usize].dot(u) < min) {
                     if let Some(w) = jet(positions, i, u, nb, Some((&before, 0.0))) {
                         if j.is_none()
-                            || jet_predicts_normals(positions, &before, ids, i, u, &w, WIDE_FIT_COS)
+                            || jet_predicts_normals(positions, &before, ids, i, u, &w, false)
                         {
                             j = Some(w);
                         }
@@ -4173,8 +4173,12 @@ pub const WIDE_FIT_COS: f32 = 0.906;
 pub const WIDE_FIT_MISSES: usize = 1;
 
 /// Whether the jet `j` of point `i` in the frame of `u` predicts the normals of its
-/// neighbours `ids` on the same side (`normals`·u ≥ 0) within the angle of cosine `cos`,
-/// but for at most [`WIDE_FIT_MISSES`].
+/// neighbours `ids` on the same side (`normals`·u ≥ 0) within [`WIDE_FIT_COS`], but for at
+/// most [`WIDE_FIT_MISSES`]. With `closed`, the jet's quadric closed by its own
+/// [`closing_curvature`] D as splats are drawn, through the point (its tilt dropped):
+/// ½(A x² + 2B xy + C y²) + ½D h² = h has the normal ∝ (−(A x + B y), −(B x + C y), 1 − D h)
+/// at a neighbour's offset (x, y, h), which follows a tube's normals all the way round
+/// where a paraboloid's turn too slowly.
 fn jet_predicts_normals(
     positions: &[Vec3],
     normals: &[Vec3],
@@ -4182,11 +4186,16 @@ fn jet_predicts_normals(
     i: usize,
     u: Vec3,
     j: &[f64; 5],
-    cos: f32,
+    closed: bool,
 ) -> bool {
     let (t1, t2) = tangent_frame(u);
     let p = positions[i];
     let [c1, c2, a, b, c] = j.map(|v| v as f32);
+    let (c1, c2, close) = if closed {
+        (0.0, 0.0, closing_curvature([a, b, c], f32::INFINITY))
+    } else {
+        (c1, c2, 0.0)
+    };
     let misses = ids
         .iter()
         .filter(|&&k| {
@@ -4195,46 +4204,10 @@ fn jet_predicts_normals(
                 return false;
             }
             let d = positions[k as usize] - p;
-            let (x, y) = (d.dot(t1), d.dot(t2));
+            let (x, y, h) = (d.dot(t1), d.dot(t2), d.dot(u));
             let (gx, gy) = (c1 + a * x + b * y, c2 + b * x + c * y);
-            let pred = (u - gx * t1 - gy * t2).normalize_or_zero();
-            pred.dot(m.normalize_or_zero()) < cos
-        })
-        .count();
-    misses <= WIDE_FIT_MISSES
-}
-
-/// Whether the quadric `j` of point `i` (frame of unit normal `u`), closed by its own
-/// [`closing_curvature`] as splats are drawn, predicts the given normals of the neighbours
-/// `ids` that face its side within `cos` (at most [`WIDE_FIT_MISSES`] missed): the closed
-/// surface ½(A x² + 2B xy + C y²) + ½D h² = h has the normal ∝ (−(A x + B y), −(B x + C y),
-/// 1 − D h) at each neighbour's offset (x, y, h), which follows a tube's normals all the way
-/// round where a paraboloid's turn too slowly.
-fn closed_predicts_normals(
-    positions: &[Vec3],
-    normals: &[Vec3],
-    ids: &[u32],
-    i: usize,
-    u: Vec3,
-    j: &[f64; 5],
-    cos: f32,
-) -> bool {
-    let (t1, t2) = tangent_frame(u);
-    let p = positions[i];
-    let [_, _, a, b, c] = j.map(|v| v as f32);
-    let d = closing_curvature([a, b, c], f32::INFINITY);
-    let misses = ids
-        .iter()
-        .filter(|&&k| {
-            let m = normals[k as usize];
-            if m.dot(u) < 0.0 {
-                return false;
-            }
-            let q = positions[k as usize] - p;
-            let (x, y, h) = (q.dot(t1), q.dot(t2), q.dot(u));
-            let pred = (-(a * x + b * y) * t1 - (b * x + c * y) * t2 + (1.0 - d * h) * u)
-                .normalize_or_zero();
-            pred.dot(m.normalize_or_zero()) < cos
+            let pred = ((1.0 - close * h) * u - gx * t1 - gy * t2).normalize_or_zero();
+            pred.dot(m.normalize_or_zero()) < WIDE_FIT_COS
         })
         .count();
     misses <= WIDE_FIT_MISSES
@@ -6733,11 +6706,7 @@ mod boundary_tests {
             let (p, truth) = super::tests::torus_of(750, 600 + seed, 0.9, 0.2);
             let e = estimate(&p, None, 16, 1.0).unwrap();
             off += off_by(&e.normals, &truth, 10.0);
-            flat += e
-                .shapes
-                .iter()
-                .filter(|s| max_curvature(s.bend) < 1.0)
-                .count();
+            flat += flat_splats(&e.shapes);
         }
         eprintln!("{off} normals of 4 500 10° or more off, {flat} splats flat");
         assert!(off <= 50, "{off}");
@@ -6755,11 +6724,9 @@ mod boundary_tests {
     /// IoU 0.948–0.953 → 0.974–0.979, normals' 90th percentile 21–25° → 6.6–9.7°).
     #[test]
     fn a_tube_two_neighbourhoods_round_is_smooth() {
-        let mut off = 0;
-        for seed in 0..6 {
-            let (p, truth) = super::tests::torus_of(500, 800 + seed, 1.0, 0.2);
-            off += off_by(&estimate(&p, None, 16, 1.0).unwrap().normals, &truth, 30.0);
-        }
+        let off: usize = thin_tori(800)
+            .map(|(p, truth)| off_by(&estimate(&p, None, 16, 1.0).unwrap().normals, &truth, 30.0))
+            .sum();
         eprintln!("of 3 000 normals: {off} 30° or more off");
         assert!(off <= 80, "{off}");
     }
@@ -6769,20 +6736,13 @@ mod boundary_tests {
     /// as wide as the tube sticking out of its silhouette (the harness's thin torus at a
     /// third of its density, normals given: IoU 0.988, 407 pixels covered outside, mostly
     /// by such discs). The fit over the neighbours on the point's side is taken where its
-    /// closed surface predicts their normals (`closed_predicts_normals`). Six samples:
+    /// closed surface predicts their normals (`jet_predicts_normals`). Six samples:
     /// splats flat (largest curvature under 1, the tube's is 5) 123 → 8.
     #[test]
     fn a_thin_tube_with_its_normals_has_no_flat_splats() {
-        let mut flat = 0;
-        for seed in 0..6 {
-            let (p, truth) = super::tests::torus_of(500, 900 + seed, 1.0, 0.2);
-            let e = estimate(&p, Some(&truth), 16, 1.0).unwrap();
-            flat += e
-                .shapes
-                .iter()
-                .filter(|s| max_curvature(s.bend) < 1.0)
-                .count();
-        }
+        let flat: usize = thin_tori(900)
+            .map(|(p, truth)| flat_splats(&estimate(&p, Some(&truth), 16, 1.0).unwrap().shapes))
+            .sum();
         eprintln!("of 3 000 splats: {flat} flat");
         assert!(flat <= 30, "{flat}");
     }
@@ -6804,6 +6764,20 @@ mod boundary_tests {
         }
         eprintln!("of 4 200 normals: {off5} 5° or more off, {off10} 10° or more");
         assert!(off5 <= 30 && off10 <= 13, "{off5} {off10}");
+    }
+
+    /// Six tori of radii 1 and 0.2 with 500 points each (seeds `seed0`…): the tube 1.6
+    /// spacings in radius. Points and exact normals.
+    fn thin_tori(seed0: u64) -> impl Iterator<Item = (Vec<Vec3>, Vec<Vec3>)> {
+        (0..6).map(move |s| super::tests::torus_of(500, seed0 + s, 1.0, 0.2))
+    }
+
+    /// How many of the splats are flat: largest curvature under 1 (a thin tube's is 5).
+    fn flat_splats(shapes: &[SplatShape]) -> usize {
+        shapes
+            .iter()
+            .filter(|s| max_curvature(s.bend) < 1.0)
+            .count()
     }
 
     /// How many of the normals `est` are `deg` degrees or more off the axes `truth` (sign
