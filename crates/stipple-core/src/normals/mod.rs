@@ -6760,6 +6760,28 @@ mod boundary_tests {
         assert!(flat <= 30, "{flat}");
     }
 
+    /// A wire narrower than its splats (a torus of tube radius 0.05, points 0.08 apart, normals
+    /// given): the wider fit's curvature (20) is more than the splats can follow, and capped
+    /// by [`MAX_BEND`] it made half-bent discs standing out of the wire. Such splats stay as
+    /// they were ([`GIVEN_WIDE_REACH`]). Six samples, splats bent to half the cap or more
+    /// (curvature × radius ≥ ½): 1 195 without the bound → 410.
+    #[test]
+    fn a_wire_narrower_than_its_splats_keeps_them_unbent() {
+        let capped: usize = (0..6)
+            .map(|s| {
+                let (p, truth) = super::tests::torus_of(300, 950 + s, 1.0, 0.05);
+                let e = estimate(&p, Some(&truth), 16, 1.0).unwrap();
+                e.shapes
+                    .iter()
+                    .zip(&e.radii)
+                    .filter(|(sh, r)| max_curvature(sh.bend) * **r >= 0.5 * MAX_BEND)
+                    .count()
+            })
+            .sum();
+        eprintln!("of 1 800 splats: {capped} bent to half the cap or more");
+        assert!(capped <= 700, "{capped}");
+    }
+
     /// A torus whose tube is about 2.5 spacings round (radii 1 and 0.35, 700 points): on
     /// the tube's top and bottom, neighbours two spacings across it have turned by more
     /// than CREASE_COS, and the quadric through the rest (six of sixteen) tilted the normal
