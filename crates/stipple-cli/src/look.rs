@@ -423,12 +423,12 @@ impl stipple_scene::Host for CliHost {
         path: &std::path::Path,
         opt: &stipple_io::ReadOptions,
     ) -> std::result::Result<stipple_core::PointCloud, String> {
-        crate::args::read_with_options(path, opt).map_err(|e| format!("{e:#}"))
+        crate::args::read_with_options(path, opt).map_err(|e| crate::message(&e))
     }
 
     fn check_points(&mut self, what: &str, n: u64) -> std::result::Result<(), String> {
         crate::memory::check_points(what, n, crate::memory::BYTES_PER_POINT)
-            .map_err(|e| format!("{e:#}"))
+            .map_err(|e| crate::message(&e))
     }
 
     fn note(&mut self, message: &str) {

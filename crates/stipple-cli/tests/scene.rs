@@ -227,6 +227,20 @@ fn bad_look_options_are_clear_errors() {
         "{}",
         text(&o)
     );
+    // A scene's missing file: named, with its cause said once.
+    std::fs::write(dir.join("gone.toml"), "[[cloud]]\nfile = \"gone.ply\"\n").unwrap();
+    let o = stipple(&dir, &["render", "gone.toml", "-o", "g.png"]);
+    let t = text(&o);
+    assert!(
+        !o.status.success() && t.contains("gone.toml: cloud 1: gone.ply"),
+        "{t}"
+    );
+    let line = t.lines().find(|l| l.contains("gone.ply")).unwrap_or("");
+    let cause = line.rsplit(": ").next().unwrap_or("");
+    assert!(
+        !cause.is_empty() && line.matches(cause).count() == 1,
+        "the cause repeated: {line}"
+    );
     // A scene's impossible camera names the file and the cause.
     for (camera, want) in [
         (
