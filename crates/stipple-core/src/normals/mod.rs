@@ -2675,7 +2675,7 @@ fn shape_at(
     };
     let mut boundary = false;
     // Where the splat stops following its face short of a crease (`mismatch_plane`).
-    let mismatch = mismatch_plane(positions, normals, nb, i, n, bend);
+    let mismatch = mismatch_plane(positions, normals, nb, i, (n, radii[i]), bend);
     // Whether the splat's own surface curves nowhere towards its normal (a saddle or a
     // concave patch crosses its neighbours' tangent planes, which must not cut it there).
     let convex = {
@@ -2957,27 +2957,48 @@ fn nearest_in(halves: &[(glam::Vec2, f32)]) -> Option<f32> {
 /// place by more than this (cosine: 12°) are where the splat stops following the surface.
 pub const MISMATCH_COS: f32 = 0.978;
 
-/// Where point i's bent splat (unit normal `n`, bend `bend`) stops following the surface
-/// short of a crease: the tangent plane of the neighbour whose normal differs most from
-/// what the splat's own quadric predicts at that neighbour (more than [`MISMATCH_COS`]),
-/// with i behind it (convex), as (distance of its trace from the point in the splat's
-/// plane, m, c) with the splat kept where m·x ≤ c; of several, the one that cuts nearest
-/// the point. Such a
-/// neighbour sits where the curvature jumps inside the splat's radius (a flat face meeting
-/// a rounded edge, a point on a box's edge whose normal is the faces' mean): the quadric
-/// fitted over both sides follows neither, and the disc would rise in front of the
-/// surface there by up to r·sin of the mismatch. A smooth neighbourhood that one quadric
-/// fits (a sphere, a thin torus's saddles) predicts its neighbours' normals and gets none.
+/// Where point i's bent splat (unit normal `n`, radius `r`, bend `bend`) stops following
+/// the surface short of a crease: the tangent plane of the neighbour whose normal differs
+/// most from what the splat's own quadric predicts at that neighbour (more than
+/// [`MISMATCH_COS`]), with i behind it (convex), as (distance of its trace from the point in
+/// the splat's plane, m, c) with the splat kept where m·x ≤ c; of several, the one that cuts
+/// nearest the point. Such a neighbour sits where the curvature jumps inside the splat's
+/// radius (a flat face meeting a rounded edge, a point on a box's edge whose normal is the
+/// faces' mean): the quadric fitted over both sides follows neither, and the disc would
+/// rise in front of the surface there by up to r·sin of the mismatch. A smooth
+/// neighbourhood that one quadric fits (a sphere, a thin torus's saddles) predicts its
+/// neighbours' normals and gets none.
+///
+/// A convex splat that bends away from its normal towards the neighbour (a rounding's splat
+/// reaching past the seam onto the flat face) lies wholly behind the neighbour's tangent
+/// plane, which cuts nothing of it; its rim hangs behind the face there, and blended with
+/// the face's own splats pulls the depth back. Its normal turns to the neighbour's at
+/// sin θ / κ on the way to it (θ between the normals, κ the splat's curvature that way):
+/// where that lies within its radius, it is cut across there instead. Ten unseen analytic
+/// shapes at half density (4–6 px), seeds 74–81, all modes: 522 of 720 cases either way;
+/// depth within 0.5% of the range on the rounded box 0.943 → 0.948 (normals given) and
+/// 0.882 → 0.890 (estimated), surfaces behind 1.53% → 1.36% (estimated); the bumpy sphere
+/// 0.901 → 0.910 and 0.839 → 0.844, surfaces behind 0.19% → 0.12% and 0.21% → 0.10%;
+/// nothing else moves by more than 0.001. At full density (3–4 px, 14 seeds): 1 249 → 1 248
+/// (the rounded box without normals, Voronoi and deferred: two cases lost by 0.003 and
+/// 0.008, one gained), its depth 0.960 → 0.963 and surfaces behind 0.26% → 0.19%. Random
+/// views of the four basic shapes: the same cases pass. Without `convex`, a cylinder's rim
+/// point whose estimated normal was 70° off (a saddle's bend) was cut across where its
+/// bend said, and its splat stuck out past the silhouette (IoU 0.990 → 0.988).
 fn mismatch_plane(
     positions: &[Vec3],
     normals: &[Vec3],
     nb: &Neighbours,
     i: usize,
-    n: Vec3,
+    (n, r): (Vec3, f32),
     [a, b, c]: [f32; 3],
 ) -> Option<(f32, Vec3, f32)> {
     let p = positions[i];
     let (t1, t2) = tangent_frame(n);
+    // Curving nowhere towards its normal (as `shape_at`'s `convex`): a saddle's or a wrong
+    // normal's bend says nothing of where the surface turns.
+    let most = 0.5 * (a + c) + (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let convex = most * r <= CONVEX_BEND;
     let mut best: Option<(f32, Vec3, f32)> = None;
     for &j in nb.of(i) {
         let Some(m) = normals[j as usize].try_normalize() else {
@@ -2995,6 +3016,19 @@ fn mismatch_plane(
         let (u, v) = (d.dot(t1), d.dot(t2));
         let predicted = (n - (a * u + b * v) * t1 - (b * u + c * v) * t2).normalize_or_zero();
         if predicted.dot(m) >= MISMATCH_COS {
+            continue;
+        }
+        // Bending away towards j, and turned to j's normal within the radius: the cut
+        // across the splat there.
+        let w = (d - n * d.dot(n)).normalize_or_zero();
+        let (wu, wv) = (w.dot(t1), w.dot(t2));
+        let bent = a * wu * wu + 2.0 * b * wu * wv + c * wv * wv;
+        let sin = (1.0 - cn * cn).max(0.0).sqrt();
+        if convex && w != Vec3::ZERO && sin < -bent * r {
+            let apart = sin / -bent;
+            if best.is_none_or(|b| apart < b.0) {
+                best = Some((apart, w, w.dot(p) + apart));
+            }
             continue;
         }
         // The plane's trace on the splat's plane: the nearest cuts the most.
@@ -6022,6 +6056,91 @@ mod tests {
         assert!(
             worst <= 1.15 && short <= 20,
             "worst probe {worst} radii from its face's splats; {short} beyond 1.03"
+        );
+    }
+
+    #[test]
+    fn splats_of_a_rounding_do_not_hang_behind_the_face() {
+        use glam::Vec2;
+        // A flat face (y = 0, x < 0) rounded into a side face (x = ρ) by a quarter cylinder of
+        // radius ρ = 0.15 about z, two spacings or so round, random samples with exact
+        // normals. A rounding splat past the seam curves away behind the flat face; cut at
+        // its neighbour's tangent plane it kept that part (it lies behind the plane). Its
+        // patch, sampled over its disc where its clip planes keep it, must not lie more than
+        // a tenth of its radius inside the surface.
+        let rho = 0.15f32;
+        let sdf = |q: Vec3| {
+            if q.x > 0.0 && q.y > -rho {
+                Vec2::new(q.x, q.y + rho).length() - rho
+            } else {
+                q.y.max(q.x - rho)
+            }
+        };
+        let arc = rho * std::f32::consts::FRAC_PI_2;
+        let mut deep = [0usize; 2];
+        for seed in 0..4u64 {
+            let mut r = crate::rng::Rng::new(40 + seed);
+            let (mut pts, mut normals) = (Vec::new(), Vec::new());
+            for _ in 0..300 {
+                let t = r.f32() * (0.6 + arc + 0.6);
+                let z = r.f32() * 1.2 - 0.6;
+                let (p, n) = if t < 0.6 {
+                    (Vec3::new(t - 0.6, 0.0, z), Vec3::Y)
+                } else if t < 0.6 + arc {
+                    let a = (t - 0.6) / rho;
+                    let n = Vec3::new(a.sin(), a.cos(), 0.0);
+                    (Vec3::new(0.0, -rho, z) + rho * n, n)
+                } else {
+                    (Vec3::new(rho, -rho - (t - 0.6 - arc), z), Vec3::X)
+                };
+                pts.push(p);
+                normals.push(n);
+            }
+            let e = estimate_from(&pts, Some(&normals), 16, 1.0, Towards::Unknown).unwrap();
+            for i in 0..pts.len() {
+                let (p, n, rad) = (pts[i], e.normals[i], e.radii[i]);
+                let inner = p.z.abs() < 0.35 && p.x > -0.4 && p.y > -0.4 - rho;
+                let sh = e.shapes[i];
+                if !inner || sh.curve != [[0.0; 2]; 2] {
+                    continue;
+                }
+                let (t1, t2) = tangent_frame(n);
+                let [a, b, c] = sh.bend;
+                let d = closing_curvature(sh.bend, rad);
+                let kept = |x: Vec3| {
+                    sh.clip
+                        .iter()
+                        .all(|k| *k == [0.0; 4] || Vec3::new(k[0], k[1], k[2]).dot(x) <= k[3])
+                };
+                let mut worst = 0.0f32;
+                for gu in -10..=10 {
+                    for gv in -10..=10 {
+                        let (u, v) = (gu as f32 * rad / 10.0, gv as f32 * rad / 10.0);
+                        if u * u + v * v > rad * rad {
+                            continue;
+                        }
+                        let q = 0.5 * (a * u * u + 2.0 * b * u * v + c * v * v);
+                        let h = if d == 0.0 {
+                            q
+                        } else {
+                            (1.0 - (1.0 - 2.0 * d * q).max(0.0).sqrt()) / d
+                        };
+                        let x = p + u * t1 + v * t2 + h * n;
+                        if kept(x) {
+                            worst = worst.min(sdf(x));
+                        }
+                    }
+                }
+                let on_round = p.x > 0.0 && p.y > -rho;
+                if worst < -0.1 * rad {
+                    deep[on_round as usize] += 1;
+                }
+            }
+        }
+        // Four samples: rounding splats 30 before, now 6 (and face splats 11 either way).
+        assert!(
+            deep[1] <= 12,
+            "splats hanging behind the surface (faces, rounding): {deep:?}"
         );
     }
 
