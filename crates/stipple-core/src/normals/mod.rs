@@ -2001,16 +2001,7 @@ fn beside_crease(
 ) -> bool {
     let p = positions[i];
     let m = Vec3::new(c[0], c[1], c[2]);
-    if m.dot(p) >= c[3] {
-        return false;
-    }
-    nb.of(i).iter().all(|&j| {
-        let (q, d) = (normals[j as usize], positions[j as usize] - p);
-        let (cn, h) = (q.dot(n), d.dot(n));
-        cn <= 0.0
-            || (cn >= CREASE_COS * q.length() && h * h <= IN_TANGENT_PLANE * d.length_squared())
-            || q.dot(m) >= CREASE_COS * q.length()
-    })
+    m.dot(p) < c[3] && on_faces(positions, normals, nb, i, n, Some(m))
 }
 
 /// The index [`cell_triangles`] gives the mirror of the point across its crease line.
@@ -2021,11 +2012,26 @@ const CREASE_MIRROR: u32 = u32::MAX - 1;
 /// (30°). Next to a crease, an apex or a tight bend the Voronoi cell in the tangent plane
 /// says nothing of the surface, and a grown splat would reach past the edge.
 fn smooth_around(positions: &[Vec3], normals: &[Vec3], nb: &Neighbours, i: usize, n: Vec3) -> bool {
+    on_faces(positions, normals, nb, i, n, None)
+}
+
+/// [`smooth_around`], where neighbours may also lie on the face whose normal is `across`
+/// (within [`CREASE_COS`] of it).
+fn on_faces(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    nb: &Neighbours,
+    i: usize,
+    n: Vec3,
+    across: Option<Vec3>,
+) -> bool {
     let p = positions[i];
     nb.of(i).iter().all(|&j| {
         let (m, d) = (normals[j as usize], positions[j as usize] - p);
         let (c, h) = (m.dot(n), d.dot(n));
-        c <= 0.0 || (c >= CREASE_COS * m.length() && h * h <= IN_TANGENT_PLANE * d.length_squared())
+        c <= 0.0
+            || (c >= CREASE_COS * m.length() && h * h <= IN_TANGENT_PLANE * d.length_squared())
+            || across.is_some_and(|a| m.dot(a) >= CREASE_COS * m.length())
     })
 }
 
