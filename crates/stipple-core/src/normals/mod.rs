@@ -2680,8 +2680,6 @@ fn shape_at(
         ..Default::default()
     };
     let mut boundary = false;
-    // Where the splat stops following its face short of a crease (`mismatch_plane`).
-    let mismatch = mismatch_plane(positions, normals, nb, i, (n, radii[i]), bend);
     // Whether the splat's own surface curves nowhere towards its normal (a saddle or a
     // concave patch crosses its neighbours' tangent planes, which must not cut it there).
     let convex = {
@@ -2689,6 +2687,8 @@ fn shape_at(
         let most = 0.5 * (a + c) + (0.25 * (a - c) * (a - c) + b * b).sqrt();
         most * radii[i] <= CONVEX_BEND
     };
+    // Where the splat stops following its face short of a crease (`mismatch_plane`).
+    let mismatch = mismatch_plane(positions, normals, nb, i, (n, radii[i], convex), bend);
     // The nearest crease plane, then the nearest one across another crease from it (a box
     // corner has two).
     let mut planes = [(f32::INFINITY, Vec3::ZERO, 0.0f32, Vec3::ZERO); 64];
@@ -2963,7 +2963,8 @@ fn nearest_in(halves: &[(glam::Vec2, f32)]) -> Option<f32> {
 /// place by more than this (cosine: 12°) are where the splat stops following the surface.
 pub const MISMATCH_COS: f32 = 0.978;
 
-/// Where point i's bent splat (unit normal `n`, radius `r`, bend `bend`) stops following
+/// Where point i's bent splat (unit normal `n`, radius `r`, bend `bend`, `convex` as
+/// [`shape_at`] finds it) stops following
 /// the surface short of a crease: the tangent plane of the neighbour whose normal differs
 /// most from what the splat's own quadric predicts at that neighbour (more than
 /// [`MISMATCH_COS`]), with i behind it (convex), as (distance of its trace from the point in
@@ -2996,15 +2997,11 @@ fn mismatch_plane(
     normals: &[Vec3],
     nb: &Neighbours,
     i: usize,
-    (n, r): (Vec3, f32),
+    (n, r, convex): (Vec3, f32, bool),
     [a, b, c]: [f32; 3],
 ) -> Option<(f32, Vec3, f32)> {
     let p = positions[i];
     let (t1, t2) = tangent_frame(n);
-    // Curving nowhere towards its normal (as `shape_at`'s `convex`): a saddle's or a wrong
-    // normal's bend says nothing of where the surface turns.
-    let most = 0.5 * (a + c) + (0.25 * (a - c) * (a - c) + b * b).sqrt();
-    let convex = most * r <= CONVEX_BEND;
     let mut best: Option<(f32, Vec3, f32)> = None;
     for &j in nb.of(i) {
         let Some(m) = normals[j as usize].try_normalize() else {
@@ -3025,7 +3022,8 @@ fn mismatch_plane(
             continue;
         }
         // Bending away towards j, and turned to j's normal within the radius: the cut
-        // across the splat there.
+        // across the splat there (only where convex: a saddle's or a wrong normal's bend
+        // says nothing of where the surface turns).
         let w = (d - n * d.dot(n)).normalize_or_zero();
         let (wu, wv) = (w.dot(t1), w.dot(t2));
         let bent = a * wu * wu + 2.0 * b * wu * wv + c * wv * wv;
