@@ -67,7 +67,9 @@ fn main() {
     for r in 0..repeat {
         let mut m = nm.clone();
         let t = Instant::now();
-        normals::orient(pts, &mut m, nb);
+        // The propagation as the estimation runs it for this cloud: without the test for
+        // a sheet's two sides where z is up (LAS, LAZ: `normals::orient_above`).
+        normals::orient_components(pts, &mut m, nb, !cloud.z_up);
         c = c.min(stage("orient", t));
         if r + 1 == repeat {
             nm = m;
