@@ -2,9 +2,9 @@
 //! (Hoppe et al. 1992), built by Kruskal's algorithm.
 //!
 //! The graph joins each point to its [`TREE_K`] nearest neighbours on the same layer
-//! ([`same_layer`]; or, whatever the normals' signs, [`one_layer`]), with edge weight 1 − |nᵢ·nⱼ| in 1024 levels (lower across a sharp
-//! crease where the points' places say clearly how the signs relate: `relation`).
-//! Edges are taken in order of
+//! ([`same_layer`]; or, whatever the normals' signs, [`one_layer`]), with edge weight
+//! 1 − |nᵢ·nⱼ| in 1024 levels (lower across a sharp crease where the points' places say
+//! clearly how the signs relate: `relation`). Edges are taken in order of
 //! weight (a counting sort over the levels), and each edge that joins two trees of the
 //! forest is a tree edge, as in Kruskal's algorithm. Orientation then propagates along the
 //! tree: every point takes the sign that agrees with its tree neighbours, smooth surface
