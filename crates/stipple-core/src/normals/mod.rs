@@ -2437,13 +2437,94 @@ fn share_boundaries(
     shaped: Vec<Shaped>,
 ) -> ShapesAndFactors {
     let rims: Vec<bool> = shaped.iter().map(|s| s.1).collect();
-    let shapes = if !rims.contains(&true) {
+    let mut shapes = if !rims.contains(&true) {
         shaped.iter().map(|s| s.0).collect()
     } else {
         lend_boundaries(positions, normals, radii, nb, &shaped, &rims)
     };
+    lend_creases(positions, normals, radii, nb, &shaped, &mut shapes);
     (shapes, shaped.iter().map(|s| s.2).collect())
 }
+
+/// Lends a crease's plane to a point beside it that has none: where the other face is
+/// sampled sparsely, a point a fraction of a spacing from the edge may have none of that
+/// face's points among its neighbours, and its splat reached past the edge uncut (a
+/// cylinder's side below the cap's rim, a box's face: splats standing out of the
+/// silhouette by up to a radius). Its neighbours on its own face nearer the edge have that
+/// face's plane as a clip plane (a plane at a sharp angle, [`CREASE_COS`], to the point's
+/// normal); where at least [`CREASE_LENDERS`] of them hold one that the point lies inside
+/// of and its splat reaches past, the point takes the median of those planes. Only into a
+/// splat's first slot: lent as a second plane as well (a corner), it cut holes into a
+/// hexagonal prism where tilted planes were lent (the half-density sweep 530 → 525 of 720).
+/// Random views of the four basic shapes (360 cases): 356 → 358 (a box and a cylinder
+/// without normals, IoU 0.989 / 0.989 → 0.994 / 0.993); the unseen sweeps the same case for
+/// case. Ten sparse cubes and cylinders (`splats_beside_a_sparsely_sampled_edge_stop_at_it`):
+/// splats reaching over a quarter of a spacing out of the solid 7 → 6 with the normals
+/// given, 54 → 44 without.
+fn lend_creases(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    radii: &[f32],
+    nb: &Neighbours,
+    shaped: &[Shaped],
+    shapes: &mut [SplatShape],
+) {
+    let lent: Vec<Option<[f32; 4]>> = (0..shaped.len())
+        .into_par_iter()
+        .map(|i| {
+            let (shape, own, factor) = shaped[i];
+            if own || shape.clip[0] != [0.0; 4] {
+                return None;
+            }
+            let (p, n) = (positions[i], normals[i].try_normalize()?);
+            let reach = radii[i] * factor;
+            let mut found: Vec<(f32, [f32; 4])> = Vec::new();
+            let mut lenders = 0;
+            for &j in nb.of(i) {
+                let j = j as usize;
+                let other = shaped[j].0;
+                if other.clip[0] == [0.0; 4] || shaped[j].1 || normals[j].dot(n) < CREASE_COS {
+                    continue;
+                }
+                let d = positions[j] - p;
+                if d.dot(n).abs() > 0.5 * d.length() {
+                    continue;
+                }
+                let before = found.len();
+                for (c, k) in other.clip.into_iter().zip(other.curve) {
+                    let m = Vec3::new(c[0], c[1], c[2]);
+                    if c == [0.0; 4] || k != [0.0; 2] || m.dot(n).abs() >= CREASE_COS {
+                        continue;
+                    }
+                    let across = (m - m.dot(n) * n).length();
+                    let inside = c[3] - m.dot(p);
+                    if inside > 0.0 && inside < reach * across {
+                        found.push((inside / across, c));
+                    }
+                }
+                lenders += (found.len() > before) as usize;
+            }
+            if lenders < CREASE_LENDERS {
+                return None;
+            }
+            let mid = found.len() / 2;
+            Some(
+                found
+                    .select_nth_unstable_by(mid, |a, b| a.0.total_cmp(&b.0))
+                    .1
+                     .1,
+            )
+        })
+        .collect();
+    for (s, c) in shapes.iter_mut().zip(lent) {
+        if let Some(c) = c {
+            s.clip[0] = c;
+        }
+    }
+}
+
+/// How many neighbours must hold a crease's plane before [`lend_creases`] lends it.
+const CREASE_LENDERS: usize = 2;
 
 /// The lending of [`share_boundaries`].
 fn lend_boundaries(
@@ -4094,7 +4175,8 @@ type FaceScratch = (Vec<(u8, f32, u32)>, Vec<f32>, Vec<u32>);
 /// those points took the other face (41% of those within a quarter of the 16th-neighbour
 /// distance on a random cube). Here, for each point not `smooth` (see [`robust_refit`]),
 /// the neighbours are grouped into faces by their fitted normals ([`SAME_FACE`]); a face's
-/// offset from the point is its distance from the face's quadric through the members
+/// offset from the point is its distance from the plane through the members where they
+/// lie on one ([`face_plane_offset`]), else from the face's quadric through them
 /// ([`face_quadric_offset`]), or where that does not fit them, the median over its members
 /// of the point's distance from the member's tangent plane (smooth members count twice:
 /// their normals are surely the face's), and the point takes the face with the smallest
@@ -4214,13 +4296,13 @@ fn nearest_faces(
                     // a few members that took the wrong face do not move it).
                     let mut best = (f32::INFINITY, 0);
                     for f in (0..nf).filter(|&f| big(f)) {
-                        let fit = if concave {
-                            ids.clear();
-                            ids.extend(members.iter().filter(|m| m.0 as usize == f).map(|m| m.2));
-                            face_quadric_offset(positions, p, sum[f], ids)
-                        } else {
-                            None
-                        };
+                        ids.clear();
+                        ids.extend(members.iter().filter(|m| m.0 as usize == f).map(|m| m.2));
+                        let fit = face_plane_offset(positions, p, sum[f], ids).or_else(|| {
+                            concave
+                                .then(|| face_quadric_offset(positions, p, sum[f], ids))
+                                .flatten()
+                        });
                         let o = match fit {
                             Some(o) => o,
                             None => {
@@ -4352,6 +4434,76 @@ fn height_offset<const U: usize>(
     let (c, worst) = fit_residual(ids, row, false)?;
     (worst <= limit).then_some(c[0].abs())
 }
+
+/// How far the point `p` lies off the least-squares plane through a face's members `ids`
+/// where they lie on one (each within [`FACE_FLAT`] σ of it, σ a quarter of their mean
+/// distance, and spread over it both ways, [`FACE_FLAT_SPREAD`]), fitted as a height field
+/// over the plane of the face's normal sum `m`; None elsewhere, or with fewer than
+/// [`FACE_ROUND_MEMBERS`] members. On a flat face this is the point's exact distance, where
+/// the median of the members' tangent planes is off by their tilts: members of a face near
+/// a crease whose normals the re-fit left a few degrees toward the other face (they count
+/// as smooth) put their planes 0.02 off a point 0.018 from the edge, and it took the other
+/// face (a sparse box's random view: its whole row of splats along the edge gone, the
+/// surface behind showing through on 2.2% of the pixels).
+fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
+    if ids.len() < FACE_ROUND_MEMBERS {
+        return None;
+    }
+    let m = m.try_normalize()?;
+    let (t1, t2) = tangent_frame(m);
+    let (mut scale, mut mean) = (0.0f32, 0.0f32);
+    for &j in ids {
+        let len = (positions[j as usize] - p).length();
+        scale = scale.max(len);
+        mean += len;
+    }
+    if !(scale > 0.0 && scale.is_finite()) {
+        return None;
+    }
+    let mean = (mean / ids.len() as f32 / scale) as f64;
+    // The members must spread both ways over the plane: a row of them (a seam's, which
+    // may run along a plane curve such as a circle) fits a plane through any point.
+    let (mut su, mut sv, mut suu, mut suv, mut svv) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
+    for &j in ids {
+        let d = (positions[j as usize] - p) / scale;
+        let (u, v) = (d.dot(t1) as f64, d.dot(t2) as f64);
+        su += u;
+        sv += v;
+        suu += u * u;
+        suv += u * v;
+        svv += v * v;
+    }
+    let k = ids.len() as f64;
+    let (cu, cv) = (su / k, sv / k);
+    let (a, b, c) = (suu / k - cu * cu, suv / k - cu * cv, svv / k - cv * cv);
+    let least = 0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    if least < (FACE_FLAT_SPREAD * mean).powi(2) {
+        return None;
+    }
+    let limit = FACE_FLAT * 0.25 * mean;
+    let (c, worst) = fit_residual(
+        ids,
+        |j| {
+            let d = (positions[j as usize] - p) / scale;
+            ([1.0, d.dot(t1) as f64, d.dot(t2) as f64], d.dot(m) as f64)
+        },
+        false,
+    )?;
+    (worst <= limit).then_some(c[0].abs() as f32 * scale)
+}
+
+/// How far (in σ) a member may lie off the plane of [`face_plane_offset`]: exact samples of
+/// a flat face fit to rounding, while a sphere's members rise d²/2R off their plane (0.019
+/// for members 0.15 away on radius 0.6, about ¾ σ). Ten unseen shapes at half density,
+/// seeds 74–81 (720 cases; 522 passed before the plane): 527 at 0.25 σ (the quadric's
+/// [`FACE_FIT`]), 528 at 0.05 σ, 530 with the spread test as well (at 0.25 σ the concave
+/// seam of two spheres and a thin torus lost cases).
+const FACE_FLAT: f64 = 0.05;
+/// The least standard deviation of the members across the plane's narrowest direction, as
+/// a share of their mean distance, for [`face_plane_offset`]: a row of members along a seam
+/// (which may run along a plane curve: two spheres meet in a circle) fits a plane through
+/// any point. Members filling half a disc spread about 0.4 of their mean distance.
+const FACE_FLAT_SPREAD: f64 = 0.15;
 
 /// The fewest members [`face_quadric_offset`] fits a face to (a quadric from eight, below
 /// that a height field of one curvature).
@@ -6875,6 +7027,19 @@ mod boundary_tests {
         i: usize,
         h: f32,
     ) -> f32 {
+        rise_out_of(p, n, radii, sh, i, &|x: Vec3| x.abs().max_element() - h)
+    }
+
+    /// How far the part of splat i that its clip planes keep reaches outside a solid
+    /// (`outside`: a signed distance, or any function positive outside and 0 on its surface).
+    fn rise_out_of(
+        p: &[Vec3],
+        n: &[Vec3],
+        radii: &[f32],
+        sh: &[SplatShape],
+        i: usize,
+        outside: &dyn Fn(Vec3) -> f32,
+    ) -> f32 {
         let (t1, t2) = tangent_frame(n[i]);
         let [a, b, c] = sh[i].bend;
         let mut worst = f32::NEG_INFINITY;
@@ -6891,7 +7056,7 @@ mod boundary_tests {
                     .iter()
                     .all(|c| *c == [0.0; 4] || Vec3::new(c[0], c[1], c[2]).dot(x) <= c[3]);
                 if kept {
-                    worst = worst.max(x.abs().max_element() - h);
+                    worst = worst.max(outside(x));
                 }
             }
         }
@@ -6963,6 +7128,56 @@ mod boundary_tests {
             eprintln!("{what}: {cut} of {} splats cut", p.len());
             assert!(cut == 0, "{what}: {cut} splats cut");
         }
+    }
+
+    /// A sparse sample leaves a point a fraction of a spacing from an edge with none of the
+    /// other face's points among its neighbours, and nothing cut its splat where it
+    /// reached past the edge (a cylinder's side below the cap's rim: a splat standing 0.08
+    /// out of the silhouette, 6 px). Its neighbours on its face nearer the edge hold the
+    /// other face's plane, and lend it (`lend_creases`). Sparse cubes and cylinders (points
+    /// 0.09–0.12 apart), with their normals and without: splats reaching more than a
+    /// quarter of a spacing out of the solid.
+    #[test]
+    fn splats_beside_a_sparsely_sampled_edge_stop_at_it() {
+        let (h, rad) = (0.8f32, 0.7f32);
+        let in_box = |x: Vec3| x.abs().max_element() - h;
+        let in_cylinder = |x: Vec3| (glam::Vec2::new(x.x, x.z).length() - rad).max(x.y.abs() - 0.6);
+        let mut out = [0usize; 2];
+        let mut total = 0;
+        for seed in 0..10 {
+            for (k, (p, truth, solid)) in [
+                {
+                    let (p, t, _) = cube(1300, h, 40 + seed);
+                    (p, t, &in_box as &dyn Fn(Vec3) -> f32)
+                },
+                {
+                    let (p, t, _) = cylinder(700, 50 + seed);
+                    (p, t, &in_cylinder as &dyn Fn(Vec3) -> f32)
+                },
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                let spacing = (p.len() as f32).recip().sqrt() * if k == 0 { 3.92 } else { 2.89 };
+                total += p.len();
+                for (m, given) in [true, false].into_iter().enumerate() {
+                    let e = estimate(&p, given.then_some(&truth[..]), 16, 1.0).unwrap();
+                    out[m] += (0..p.len())
+                        .filter(|&i| {
+                            rise_out_of(&p, &e.normals, &e.radii, &e.shapes, i, solid)
+                                > 0.25 * spacing
+                        })
+                        .count();
+                }
+            }
+        }
+        eprintln!(
+            "splats a quarter of a spacing out of the solid: normals given {}, estimated {} \
+             (of {total})",
+            out[0], out[1]
+        );
+        // Before: 7 and 54.
+        assert!(out[0] <= 6 && out[1] <= 48, "{out:?}");
     }
 
     /// Points on a box's corner (rounded to a hair) whose normals lie between the three
@@ -7047,7 +7262,9 @@ mod boundary_tests {
     /// take the other face (the cube: 41% within ¼ of the k-th neighbour distance, 6% within
     /// ½), and PCA normals a little farther in were tilted by the other face's points. Each
     /// point must now take its own face (`nearest_faces`), and the refit and the quadric see
-    /// that face alone.
+    /// that face alone. With the plane through a flat face's members (`face_plane_offset`)
+    /// instead of the median of their tangent planes, within ¼ of the k-th neighbour
+    /// distance: the cube 278 → 296 of 304 right, the cylinder 126 → 133 of 144.
     #[test]
     fn points_at_sharp_edges_take_their_own_faces_normal() {
         for (what, (p, truth, edge)) in [
@@ -7072,7 +7289,7 @@ mod boundary_tests {
             let mean = far_sum / far as f32;
             eprintln!("{what}: next to an edge {near_ok} of {near} right; farther {far_ok} of {far}, mean {mean:.2}°");
             assert!(
-                near_ok as f32 >= 0.85 * near as f32,
+                near_ok as f32 >= 0.92 * near as f32,
                 "{what}: {near_ok} of {near}"
             );
             assert!(
@@ -7088,7 +7305,8 @@ mod boundary_tests {
     /// gap of the random sample) takes that face once those members lie on it
     /// (`nearest_faces`: its small faces and later rounds). Over six cubes of 1 000 points,
     /// the points a tenth of a spacing or more from an edge with a normal 30° off were
-    /// 58 before and are 39 now.
+    /// 58 before, 37 after that, and 27 with the plane through a flat face's members
+    /// (`face_plane_offset`).
     #[test]
     fn sparse_corners_take_their_own_faces_normal() {
         let n = 1000;
@@ -7102,7 +7320,7 @@ mod boundary_tests {
                 .count();
         }
         eprintln!("{off} points a tenth of a spacing or more from an edge 30° off");
-        assert!(off <= 48, "{off}");
+        assert!(off <= 30, "{off}");
     }
 
     /// Two overlapping spheres sampled sparsely (points about 0.1 apart on spheres of radius
