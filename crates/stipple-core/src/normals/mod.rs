@@ -2508,12 +2508,10 @@ fn lend_creases(
                 return None;
             }
             let mid = found.len() / 2;
-            Some(
-                found
-                    .select_nth_unstable_by(mid, |a, b| a.0.total_cmp(&b.0))
-                    .1
-                     .1,
-            )
+            let (_, median) = *found
+                .select_nth_unstable_by(mid, |a, b| a.0.total_cmp(&b.0))
+                .1;
+            Some(median)
         })
         .collect();
     for (s, c) in shapes.iter_mut().zip(lent) {
@@ -4391,21 +4389,8 @@ const FACE_FIT: f64 = 0.25;
 /// whose fitted normal took this face wrongly would swing the fit; the median is not moved
 /// by one.
 fn face_quadric_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
-    if ids.len() < FACE_ROUND_MEMBERS {
-        return None;
-    }
-    let m = m.try_normalize()?;
-    let (t1, t2) = tangent_frame(m);
-    let (mut scale, mut mean) = (0.0f32, 0.0f32);
-    for &j in ids {
-        let len = (positions[j as usize] - p).length();
-        scale = scale.max(len);
-        mean += len;
-    }
-    if !(scale > 0.0 && scale.is_finite()) {
-        return None;
-    }
-    let limit = FACE_FIT * 0.25 * (mean / ids.len() as f32 / scale) as f64;
+    let (m, t1, t2, scale, mean) = face_frame(positions, p, m, ids)?;
+    let limit = FACE_FIT * 0.25 * mean;
     // In units of the largest distance, for conditioning.
     let uvh = |j: u32| {
         let d = (positions[j as usize] - p) / scale;
@@ -4438,17 +4423,16 @@ fn height_offset<const U: usize>(
     (worst <= limit).then_some(c[0].abs())
 }
 
-/// How far the point `p` lies off the least-squares plane through a face's members `ids`
-/// where they lie on one (each within [`FACE_FLAT`] σ of it, σ a quarter of their mean
-/// distance, and spread over it both ways, [`FACE_FLAT_SPREAD`]), fitted as a height field
-/// over the plane of the face's normal sum `m`; None elsewhere, or with fewer than
-/// [`FACE_ROUND_MEMBERS`] members. On a flat face this is the point's exact distance, where
-/// the median of the members' tangent planes is off by their tilts: members of a face near
-/// a crease whose normals the re-fit left a few degrees toward the other face (they count
-/// as smooth) put their planes 0.02 off a point 0.018 from the edge, and it took the other
-/// face (a sparse box's random view: its whole row of splats along the edge gone, the
-/// surface behind showing through on 2.2% of the pixels).
-fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
+/// The frame of a face's members `ids` around point `p` ([`face_quadric_offset`],
+/// [`face_plane_offset`]): the unit normal sum `m` and its tangents, the members' largest
+/// distance from `p` (the unit of the fits, for conditioning) and their mean distance in
+/// that unit. None with fewer than [`FACE_ROUND_MEMBERS`] members or all of them at `p`.
+fn face_frame(
+    positions: &[Vec3],
+    p: Vec3,
+    m: Vec3,
+    ids: &[u32],
+) -> Option<(Vec3, Vec3, Vec3, f32, f64)> {
     if ids.len() < FACE_ROUND_MEMBERS {
         return None;
     }
@@ -4463,9 +4447,24 @@ fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Optio
     if !(scale > 0.0 && scale.is_finite()) {
         return None;
     }
-    let mean = (mean / ids.len() as f32 / scale) as f64;
-    // The members must spread both ways over the plane: a row of them (a seam's, which
-    // may run along a plane curve such as a circle) fits a plane through any point.
+    Some((m, t1, t2, scale, (mean / ids.len() as f32 / scale) as f64))
+}
+
+/// How far the point `p` lies off the least-squares plane through a face's members `ids`
+/// where they lie on one (each within [`FACE_FLAT`] σ of it, σ a quarter of their mean
+/// distance, and spread across it as well as along it, [`FACE_FLAT_SPREAD`]), fitted as a height field
+/// over the plane of the face's normal sum `m`; None elsewhere, or with fewer than
+/// [`FACE_ROUND_MEMBERS`] members. On a flat face this is the point's exact distance, where
+/// the median of the members' tangent planes is off by their tilts: members of a face near
+/// a crease whose normals the re-fit left a few degrees toward the other face (they count
+/// as smooth) put their planes 0.02 off a point 0.018 from the edge, and it took the other
+/// face (a sparse box's random view: its whole row of splats along the edge gone, the
+/// surface behind showing through on 2.2% of the pixels).
+fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Option<f32> {
+    let (m, t1, t2, scale, mean) = face_frame(positions, p, m, ids)?;
+    // The members must spread across the plane as well as along it: a row of them (a
+    // seam's, which may run along a plane curve such as a circle) fits a plane through any
+    // point.
     let (mut su, mut sv, mut suu, mut suv, mut svv) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
     for &j in ids {
         let d = (positions[j as usize] - p) / scale;
@@ -4479,8 +4478,8 @@ fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Optio
     let k = ids.len() as f64;
     let (cu, cv) = (su / k, sv / k);
     let (a, b, c) = (suu / k - cu * cu, suv / k - cu * cv, svv / k - cv * cv);
-    let least = 0.5 * (a + c) - (0.25 * (a - c) * (a - c) + b * b).sqrt();
-    let most = 0.5 * (a + c) + (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (least, most) = (0.5 * (a + c) - root, 0.5 * (a + c) + root);
     if least < FACE_FLAT_SPREAD * FACE_FLAT_SPREAD * most {
         return None;
     }
