@@ -1151,11 +1151,15 @@ fn random_views_of_basic_shapes() {
 /// flat); and a box and a cylinder (views 21 and 20: IoU 0.988, and 0.990, 0.989 with the
 /// first fix alone) where a point 0.05 from the edge had none of the other face's points
 /// among its neighbours, and its splat stood past the edge uncut (its neighbours nearer the
-/// edge now lend it that face's plane).
+/// edge now lend it that face's plane); and a box (view 16, 5.5 px apart: IoU 0.9896) whose
+/// points by a corner had neighbours on their face with normals blended of two or three
+/// faces, none of them the face's plane (planes through a point and two neighbours are now
+/// candidates of the re-fit, `stipple_core::normals`).
 #[test]
 fn random_views_with_sparse_edges_without_normals() {
     for (name, sdf, n, lim, dist, v, si) in [
         ("box", box_sdf as Sdf, 3600, 0.85, 3.4, 11, 2),
+        ("box", box_sdf, 3600, 0.85, 3.4, 16, 2),
         ("box", box_sdf, 3600, 0.85, 3.4, 21, 2),
         ("cylinder", cylinder_sdf, 1800, 0.8, 3.0, 17, 3),
         ("cylinder", cylinder_sdf, 1800, 0.8, 3.0, 20, 3),
