@@ -4073,7 +4073,7 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
     const TRIPLE_SUPPORT: usize = 5;
     /// How far the supporters must spread across the plane against along it (as
     /// [`FACE_FLAT_SPREAD`]).
-    const TRIPLE_SPREAD: f32 = 0.25;
+    const TRIPLE_SPREAD: f64 = 0.25;
     let start: Vec<Vec3> = normals.to_vec();
     normals
         .par_iter_mut()
@@ -4212,21 +4212,12 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
                     // Nor where the supporters lie along one line through the point (a
                     // scan's row of samples: any plane through the row holds it).
                     let (t1, t2) = tangent_frame(c);
-                    let (mut su, mut sv, mut suu, mut suv, mut svv) = (0.0f32, 0.0, 0.0, 0.0, 0.0);
-                    for t in 0..m {
-                        let d = Vec3::new(xs[t], ys[t], zs[t]);
-                        if d.dot(c).abs() <= on {
-                            let (u, v) = (d.dot(t1), d.dot(t2));
-                            (su, sv) = (su + u, sv + v);
-                            (suu, suv, svv) = (suu + u * u, suv + u * v, svv + v * v);
-                        }
-                    }
-                    let k = support as f32 + 1.0;
-                    let (cu, cv) = (su / k, sv / k);
-                    let (a, b, cc) = (suu / k - cu * cu, suv / k - cu * cv, svv / k - cv * cv);
-                    let root = (0.25 * (a - cc) * (a - cc) + b * b).sqrt();
-                    let (least, most) = (0.5 * (a + cc) - root, 0.5 * (a + cc) + root);
-                    if least < TRIPLE_SPREAD * TRIPLE_SPREAD * most {
+                    let across = (0..m)
+                        .map(|t| Vec3::new(xs[t], ys[t], zs[t]))
+                        .filter(|d| d.dot(c).abs() <= on)
+                        .chain([Vec3::ZERO])
+                        .map(|d| (d.dot(t1) as f64, d.dot(t2) as f64));
+                    if !spread_across(across, TRIPLE_SPREAD) {
                         continue;
                     }
                     let c = c.as_dvec3();
@@ -4579,22 +4570,11 @@ fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Optio
     // The members must spread across the plane as well as along it: a row of them (a
     // seam's, which may run along a plane curve such as a circle) fits a plane through any
     // point.
-    let (mut su, mut sv, mut suu, mut suv, mut svv) = (0.0f64, 0.0, 0.0, 0.0, 0.0);
-    for &j in ids {
+    let across = ids.iter().map(|&j| {
         let d = (positions[j as usize] - p) / scale;
-        let (u, v) = (d.dot(t1) as f64, d.dot(t2) as f64);
-        su += u;
-        sv += v;
-        suu += u * u;
-        suv += u * v;
-        svv += v * v;
-    }
-    let k = ids.len() as f64;
-    let (cu, cv) = (su / k, sv / k);
-    let (a, b, c) = (suu / k - cu * cu, suv / k - cu * cv, svv / k - cv * cv);
-    let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
-    let (least, most) = (0.5 * (a + c) - root, 0.5 * (a + c) + root);
-    if least < FACE_FLAT_SPREAD * FACE_FLAT_SPREAD * most {
+        (d.dot(t1) as f64, d.dot(t2) as f64)
+    });
+    if !spread_across(across, FACE_FLAT_SPREAD) {
         return None;
     }
     let limit = FACE_FLAT * 0.25 * mean;
@@ -4607,6 +4587,26 @@ fn face_plane_offset(positions: &[Vec3], p: Vec3, m: Vec3, ids: &[u32]) -> Optio
         false,
     )?;
     (worst <= limit).then_some(c[0].abs() as f32 * scale)
+}
+
+/// Whether the points `uv` of a plane spread across it as well as along it: the square root
+/// of the least over the largest eigenvalue of their covariance is at least `ratio`
+/// ([`face_plane_offset`], [`robust_refit`]'s planes from triples).
+fn spread_across(uv: impl Iterator<Item = (f64, f64)>, ratio: f64) -> bool {
+    let (mut k, mut su, mut sv, mut suu, mut suv, mut svv) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+    for (u, v) in uv {
+        k += 1.0;
+        (su, sv) = (su + u, sv + v);
+        (suu, suv, svv) = (suu + u * u, suv + u * v, svv + v * v);
+    }
+    if k == 0.0 {
+        return false;
+    }
+    let (cu, cv) = (su / k, sv / k);
+    let (a, b, c) = (suu / k - cu * cu, suv / k - cu * cv, svv / k - cv * cv);
+    let root = (0.25 * (a - c) * (a - c) + b * b).sqrt();
+    let (least, most) = (0.5 * (a + c) - root, 0.5 * (a + c) + root);
+    least >= ratio * ratio * most
 }
 
 /// How far (in σ) a member may lie off the plane of [`face_plane_offset`]: exact samples of
