@@ -4056,7 +4056,7 @@ fn robust_refit(positions: &[Vec3], normals: &mut [Vec3], nb: &Neighbours) -> Ve
     /// 535 / 159 / 360 with eight. Without the support test: 541 / 153 / 360 with eight,
     /// 537 with six or twelve and 533 with sixteen at half density (a cone's apex and two
     /// spheres' seam lost cases to planes through a few members of a curved face), and
-    /// Autzen's robust stage took 6 s more (17.7 → 23.6 s; with it, 1–1.5 s more).
+    /// Autzen's robust stage took 6 s more (17.7 → 23.6 s; with it, 1.5–2 s more).
     const TRIPLE_NEAR: usize = 8;
     /// Such a plane is a candidate where its two neighbours lie at least this far (the sine
     /// of the angle between them, seen from the point) from a line through the point: nearly
